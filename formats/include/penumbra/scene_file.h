@@ -1,0 +1,39 @@
+// Scene description files (JSON) and command-line light/camera specs.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "penumbra/mesh.h"
+
+namespace penumbra {
+
+struct SceneDescription {
+    std::string model;                 // model path, relative to the JSON file; may be empty
+    std::optional<Camera> camera;
+    std::vector<Light> lights;
+};
+
+// Reads a JSON scene description:
+// { "model": "city.glb",
+//   "camera": {"position": [x,y,z], "target": [x,y,z], "up": [0,1,0],
+//              "projection": "perspective"|"orthographic", "fov": 45, "ortho_height": 10,
+//              "near": 0.1, "far": 1000},
+//   "lights": [{"type": "directional"|"point"|"spot"|"rectangle"|"disk"|"sphere",
+//               "position": [..], "direction": [..], "up": [..], "color": [r,g,b],
+//               "intensity": 1, "range": 0, "inner_cone": 20, "outer_cone": 30,
+//               "width": 1, "height": 1, "radius": 0.5}] }
+// Every key is optional. Throws Error("<path>: <problem>") on bad JSON, unknown
+// keys or types, or wrong value shapes.
+SceneDescription loadSceneDescription(const std::string& path);
+
+// Parses a light from "TYPE key=value ...", e.g.
+// "spot position=0,5,0 direction=0,-1,0 outer_cone=30 intensity=50".
+// Keys as in the JSON file; vectors comma-separated. Throws Error naming the spec.
+Light parseLightSpec(const std::string& spec);
+
+// Parses "x,y,z". Throws Error naming what.
+glm::vec3 parseVec3(const std::string& text, const std::string& what);
+
+} // namespace penumbra

@@ -1,0 +1,283 @@
+// Format dispatch, memory-mapped input, atomic (temp file + rename) output and
+// the checks every importer's result passes through.
+#include "penumbra/io.h"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "io_internal.h"
+
+namespace penumbra {
+namespace detail {
+
+MappedFile::MappedFile(const std::string& path)
+{
+    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+        int err = errno;
+        if (err == ENOENT)
+            fail(path, "file not found");
+        fail(path, std::string("cannot open: ") + std::strerror(err));
+    }
+    struct stat st {};
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        ::close(fd);
+        fail(path, "not a regular file");
+    }
+    size_ = size_t(st.st_size);
+    if (size_ == 0) {
+        ::close(fd);
+        fail(path, "empty file");
+    }
+    void* mapped = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+    int err = errno;
+    ::close(fd);
+    if (mapped == MAP_FAILED)
+        fail(path, std::string("cannot map file: ") + std::strerror(err));
+    data_ = static_cast<const uint8_t*>(mapped);
+}
+
+MappedFile::~MappedFile()
+{
+    if (data_)
+        ::munmap(const_cast<uint8_t*>(data_), size_);
+}
+
+AtomicFileWriter::AtomicFileWriter(const std::string& path)
+    : path_(path), tempPath_(path + ".tmp-" + std::to_string(::getpid())), buffer_(kBufferSize)
+{
+    fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd_ < 0)
+        fail(path_, std::string("cannot create '") + tempPath_ + "': " + std::strerror(errno));
+}
+
+AtomicFileWriter::~AtomicFileWriter()
+{
+    if (fd_ >= 0)
+        ::close(fd_);
+    if (!committed_)
+        ::unlink(tempPath_.c_str());
+}
+
+void AtomicFileWriter::flush()
+{
+    size_t done = 0;
+    while (done < used_) {
+        ssize_t n = ::write(fd_, buffer_.data() + done, used_ - done);
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0)
+            fail(path_, std::string("write failed: ") + std::strerror(errno));
+        done += size_t(n);
+    }
+    used_ = 0;
+}
+
+void AtomicFileWriter::write(const void* data, size_t size)
+{
+    const char* bytes = static_cast<const char*>(data);
+    if (used_ + size <= buffer_.size()) {
+        std::memcpy(buffer_.data() + used_, bytes, size);
+        used_ += size;
+        return;
+    }
+    flush();
+    if (size < buffer_.size()) {
+        std::memcpy(buffer_.data(), bytes, size);
+        used_ = size;
+        return;
+    }
+    // Large block: write straight from the caller's memory.
+    size_t done = 0;
+    while (done < size) {
+        ssize_t n = ::write(fd_, bytes + done, std::min<size_t>(size - done, size_t(1) << 30));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0)
+            fail(path_, std::string("write failed: ") + std::strerror(errno));
+        done += size_t(n);
+    }
+}
+
+void AtomicFileWriter::commit()
+{
+    flush();
+    int fd = fd_;
+    fd_ = -1;
+    if (::close(fd) != 0)
+        fail(path_, std::string("write failed: ") + std::strerror(errno));
+    if (std::rename(tempPath_.c_str(), path_.c_str()) != 0)
+        fail(path_, std::string("cannot rename temporary file: ") + std::strerror(errno));
+    committed_ = true;
+}
+
+std::string quoteToken(std::string_view token)
+{
+    std::string out = "'";
+    for (size_t i = 0; i < token.size() && i < 40; ++i) {
+        unsigned char c = static_cast<unsigned char>(token[i]);
+        out += (c >= 32 && c < 127) ? char(c) : '?';
+    }
+    if (token.size() > 40)
+        out += "...";
+    return out + "'";
+}
+
+void validateMesh(const std::string& path, const Mesh& mesh)
+{
+    if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0)
+        fail(path, "internal error: ragged position or index array");
+    if (mesh.vertexCount() > std::numeric_limits<uint32_t>::max())
+        fail(path, "too many vertices (" + std::to_string(mesh.vertexCount()) + ", limit 4294967295)");
+    const float* p = mesh.positions.data();
+    const size_t floatCount = mesh.positions.size();
+    for (size_t i = 0; i < floatCount; ++i) {
+        if (!std::isfinite(p[i])) {
+            size_t v = i / 3;
+            char text[160];
+            std::snprintf(text, sizeof(text), "vertex %zu has a non-finite position (%g, %g, %g)", v,
+                          double(p[v * 3]), double(p[v * 3 + 1]), double(p[v * 3 + 2]));
+            fail(path, text);
+        }
+    }
+    const uint32_t vertexCount = uint32_t(mesh.vertexCount());
+    const uint32_t* idx = mesh.indices.data();
+    const size_t indexCount = mesh.indices.size();
+    uint32_t maxIndex = 0;
+    for (size_t i = 0; i < indexCount; ++i)
+        maxIndex = std::max(maxIndex, idx[i]);
+    if (indexCount > 0 && maxIndex >= vertexCount) {
+        for (size_t i = 0; i < indexCount; ++i)
+            if (idx[i] >= vertexCount)
+                fail(path, "triangle " + std::to_string(i / 3) + " references vertex " + std::to_string(idx[i]) +
+                               " but there are " + std::to_string(vertexCount) + " vertices");
+    }
+}
+
+void weldTriangles(const std::vector<float>& corners, Mesh& mesh)
+{
+    const size_t cornerCount = corners.size() / 3;
+    size_t tableSize = 16;
+    while (tableSize < cornerCount * 2)
+        tableSize <<= 1;
+    std::vector<uint32_t> table(tableSize, UINT32_MAX);
+    mesh.positions.clear();
+    mesh.positions.reserve(corners.size());
+    mesh.indices.resize(cornerCount);
+    auto key = [](float f) {
+        uint32_t bits;
+        std::memcpy(&bits, &f, 4);
+        return bits == 0x80000000u ? 0u : bits;
+    };
+    for (size_t c = 0; c < cornerCount; ++c) {
+        const float* p = &corners[c * 3];
+        uint32_t kx = key(p[0]), ky = key(p[1]), kz = key(p[2]);
+        uint64_t h = (uint64_t(kx) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(ky) * 0xC2B2AE3D27D4EB4Full) ^
+                     (uint64_t(kz) * 0x165667B19E3779F9ull);
+        h ^= h >> 29;
+        size_t slot = size_t(h) & (tableSize - 1);
+        for (;;) {
+            uint32_t v = table[slot];
+            if (v == UINT32_MAX) {
+                v = uint32_t(mesh.positions.size() / 3);
+                table[slot] = v;
+                mesh.positions.insert(mesh.positions.end(), p, p + 3);
+                mesh.indices[c] = v;
+                break;
+            }
+            const float* q = &mesh.positions[size_t(v) * 3];
+            if (key(q[0]) == kx && key(q[1]) == ky && key(q[2]) == kz) {
+                mesh.indices[c] = v;
+                break;
+            }
+            slot = (slot + 1) & (tableSize - 1);
+        }
+    }
+    mesh.positions.shrink_to_fit();
+}
+
+} // namespace detail
+
+namespace {
+
+std::string lowerExtension(const std::string& path)
+{
+    size_t slash = path.find_last_of('/');
+    size_t dot = path.find_last_of('.');
+    if (dot == std::string::npos || (slash != std::string::npos && dot < slash))
+        return {};
+    std::string ext = path.substr(dot + 1);
+    for (char& c : ext)
+        c = char(std::tolower(static_cast<unsigned char>(c)));
+    return ext;
+}
+
+} // namespace
+
+ModelFormat formatFromPath(const std::string& path)
+{
+    std::string ext = lowerExtension(path);
+    if (ext == "obj")
+        return ModelFormat::Obj;
+    if (ext == "ply")
+        return ModelFormat::Ply;
+    if (ext == "stl")
+        return ModelFormat::Stl;
+    if (ext == "gltf")
+        return ModelFormat::Gltf;
+    if (ext == "glb")
+        return ModelFormat::Glb;
+    if (ext == "drc")
+        return ModelFormat::Draco;
+    fail(path, ext.empty() ? "unknown model format (no file extension; expected .obj, .ply, .stl, .gltf, .glb or .drc)"
+                           : "unknown model format '." + ext + "' (expected .obj, .ply, .stl, .gltf, .glb or .drc)");
+}
+
+Scene importScene(const std::string& path)
+{
+    ModelFormat format = formatFromPath(path);
+    detail::MappedFile file(path);
+    Scene scene;
+    switch (format) {
+    case ModelFormat::Obj: scene = detail::importObj(path, file); break;
+    case ModelFormat::Ply: scene = detail::importPly(path, file); break;
+    case ModelFormat::Stl: scene = detail::importStl(path, file); break;
+    case ModelFormat::Gltf: scene = detail::importGltf(path, file, false); break;
+    case ModelFormat::Glb: scene = detail::importGltf(path, file, true); break;
+    case ModelFormat::Draco: scene = detail::importDraco(path, file); break;
+    }
+    if (scene.mesh.triangleCount() == 0)
+        fail(path, "no triangles");
+    detail::validateMesh(path, scene.mesh);
+    return scene;
+}
+
+void exportScene(const Scene& scene, const std::string& path, const ExportOptions& options)
+{
+    ModelFormat format = formatFromPath(path);
+    if (scene.mesh.triangleCount() == 0)
+        fail(path, "nothing to export: the mesh has no triangles");
+    detail::validateMesh(path, scene.mesh);
+    if (options.dracoPositionBits < 1 || options.dracoPositionBits > 30)
+        fail(path, "Draco position quantization must be 1..30 bits, not " + std::to_string(options.dracoPositionBits));
+    detail::AtomicFileWriter out(path);
+    switch (format) {
+    case ModelFormat::Obj: detail::exportObj(scene, out); break;
+    case ModelFormat::Ply: detail::exportPly(scene, out, options.binary); break;
+    case ModelFormat::Stl: detail::exportStl(scene, out, options.binary); break;
+    case ModelFormat::Gltf: detail::exportGltf(scene, path, out, false, options); break;
+    case ModelFormat::Glb: detail::exportGltf(scene, path, out, true, options); break;
+    case ModelFormat::Draco: detail::exportDraco(scene, path, out, options); break;
+    }
+    out.commit();
+}
+
+} // namespace penumbra

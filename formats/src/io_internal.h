@@ -1,0 +1,207 @@
+// Shared helpers for the model importers and exporters in formats/src (private header).
+#pragma once
+
+#include <charconv>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "penumbra/error.h"
+#include "penumbra/io.h"
+#include "penumbra/mesh.h"
+
+namespace penumbra::detail {
+
+// Read-only view of a whole file, memory-mapped. Throws Error("<path>: file not
+// found" / "empty file" / "not a regular file" / "cannot open: ...").
+class MappedFile {
+public:
+    explicit MappedFile(const std::string& path);
+    ~MappedFile();
+    MappedFile(const MappedFile&) = delete;
+    MappedFile& operator=(const MappedFile&) = delete;
+
+    const uint8_t* data() const { return data_; }
+    size_t size() const { return size_; }
+    std::string_view text() const { return {reinterpret_cast<const char*>(data_), size_}; }
+
+private:
+    const uint8_t* data_ = nullptr;
+    size_t size_ = 0;
+};
+
+// Buffered writer to "<path>.tmp-<pid>"; commit() flushes, closes and renames
+// it over path. Destroying an uncommitted writer removes the temporary file.
+// Every failure throws Error naming path.
+class AtomicFileWriter {
+public:
+    explicit AtomicFileWriter(const std::string& path);
+    ~AtomicFileWriter();
+    AtomicFileWriter(const AtomicFileWriter&) = delete;
+    AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+
+    void write(const void* data, size_t size);
+    void write(std::string_view text) { write(text.data(), text.size()); }
+    // Returns space for at least `size` bytes (size <= kBufferSize); finish
+    // with advance(bytesUsed).
+    char* reserve(size_t size)
+    {
+        if (used_ + size > buffer_.size())
+            flush();
+        return buffer_.data() + used_;
+    }
+    void advance(size_t size) { used_ += size; }
+    void commit();
+
+    static constexpr size_t kBufferSize = size_t(4) << 20;
+
+private:
+    void flush();
+
+    std::string path_;
+    std::string tempPath_;
+    int fd_ = -1;
+    std::vector<char> buffer_;
+    size_t used_ = 0;
+    bool committed_ = false;
+};
+
+// Appends the shortest round-trip decimal form of value plus `separator`.
+inline char* formatFloat(char* out, float value, char separator)
+{
+    out = std::to_chars(out, out + 32, value).ptr;
+    *out++ = separator;
+    return out;
+}
+inline char* formatUint(char* out, uint64_t value, char separator)
+{
+    out = std::to_chars(out, out + 24, value).ptr;
+    *out++ = separator;
+    return out;
+}
+
+// Cursor over ASCII model text that tracks the line number for messages.
+struct TextCursor {
+    const char* p;
+    const char* end;
+    size_t line = 1;
+
+    bool atEnd() const { return p >= end; }
+    // Skips spaces and tabs (and '\r'), not newlines.
+    void skipBlanks()
+    {
+        while (p < end && (*p == ' ' || *p == '\t' || *p == '\r'))
+            ++p;
+    }
+    // Skips all whitespace including newlines.
+    void skipWhitespace()
+    {
+        while (p < end) {
+            char c = *p;
+            if (c == '\n')
+                ++line;
+            else if (c != ' ' && c != '\t' && c != '\r' && c != '\f' && c != '\v')
+                break;
+            ++p;
+        }
+    }
+    // Moves past the next '\n'.
+    void skipLine()
+    {
+        const void* nl = std::memchr(p, '\n', size_t(end - p));
+        if (!nl) {
+            p = end;
+            return;
+        }
+        p = static_cast<const char*>(nl) + 1;
+        ++line;
+    }
+    // Next whitespace-delimited token (does not cross newlines; empty at end of line).
+    std::string_view token()
+    {
+        skipBlanks();
+        const char* start = p;
+        while (p < end && !(*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n' || *p == '\f' || *p == '\v'))
+            ++p;
+        return {start, size_t(p - start)};
+    }
+};
+
+// Token text for an error message: at most 40 characters, printable only.
+std::string quoteToken(std::string_view token);
+
+// Parses a whole token as a float / integer; false on malformed text.
+inline bool parseFloat(std::string_view token, float& value)
+{
+    if (token.empty())
+        return false;
+    const char* first = token.data();
+    if (*first == '+')
+        ++first;
+    auto result = std::from_chars(first, token.data() + token.size(), value);
+    if (result.ec == std::errc::result_out_of_range) {
+        // Denormal underflow rounds to zero; overflow is rejected later as non-finite.
+        double d = 0.0;
+        auto r2 = std::from_chars(first, token.data() + token.size(), d);
+        if (r2.ec != std::errc() || r2.ptr != token.data() + token.size())
+            return false;
+        value = float(d);
+        return true;
+    }
+    return result.ec == std::errc() && result.ptr == token.data() + token.size();
+}
+inline bool parseInt(std::string_view token, int64_t& value)
+{
+    if (token.empty())
+        return false;
+    const char* first = token.data();
+    if (*first == '+')
+        ++first;
+    auto result = std::from_chars(first, token.data() + token.size(), value);
+    return result.ec == std::errc() && result.ptr == token.data() + token.size();
+}
+
+// Checks that every index is < vertex count and every position finite; throws Error naming path.
+void validateMesh(const std::string& path, const Mesh& mesh);
+
+// Welds bit-identical positions (treating -0 as +0); used by STL which stores
+// unindexed triangles. corners holds 9 floats per triangle.
+void weldTriangles(const std::vector<float>& corners, Mesh& mesh);
+
+// Format importers; file is non-empty. Each returns the scene before validateMesh.
+Scene importObj(const std::string& path, const MappedFile& file);
+Scene importPly(const std::string& path, const MappedFile& file);
+Scene importStl(const std::string& path, const MappedFile& file);
+Scene importGltf(const std::string& path, const MappedFile& file, bool binary);
+Scene importDraco(const std::string& path, const MappedFile& file);
+
+// Format exporters; the mesh has been validated and has at least one triangle.
+void exportObj(const Scene& scene, AtomicFileWriter& out);
+void exportPly(const Scene& scene, AtomicFileWriter& out, bool binary);
+void exportStl(const Scene& scene, AtomicFileWriter& out, bool binary);
+void exportGltf(const Scene& scene, const std::string& path, AtomicFileWriter& out, bool binary,
+                const ExportOptions& options);
+void exportDraco(const Scene& scene, const std::string& path, AtomicFileWriter& out, const ExportOptions& options);
+
+// Triangles decoded from a Draco buffer (positions as floats, indices < vertex count).
+struct DecodedDraco {
+    std::vector<float> positions;
+    std::vector<uint32_t> indices;
+};
+
+// Decodes a Draco mesh. positionUniqueId selects the position attribute
+// (glTF KHR_draco_mesh_compression); -1 uses the attribute named POSITION.
+// Throws Error("<path>: <what>: ...") for point clouds and corrupt data.
+DecodedDraco decodeDraco(const std::string& path, const std::string& what, const uint8_t* data, size_t size,
+                         int64_t positionUniqueId);
+
+// Encodes a mesh with Draco (positions quantized to options.dracoPositionBits).
+// Returns the encoded bytes; positionId receives the position attribute's unique
+// id, encodedPoints/encodedFaces the counts the decoder will produce.
+std::vector<char> encodeDracoMesh(const std::string& path, const Mesh& mesh, const ExportOptions& options,
+                                  uint32_t* positionId, size_t* encodedPoints, size_t* encodedFaces);
+
+} // namespace penumbra::detail

@@ -1,0 +1,139 @@
+// Wavefront OBJ import (v and f records; polygons fan-triangulated; negative
+// relative indices; v, v/vt, v//vn and v/vt/vn corners) and export.
+// Everything else (vt, vn, groups, materials, smoothing) is ignored.
+#include <algorithm>
+
+#include "io_internal.h"
+
+namespace penumbra::detail {
+namespace {
+
+// Parses the vertex part of a face corner ("12", "-3/4/5", "7//2").
+bool parseCorner(std::string_view token, int64_t& index)
+{
+    size_t slash = token.find('/');
+    return parseInt(token.substr(0, slash), index);
+}
+
+} // namespace
+
+Scene importObj(const std::string& path, const MappedFile& file)
+{
+    Scene scene;
+    Mesh& mesh = scene.mesh;
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()), reinterpret_cast<const char*>(file.data()) + file.size()};
+    auto lineFail = [&](const std::string& problem) { fail(path, "line " + std::to_string(cursor.line) + ": " + problem); };
+
+    size_t pointOrLineRecords = 0;
+    size_t degenerateFaces = 0;
+    int64_t maxForwardIndex = 0;   // largest positive index, checked once all vertices are known
+    size_t maxForwardLine = 0;
+    std::vector<uint32_t> polygon;
+
+    while (!cursor.atEnd()) {
+        cursor.skipBlanks();
+        if (cursor.atEnd())
+            break;
+        char c = *cursor.p;
+        if (c == 'v' && cursor.p + 1 < cursor.end && (cursor.p[1] == ' ' || cursor.p[1] == '\t')) {
+            cursor.p += 2;
+            float xyz[3];
+            for (float& value : xyz) {
+                std::string_view token = cursor.token();
+                if (token.empty())
+                    lineFail("vertex has fewer than 3 coordinates");
+                if (!parseFloat(token, value))
+                    lineFail("malformed number " + quoteToken(token));
+            }
+            mesh.positions.insert(mesh.positions.end(), xyz, xyz + 3);
+        } else if (c == 'f' && cursor.p + 1 < cursor.end && (cursor.p[1] == ' ' || cursor.p[1] == '\t')) {
+            cursor.p += 2;
+            polygon.clear();
+            const int64_t vertexCount = int64_t(mesh.positions.size() / 3);
+            for (;;) {
+                std::string_view token = cursor.token();
+                if (token.empty())
+                    break;
+                if (token == "\\") { // line continuation
+                    cursor.skipLine();
+                    continue;
+                }
+                int64_t index = 0;
+                if (!parseCorner(token, index))
+                    lineFail("malformed face corner " + quoteToken(token));
+                if (index < 0) {
+                    int64_t resolved = vertexCount + index;
+                    if (resolved < 0)
+                        lineFail("face references vertex " + std::to_string(index) + " but only " +
+                                 std::to_string(vertexCount) + " vertices precede it");
+                    index = resolved;
+                } else if (index == 0) {
+                    lineFail("face references vertex 0 (OBJ indices start at 1)");
+                } else {
+                    if (index > UINT32_MAX)
+                        lineFail("face references vertex " + std::to_string(index) + " (too large)");
+                    if (index > maxForwardIndex) {
+                        maxForwardIndex = index;
+                        maxForwardLine = cursor.line;
+                    }
+                    index -= 1;
+                }
+                polygon.push_back(uint32_t(index));
+            }
+            if (polygon.size() < 3) {
+                ++degenerateFaces;
+            } else {
+                for (size_t k = 2; k < polygon.size(); ++k) {
+                    mesh.indices.push_back(polygon[0]);
+                    mesh.indices.push_back(polygon[k - 1]);
+                    mesh.indices.push_back(polygon[k]);
+                }
+            }
+        } else if ((c == 'l' || c == 'p') && cursor.p + 1 < cursor.end && (cursor.p[1] == ' ' || cursor.p[1] == '\t')) {
+            ++pointOrLineRecords;
+        }
+        cursor.skipLine();
+    }
+
+    const size_t vertexCount = mesh.vertexCount();
+    if (uint64_t(maxForwardIndex) > vertexCount)
+        fail(path, "line " + std::to_string(maxForwardLine) + ": face references vertex " +
+                       std::to_string(maxForwardIndex) + " but there are " + std::to_string(vertexCount) + " vertices");
+    if (mesh.indices.empty()) {
+        if (pointOrLineRecords > 0 || degenerateFaces > 0)
+            fail(path, "no triangles (points or lines only)");
+        if (vertexCount == 0)
+            fail(path, "no vertices or faces (not an OBJ file?)");
+        fail(path, "no triangles (" + std::to_string(vertexCount) + " vertices but no faces)");
+    }
+    return scene;
+}
+
+void exportObj(const Scene& scene, AtomicFileWriter& out)
+{
+    const Mesh& mesh = scene.mesh;
+    out.write("# written by penumbra\n# " + std::to_string(mesh.vertexCount()) + " vertices, " +
+              std::to_string(mesh.triangleCount()) + " triangles\n");
+    for (size_t v = 0; v < mesh.vertexCount(); ++v) {
+        char* start = out.reserve(128);
+        char* p = start;
+        *p++ = 'v';
+        *p++ = ' ';
+        p = formatFloat(p, mesh.positions[v * 3], ' ');
+        p = formatFloat(p, mesh.positions[v * 3 + 1], ' ');
+        p = formatFloat(p, mesh.positions[v * 3 + 2], '\n');
+        out.advance(size_t(p - start));
+    }
+    for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+        char* start = out.reserve(128);
+        char* p = start;
+        *p++ = 'f';
+        *p++ = ' ';
+        p = formatUint(p, uint64_t(mesh.indices[t * 3]) + 1, ' ');
+        p = formatUint(p, uint64_t(mesh.indices[t * 3 + 1]) + 1, ' ');
+        p = formatUint(p, uint64_t(mesh.indices[t * 3 + 2]) + 1, '\n');
+        out.advance(size_t(p - start));
+    }
+}
+
+} // namespace penumbra::detail

@@ -1,0 +1,756 @@
+// PLY (Stanford polygon format) import and export: ASCII, binary little- and
+// big-endian. Reference: Greg Turk, "The PLY Polygon File Format" (1994).
+// Binary vertex and face records are parsed in place from the mapped file;
+// the common layout (float x,y,z ... / list uchar int vertex_indices) has a
+// dedicated loop. Every count is checked against the bytes left before any
+// allocation.
+#include <algorithm>
+#include <bit>
+#include <cinttypes>
+#include <cstdio>
+#include <optional>
+
+#include "io_internal.h"
+
+namespace penumbra::detail {
+namespace {
+
+enum class PlyType : uint8_t { Int8, Uint8, Int16, Uint16, Int32, Uint32, Float32, Float64 };
+
+std::optional<PlyType> parsePlyType(std::string_view name)
+{
+    if (name == "char" || name == "int8")
+        return PlyType::Int8;
+    if (name == "uchar" || name == "uint8")
+        return PlyType::Uint8;
+    if (name == "short" || name == "int16")
+        return PlyType::Int16;
+    if (name == "ushort" || name == "uint16")
+        return PlyType::Uint16;
+    if (name == "int" || name == "int32")
+        return PlyType::Int32;
+    if (name == "uint" || name == "uint32")
+        return PlyType::Uint32;
+    if (name == "float" || name == "float32")
+        return PlyType::Float32;
+    if (name == "double" || name == "float64")
+        return PlyType::Float64;
+    return std::nullopt;
+}
+
+size_t plyTypeSize(PlyType type)
+{
+    switch (type) {
+    case PlyType::Int8:
+    case PlyType::Uint8: return 1;
+    case PlyType::Int16:
+    case PlyType::Uint16: return 2;
+    case PlyType::Int32:
+    case PlyType::Uint32:
+    case PlyType::Float32: return 4;
+    case PlyType::Float64: return 8;
+    }
+    return 1;
+}
+
+bool isIntegerType(PlyType type) { return type != PlyType::Float32 && type != PlyType::Float64; }
+
+struct PlyProperty {
+    std::string name;
+    PlyType type = PlyType::Float32;   // value type (item type for lists)
+    bool isList = false;
+    PlyType countType = PlyType::Uint8; // lists only
+};
+
+struct PlyElement {
+    std::string name;
+    uint64_t count = 0;
+    std::vector<PlyProperty> properties;
+    // Byte size of one record when it has no list properties, else 0.
+    size_t fixedStride() const
+    {
+        size_t stride = 0;
+        for (const PlyProperty& p : properties) {
+            if (p.isList)
+                return 0;
+            stride += plyTypeSize(p.type);
+        }
+        return stride;
+    }
+    // Smallest possible record size (lists empty).
+    size_t minimumStride() const
+    {
+        size_t stride = 0;
+        for (const PlyProperty& p : properties)
+            stride += plyTypeSize(p.isList ? p.countType : p.type);
+        return stride;
+    }
+    int find(std::string_view name) const
+    {
+        for (size_t i = 0; i < properties.size(); ++i)
+            if (properties[i].name == name)
+                return int(i);
+        return -1;
+    }
+};
+
+enum class PlyEncoding { Ascii, BinaryLittle, BinaryBig };
+
+struct PlyHeader {
+    PlyEncoding encoding = PlyEncoding::Ascii;
+    std::vector<PlyElement> elements;
+    size_t dataOffset = 0;
+};
+
+PlyHeader parseHeader(const std::string& path, const MappedFile& file)
+{
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()), reinterpret_cast<const char*>(file.data()) + file.size()};
+    auto headerFail = [&](const std::string& problem) { fail(path, "header line " + std::to_string(cursor.line) + ": " + problem); };
+
+    if (cursor.token() != "ply")
+        fail(path, "not a PLY file (missing 'ply' magic)");
+    if (!cursor.token().empty())
+        headerFail("unexpected text after 'ply'");
+    cursor.skipLine();
+
+    PlyHeader header;
+    bool haveFormat = false;
+    for (;;) {
+        if (cursor.atEnd())
+            fail(path, "truncated header (no end_header line)");
+        std::string_view keyword = cursor.token();
+        if (keyword == "end_header") {
+            if (!cursor.token().empty())
+                headerFail("unexpected text after end_header");
+            if (cursor.atEnd() || *cursor.p != '\n') {
+                if (!cursor.atEnd())
+                    headerFail("malformed end_header line");
+            }
+            cursor.skipLine();
+            break;
+        }
+        if (keyword.empty() || keyword == "comment" || keyword == "obj_info") {
+            cursor.skipLine();
+            continue;
+        }
+        if (keyword == "format") {
+            std::string_view encoding = cursor.token();
+            std::string_view version = cursor.token();
+            if (encoding == "ascii")
+                header.encoding = PlyEncoding::Ascii;
+            else if (encoding == "binary_little_endian")
+                header.encoding = PlyEncoding::BinaryLittle;
+            else if (encoding == "binary_big_endian")
+                header.encoding = PlyEncoding::BinaryBig;
+            else
+                headerFail("unknown format " + quoteToken(encoding));
+            if (version != "1.0")
+                headerFail("unsupported PLY version " + quoteToken(version));
+            haveFormat = true;
+        } else if (keyword == "element") {
+            PlyElement element;
+            element.name = std::string(cursor.token());
+            std::string_view countText = cursor.token();
+            int64_t count = 0;
+            if (element.name.empty() || !parseInt(countText, count) || count < 0)
+                headerFail("malformed element line (expected 'element <name> <count>')");
+            element.count = uint64_t(count);
+            header.elements.push_back(std::move(element));
+        } else if (keyword == "property") {
+            if (header.elements.empty())
+                headerFail("property before any element");
+            PlyProperty property;
+            std::string_view typeName = cursor.token();
+            if (typeName == "list") {
+                property.isList = true;
+                std::string_view countTypeName = cursor.token();
+                std::string_view itemTypeName = cursor.token();
+                auto countType = parsePlyType(countTypeName);
+                auto itemType = parsePlyType(itemTypeName);
+                if (!countType || !isIntegerType(*countType))
+                    headerFail("bad list count type " + quoteToken(countTypeName));
+                if (!itemType)
+                    headerFail("unknown property type " + quoteToken(itemTypeName));
+                property.countType = *countType;
+                property.type = *itemType;
+            } else {
+                auto type = parsePlyType(typeName);
+                if (!type)
+                    headerFail("unknown property type " + quoteToken(typeName));
+                property.type = *type;
+            }
+            property.name = std::string(cursor.token());
+            if (property.name.empty())
+                headerFail("property without a name");
+            header.elements.back().properties.push_back(std::move(property));
+        } else {
+            headerFail("unknown keyword " + quoteToken(keyword));
+        }
+        if (!cursor.token().empty())
+            headerFail("unexpected text at end of line");
+        cursor.skipLine();
+    }
+    if (!haveFormat)
+        fail(path, "header has no format line");
+    header.dataOffset = size_t(cursor.p - reinterpret_cast<const char*>(file.data()));
+    return header;
+}
+
+// ---- binary ----
+
+template <typename T>
+T loadSwapped(const uint8_t* p, bool swap)
+{
+    T value;
+    std::memcpy(&value, p, sizeof(T));
+    if (swap) {
+        if constexpr (sizeof(T) == 2) {
+            uint16_t u;
+            std::memcpy(&u, &value, 2);
+            u = __builtin_bswap16(u);
+            std::memcpy(&value, &u, 2);
+        } else if constexpr (sizeof(T) == 4) {
+            uint32_t u;
+            std::memcpy(&u, &value, 4);
+            u = __builtin_bswap32(u);
+            std::memcpy(&value, &u, 4);
+        } else if constexpr (sizeof(T) == 8) {
+            uint64_t u;
+            std::memcpy(&u, &value, 8);
+            u = __builtin_bswap64(u);
+            std::memcpy(&value, &u, 8);
+        }
+    }
+    return value;
+}
+
+double loadNumber(const uint8_t* p, PlyType type, bool swap)
+{
+    switch (type) {
+    case PlyType::Int8: return double(int8_t(*p));
+    case PlyType::Uint8: return double(*p);
+    case PlyType::Int16: return double(loadSwapped<int16_t>(p, swap));
+    case PlyType::Uint16: return double(loadSwapped<uint16_t>(p, swap));
+    case PlyType::Int32: return double(loadSwapped<int32_t>(p, swap));
+    case PlyType::Uint32: return double(loadSwapped<uint32_t>(p, swap));
+    case PlyType::Float32: return double(loadSwapped<float>(p, swap));
+    case PlyType::Float64: return loadSwapped<double>(p, swap);
+    }
+    return 0.0;
+}
+
+int64_t loadInteger(const uint8_t* p, PlyType type, bool swap)
+{
+    switch (type) {
+    case PlyType::Int8: return int8_t(*p);
+    case PlyType::Uint8: return *p;
+    case PlyType::Int16: return loadSwapped<int16_t>(p, swap);
+    case PlyType::Uint16: return loadSwapped<uint16_t>(p, swap);
+    case PlyType::Int32: return loadSwapped<int32_t>(p, swap);
+    case PlyType::Uint32: return loadSwapped<uint32_t>(p, swap);
+    default: return 0;
+    }
+}
+
+[[noreturn]] void failIndex(const std::string& path, uint64_t face, int64_t index, uint64_t vertexCount)
+{
+    fail(path, "face " + std::to_string(face) + " references vertex " + std::to_string(index) + " but there are " +
+                   std::to_string(vertexCount) + " vertices");
+}
+
+// Growable index output written through a raw cursor (no per-push capacity checks).
+struct IndexOutput {
+    std::vector<uint32_t>& indices;
+    size_t used = 0;
+    void ensure(size_t extra)
+    {
+        if (used + extra > indices.size())
+            indices.resize(std::max(indices.size() * 2, used + extra));
+    }
+};
+
+struct FaceStats {
+    uint64_t degenerate = 0; // faces with fewer than 3 corners
+};
+
+class BinaryPlyReader {
+public:
+    BinaryPlyReader(const std::string& path, const MappedFile& file, const PlyHeader& header)
+        : path_(path), data_(file.data()), size_(file.size()), offset_(header.dataOffset),
+          swap_((header.encoding == PlyEncoding::BinaryBig) == (std::endian::native == std::endian::little))
+    {
+    }
+
+    size_t remaining() const { return size_ - offset_; }
+
+    void checkFixed(const PlyElement& element, size_t stride, const char* noun)
+    {
+        if (stride != 0 && element.count > remaining() / stride)
+            fail(path_, "truncated: header claims " + std::to_string(element.count) + " " + noun + " (" +
+                            std::to_string(element.count) + " x " + std::to_string(stride) + " bytes) but only " +
+                            std::to_string(remaining()) + " bytes of data follow");
+    }
+
+    void skipElement(const PlyElement& element)
+    {
+        size_t stride = element.fixedStride();
+        if (stride != 0 || element.properties.empty()) {
+            checkFixed(element, stride, ("'" + element.name + "' records").c_str());
+            offset_ += size_t(element.count) * stride;
+            return;
+        }
+        checkFixed(element, element.minimumStride(), ("'" + element.name + "' records").c_str());
+        for (uint64_t r = 0; r < element.count; ++r)
+            for (const PlyProperty& property : element.properties)
+                skipProperty(element, r, property);
+    }
+
+    void readVertices(const PlyElement& element, Mesh& mesh)
+    {
+        int ix = element.find("x"), iy = element.find("y"), iz = element.find("z");
+        if (ix < 0 || iy < 0 || iz < 0)
+            fail(path_, "vertex element has no x, y and z properties");
+        for (int i : {ix, iy, iz})
+            if (element.properties[size_t(i)].isList)
+                fail(path_, "vertex property '" + element.properties[size_t(i)].name + "' is a list");
+        if (element.count > UINT32_MAX)
+            fail(path_, "too many vertices (" + std::to_string(element.count) + ", limit 4294967295)");
+        size_t stride = element.fixedStride();
+        if (stride == 0) {
+            readVerticesGeneric(element, mesh, ix, iy, iz);
+            return;
+        }
+        checkFixed(element, stride, "vertices");
+        size_t offsets[3] = {0, 0, 0};
+        size_t running = 0;
+        for (size_t i = 0; i < element.properties.size(); ++i) {
+            if (int(i) == ix)
+                offsets[0] = running;
+            if (int(i) == iy)
+                offsets[1] = running;
+            if (int(i) == iz)
+                offsets[2] = running;
+            running += plyTypeSize(element.properties[i].type);
+        }
+        const size_t count = size_t(element.count);
+        mesh.positions.resize(count * 3);
+        float* out = mesh.positions.data();
+        const uint8_t* base = data_ + offset_;
+        const bool allFloat = element.properties[size_t(ix)].type == PlyType::Float32 &&
+                              element.properties[size_t(iy)].type == PlyType::Float32 &&
+                              element.properties[size_t(iz)].type == PlyType::Float32;
+        if (allFloat && !swap_ && offsets[1] == offsets[0] + 4 && offsets[2] == offsets[0] + 8) {
+            if (stride == 12) {
+                std::memcpy(out, base, count * 12);
+            } else {
+                for (size_t v = 0; v < count; ++v)
+                    std::memcpy(out + v * 3, base + v * stride + offsets[0], 12);
+            }
+        } else {
+            const PlyType types[3] = {element.properties[size_t(ix)].type, element.properties[size_t(iy)].type,
+                                      element.properties[size_t(iz)].type};
+            for (size_t v = 0; v < count; ++v)
+                for (int c = 0; c < 3; ++c)
+                    out[v * 3 + size_t(c)] = float(loadNumber(base + v * stride + offsets[c], types[c], swap_));
+        }
+        offset_ += count * stride;
+    }
+
+    void readFaces(const PlyElement& element, int listIndex, uint64_t vertexCount, Mesh& mesh, FaceStats& stats)
+    {
+        const PlyProperty& list = element.properties[size_t(listIndex)];
+        if (!isIntegerType(list.type))
+            fail(path_, "face property '" + list.name + "' has non-integer type");
+        checkFixed(element, element.minimumStride(), "faces");
+        // Each face needs at least minimumStride bytes, so this reservation is bounded by the file size.
+        IndexOutput out{mesh.indices};
+        size_t guess = size_t(std::min<uint64_t>(element.count, remaining() / std::max<size_t>(
+                                                                                    element.minimumStride() + 3 * plyTypeSize(list.type), 1)));
+        mesh.indices.resize(guess * 3);
+
+        const bool fast = element.properties.size() == 1 && list.countType == PlyType::Uint8 &&
+                          (list.type == PlyType::Int32 || list.type == PlyType::Uint32) && !swap_;
+        if (fast)
+            readFacesFast(element.count, vertexCount, out, stats);
+        else
+            readFacesGeneric(element, listIndex, vertexCount, out, stats);
+        mesh.indices.resize(out.used);
+    }
+
+private:
+    [[noreturn]] void truncated(const char* what, uint64_t record)
+    {
+        fail(path_, std::string("truncated: file ends inside ") + what + " " + std::to_string(record));
+    }
+
+    void skipProperty(const PlyElement& element, uint64_t record, const PlyProperty& property)
+    {
+        if (!property.isList) {
+            size_t size = plyTypeSize(property.type);
+            if (remaining() < size)
+                truncated(("'" + element.name + "' record").c_str(), record);
+            offset_ += size;
+            return;
+        }
+        size_t countSize = plyTypeSize(property.countType);
+        if (remaining() < countSize)
+            truncated(("'" + element.name + "' record").c_str(), record);
+        int64_t n = loadInteger(data_ + offset_, property.countType, swap_);
+        offset_ += countSize;
+        if (n < 0)
+            fail(path_, "'" + element.name + "' record " + std::to_string(record) + " has a negative list length");
+        size_t itemSize = plyTypeSize(property.type);
+        if (uint64_t(n) > remaining() / itemSize)
+            truncated(("'" + element.name + "' record").c_str(), record);
+        offset_ += size_t(n) * itemSize;
+    }
+
+    void readVerticesGeneric(const PlyElement& element, Mesh& mesh, int ix, int iy, int iz)
+    {
+        checkFixed(element, element.minimumStride(), "vertices");
+        mesh.positions.resize(size_t(element.count) * 3);
+        for (uint64_t v = 0; v < element.count; ++v) {
+            for (size_t i = 0; i < element.properties.size(); ++i) {
+                const PlyProperty& property = element.properties[i];
+                if (!property.isList && (int(i) == ix || int(i) == iy || int(i) == iz)) {
+                    if (remaining() < plyTypeSize(property.type))
+                        truncated("vertex", v);
+                    int c = int(i) == ix ? 0 : int(i) == iy ? 1 : 2;
+                    mesh.positions[size_t(v) * 3 + size_t(c)] = float(loadNumber(data_ + offset_, property.type, swap_));
+                    offset_ += plyTypeSize(property.type);
+                } else {
+                    skipProperty(element, v, property);
+                }
+            }
+        }
+    }
+
+    void readFacesFast(uint64_t faceCount, uint64_t vertexCount, IndexOutput& out, FaceStats& stats)
+    {
+        const uint8_t* p = data_ + offset_;
+        const uint8_t* end = data_ + size_;
+        const uint32_t limit = uint32_t(std::min<uint64_t>(vertexCount, UINT32_MAX));
+        uint32_t* dst = out.indices.data();
+        size_t used = out.used;
+        size_t capacity = out.indices.size();
+        for (uint64_t f = 0; f < faceCount; ++f) {
+            if (p >= end)
+                truncated("face", f);
+            uint32_t n = *p++;
+            if (size_t(end - p) < size_t(n) * 4)
+                truncated("face", f);
+            if (n == 3) {
+                uint32_t a, b, c;
+                std::memcpy(&a, p, 4);
+                std::memcpy(&b, p + 4, 4);
+                std::memcpy(&c, p + 8, 4);
+                p += 12;
+                if ((a >= limit) | (b >= limit) | (c >= limit)) {
+                    uint32_t bad = a >= limit ? a : b >= limit ? b : c;
+                    failIndex(path_, f, badIndexValue(bad), vertexCount);
+                }
+                if (used + 3 > capacity) {
+                    out.used = used;
+                    out.ensure(3);
+                    dst = out.indices.data();
+                    capacity = out.indices.size();
+                }
+                dst[used] = a;
+                dst[used + 1] = b;
+                dst[used + 2] = c;
+                used += 3;
+                continue;
+            }
+            if (n < 3) {
+                ++stats.degenerate;
+                p += size_t(n) * 4;
+                continue;
+            }
+            size_t needed = size_t(n - 2) * 3;
+            if (used + needed > capacity) {
+                out.used = used;
+                out.ensure(needed);
+                dst = out.indices.data();
+                capacity = out.indices.size();
+            }
+            uint32_t corner[3];
+            for (uint32_t k = 0; k < n; ++k) {
+                uint32_t index;
+                std::memcpy(&index, p + size_t(k) * 4, 4);
+                if (index >= limit)
+                    failIndex(path_, f, badIndexValue(index), vertexCount);
+                if (k == 0)
+                    corner[0] = index;
+                else if (k == 1)
+                    corner[2] = index;
+                else {
+                    corner[1] = corner[2];
+                    corner[2] = index;
+                    dst[used] = corner[0];
+                    dst[used + 1] = corner[1];
+                    dst[used + 2] = corner[2];
+                    used += 3;
+                }
+            }
+            p += size_t(n) * 4;
+        }
+        out.used = used;
+        offset_ = size_t(p - data_);
+    }
+
+    // Signed index types show negative values as such in messages.
+    int64_t badIndexValue(uint32_t raw) const { return faceIndexSigned_ ? int64_t(int32_t(raw)) : int64_t(raw); }
+
+    void readFacesGeneric(const PlyElement& element, int listIndex, uint64_t vertexCount, IndexOutput& out,
+                          FaceStats& stats)
+    {
+        const PlyProperty& list = element.properties[size_t(listIndex)];
+        const size_t countSize = plyTypeSize(list.countType);
+        const size_t itemSize = plyTypeSize(list.type);
+        for (uint64_t f = 0; f < element.count; ++f) {
+            for (size_t i = 0; i < element.properties.size(); ++i) {
+                if (int(i) != listIndex) {
+                    skipProperty(element, f, element.properties[i]);
+                    continue;
+                }
+                if (remaining() < countSize)
+                    truncated("face", f);
+                int64_t n = loadInteger(data_ + offset_, list.countType, swap_);
+                offset_ += countSize;
+                if (n < 0)
+                    fail(path_, "face " + std::to_string(f) + " has a negative vertex count");
+                if (uint64_t(n) > remaining() / itemSize)
+                    truncated("face", f);
+                if (n < 3) {
+                    ++stats.degenerate;
+                    offset_ += size_t(n) * itemSize;
+                    continue;
+                }
+                out.ensure(size_t(n - 2) * 3);
+                uint32_t first = 0, previous = 0;
+                for (int64_t k = 0; k < n; ++k) {
+                    int64_t index = loadInteger(data_ + offset_, list.type, swap_);
+                    offset_ += itemSize;
+                    if (index < 0 || uint64_t(index) >= vertexCount)
+                        failIndex(path_, f, index, vertexCount);
+                    if (k == 0)
+                        first = uint32_t(index);
+                    else if (k >= 2) {
+                        out.indices[out.used++] = first;
+                        out.indices[out.used++] = previous;
+                        out.indices[out.used++] = uint32_t(index);
+                    }
+                    previous = uint32_t(index);
+                }
+            }
+        }
+    }
+
+public:
+    bool faceIndexSigned_ = true;
+
+private:
+    const std::string& path_;
+    const uint8_t* data_;
+    size_t size_;
+    size_t offset_;
+    bool swap_;
+};
+
+// ---- ASCII ----
+
+class AsciiPlyReader {
+public:
+    AsciiPlyReader(const std::string& path, const MappedFile& file, const PlyHeader& header)
+        : path_(path), cursor_{reinterpret_cast<const char*>(file.data()) + header.dataOffset,
+                               reinterpret_cast<const char*>(file.data()) + file.size()}
+    {
+        // Header lines were counted by the header parser; recount for messages.
+        for (size_t i = 0; i < header.dataOffset; ++i)
+            if (file.data()[i] == '\n')
+                ++cursor_.line;
+    }
+
+    size_t remaining() const { return size_t(cursor_.end - cursor_.p); }
+
+    void readElement(const PlyElement& element, Mesh* vertices, int listIndex, uint64_t vertexCount, Mesh* faces,
+                     FaceStats& stats)
+    {
+        int ix = element.find("x"), iy = element.find("y"), iz = element.find("z");
+        if (vertices) {
+            if (ix < 0 || iy < 0 || iz < 0)
+                fail(path_, "vertex element has no x, y and z properties");
+            if (element.count > UINT32_MAX)
+                fail(path_, "too many vertices (" + std::to_string(element.count) + ", limit 4294967295)");
+        }
+        // Every value takes at least two bytes ("0 "), so larger counts cannot fit.
+        size_t minimumBytes = std::max<size_t>(element.properties.size(), 1) * 2;
+        if (element.count > remaining() / minimumBytes + 1)
+            fail(path_, "truncated: header claims " + std::to_string(element.count) + " '" + element.name +
+                            "' records but only " + std::to_string(remaining()) + " bytes of data follow");
+        if (vertices)
+            vertices->positions.resize(size_t(element.count) * 3);
+        for (uint64_t r = 0; r < element.count; ++r) {
+            for (size_t i = 0; i < element.properties.size(); ++i) {
+                const PlyProperty& property = element.properties[i];
+                if (!property.isList) {
+                    std::string_view token = next(element, r);
+                    if (vertices && (int(i) == ix || int(i) == iy || int(i) == iz)) {
+                        float value;
+                        if (!parseFloat(token, value))
+                            malformed(token);
+                        int c = int(i) == ix ? 0 : int(i) == iy ? 1 : 2;
+                        vertices->positions[size_t(r) * 3 + size_t(c)] = value;
+                    }
+                    continue;
+                }
+                int64_t n = 0;
+                std::string_view countToken = next(element, r);
+                if (!parseInt(countToken, n) || n < 0)
+                    malformed(countToken);
+                if (!faces || int(i) != listIndex) {
+                    for (int64_t k = 0; k < n; ++k)
+                        next(element, r);
+                    continue;
+                }
+                if (n < 3)
+                    ++stats.degenerate;
+                uint32_t first = 0, previous = 0;
+                for (int64_t k = 0; k < n; ++k) {
+                    std::string_view token = next(element, r);
+                    int64_t index = 0;
+                    if (!parseInt(token, index))
+                        malformed(token);
+                    if (index < 0 || uint64_t(index) >= vertexCount)
+                        failIndex(path_, r, index, vertexCount);
+                    if (k == 0)
+                        first = uint32_t(index);
+                    else if (k >= 2) {
+                        faces->indices.push_back(first);
+                        faces->indices.push_back(previous);
+                        faces->indices.push_back(uint32_t(index));
+                    }
+                    previous = uint32_t(index);
+                }
+            }
+        }
+    }
+
+private:
+    std::string_view next(const PlyElement& element, uint64_t record)
+    {
+        cursor_.skipWhitespace();
+        std::string_view token = cursor_.token();
+        if (token.empty())
+            fail(path_, "truncated: file ends inside '" + element.name + "' record " + std::to_string(record) + " of " +
+                            std::to_string(element.count));
+        return token;
+    }
+    [[noreturn]] void malformed(std::string_view token)
+    {
+        fail(path_, "line " + std::to_string(cursor_.line) + ": malformed number " + quoteToken(token));
+    }
+
+    const std::string& path_;
+    TextCursor cursor_;
+};
+
+} // namespace
+
+Scene importPly(const std::string& path, const MappedFile& file)
+{
+    PlyHeader header = parseHeader(path, file);
+    Scene scene;
+    Mesh& mesh = scene.mesh;
+
+    const PlyElement* vertexElement = nullptr;
+    const PlyElement* faceElement = nullptr;
+    int listIndex = -1;
+    for (const PlyElement& element : header.elements) {
+        if (element.name == "vertex" && !vertexElement)
+            vertexElement = &element;
+        if (element.name == "face" && !faceElement) {
+            faceElement = &element;
+            listIndex = element.find("vertex_indices");
+            if (listIndex < 0)
+                listIndex = element.find("vertex_index");
+            if (listIndex < 0 || !element.properties[size_t(listIndex)].isList)
+                fail(path, "face element has no vertex_indices list property");
+        }
+    }
+    if (!vertexElement)
+        fail(path, "no vertex element");
+    if (!faceElement || faceElement->count == 0)
+        fail(path, "no triangles (point cloud: no faces)");
+    const uint64_t vertexCount = vertexElement->count;
+
+    FaceStats stats;
+    if (header.encoding == PlyEncoding::Ascii) {
+        AsciiPlyReader reader(path, file, header);
+        for (const PlyElement& element : header.elements) {
+            bool isVertex = &element == vertexElement;
+            bool isFace = &element == faceElement;
+            reader.readElement(element, isVertex ? &mesh : nullptr, isFace ? listIndex : -1, vertexCount,
+                               isFace ? &mesh : nullptr, stats);
+        }
+    } else {
+        BinaryPlyReader reader(path, file, header);
+        reader.faceIndexSigned_ =
+            faceElement->properties[size_t(listIndex)].type == PlyType::Int32 ||
+            faceElement->properties[size_t(listIndex)].type == PlyType::Int16 ||
+            faceElement->properties[size_t(listIndex)].type == PlyType::Int8;
+        for (const PlyElement& element : header.elements) {
+            if (&element == vertexElement)
+                reader.readVertices(element, mesh);
+            else if (&element == faceElement)
+                reader.readFaces(element, listIndex, vertexCount, mesh, stats);
+            else
+                reader.skipElement(element);
+        }
+    }
+    if (mesh.indices.empty())
+        fail(path, "no triangles (all " + std::to_string(faceElement->count) + " faces have fewer than 3 vertices)");
+    return scene;
+}
+
+void exportPly(const Scene& scene, AtomicFileWriter& out, bool binary)
+{
+    const Mesh& mesh = scene.mesh;
+    std::string header = "ply\nformat ";
+    header += binary ? (std::endian::native == std::endian::little ? "binary_little_endian" : "binary_big_endian")
+                     : "ascii";
+    header += " 1.0\ncomment written by penumbra\nelement vertex " + std::to_string(mesh.vertexCount()) +
+              "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+              std::to_string(mesh.triangleCount()) + "\nproperty list uchar uint vertex_indices\nend_header\n";
+    out.write(header);
+    const size_t triangles = mesh.triangleCount();
+    if (binary) {
+        out.write(mesh.positions.data(), mesh.positions.size() * sizeof(float));
+        for (size_t t = 0; t < triangles; ++t) {
+            char* p = out.reserve(13);
+            p[0] = 3;
+            std::memcpy(p + 1, &mesh.indices[t * 3], 12);
+            out.advance(13);
+        }
+        return;
+    }
+    for (size_t v = 0; v < mesh.vertexCount(); ++v) {
+        char* start = out.reserve(128);
+        char* p = formatFloat(start, mesh.positions[v * 3], ' ');
+        p = formatFloat(p, mesh.positions[v * 3 + 1], ' ');
+        p = formatFloat(p, mesh.positions[v * 3 + 2], '\n');
+        out.advance(size_t(p - start));
+    }
+    for (size_t t = 0; t < triangles; ++t) {
+        char* start = out.reserve(128);
+        char* p = start;
+        *p++ = '3';
+        *p++ = ' ';
+        p = formatUint(p, mesh.indices[t * 3], ' ');
+        p = formatUint(p, mesh.indices[t * 3 + 1], ' ');
+        p = formatUint(p, mesh.indices[t * 3 + 2], '\n');
+        out.advance(size_t(p - start));
+    }
+}
+
+} // namespace penumbra::detail

@@ -1,0 +1,171 @@
+// STL import (binary and ASCII; identical corner positions are welded into
+// shared vertices) and export. A file is binary when its size is exactly
+// 84 + 50 * (triangle count at byte 80); otherwise it must start with "solid".
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+#include "io_internal.h"
+
+namespace penumbra::detail {
+namespace {
+
+Scene importBinaryStl(const std::string& path, const MappedFile& file, uint32_t triangleCount)
+{
+    std::vector<float> corners(size_t(triangleCount) * 9);
+    const uint8_t* record = file.data() + 84;
+    for (size_t t = 0; t < triangleCount; ++t, record += 50)
+        std::memcpy(&corners[t * 9], record + 12, 36);
+    Scene scene;
+    weldTriangles(corners, scene.mesh);
+    return scene;
+}
+
+Scene importAsciiStl(const std::string& path, const MappedFile& file)
+{
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()), reinterpret_cast<const char*>(file.data()) + file.size()};
+    auto lineFail = [&](const std::string& problem) { fail(path, "line " + std::to_string(cursor.line) + ": " + problem); };
+    std::vector<float> corners;
+    std::vector<float> loop;
+    bool inLoop = false;
+    size_t loopLine = 0;
+    cursor.skipWhitespace();
+    cursor.token(); // "solid"
+    cursor.skipLine(); // solid name
+    for (;;) {
+        cursor.skipWhitespace();
+        if (cursor.atEnd())
+            break;
+        std::string_view token = cursor.token();
+        if (token == "vertex") {
+            if (!inLoop)
+                lineFail("vertex outside an 'outer loop'");
+            for (int c = 0; c < 3; ++c) {
+                std::string_view number = cursor.token();
+                float value;
+                if (number.empty())
+                    lineFail("vertex has fewer than 3 coordinates");
+                if (!parseFloat(number, value))
+                    lineFail("malformed number " + quoteToken(number));
+                loop.push_back(value);
+            }
+        } else if (token == "outer") {
+            if (cursor.token() != "loop")
+                lineFail("expected 'outer loop'");
+            if (inLoop)
+                lineFail("nested 'outer loop'");
+            inLoop = true;
+            loopLine = cursor.line;
+            loop.clear();
+        } else if (token == "endloop") {
+            if (!inLoop)
+                lineFail("'endloop' without 'outer loop'");
+            inLoop = false;
+            size_t n = loop.size() / 3;
+            for (size_t k = 2; k < n; ++k) { // fan (facets are triangles in practice)
+                corners.insert(corners.end(), &loop[0], &loop[3]);
+                corners.insert(corners.end(), &loop[(k - 1) * 3], &loop[k * 3]);
+                corners.insert(corners.end(), &loop[k * 3], &loop[k * 3 + 3]);
+            }
+        } else if (token == "facet" || token == "endfacet" || token == "solid" || token == "endsolid") {
+            cursor.skipLine(); // the rest (normal, solid name) is not needed
+        } else {
+            lineFail("unexpected token " + quoteToken(token));
+        }
+    }
+    if (inLoop)
+        fail(path, "truncated: file ends inside the facet that starts on line " + std::to_string(loopLine));
+    if (corners.empty())
+        fail(path, "no triangles (no complete facets)");
+    Scene scene;
+    weldTriangles(corners, scene.mesh);
+    return scene;
+}
+
+} // namespace
+
+Scene importStl(const std::string& path, const MappedFile& file)
+{
+    const size_t size = file.size();
+    uint32_t triangleCount = 0;
+    if (size >= 84)
+        std::memcpy(&triangleCount, file.data() + 80, 4);
+    if (size >= 84 && uint64_t(size) == 84 + 50 * uint64_t(triangleCount)) {
+        if (triangleCount == 0)
+            fail(path, "no triangles (binary STL with 0 facets)");
+        return importBinaryStl(path, file, triangleCount);
+    }
+    std::string_view text = file.text();
+    size_t start = text.find_first_not_of(" \t\r\n");
+    if (start != std::string_view::npos && text.substr(start, 5) == "solid")
+        return importAsciiStl(path, file);
+    if (size < 84)
+        fail(path, "truncated: " + std::to_string(size) + " bytes is shorter than a binary STL header (84 bytes)");
+    uint64_t expected = 84 + 50 * uint64_t(triangleCount);
+    if (expected > size)
+        fail(path, "truncated: header claims " + std::to_string(triangleCount) + " triangles (" +
+                       std::to_string(expected) + " bytes) but the file has " + std::to_string(size) + " bytes");
+    fail(path, "malformed binary STL: header claims " + std::to_string(triangleCount) + " triangles (" +
+                   std::to_string(expected) + " bytes) but the file has " + std::to_string(size) + " bytes");
+}
+
+void exportStl(const Scene& scene, AtomicFileWriter& out, bool binary)
+{
+    const Mesh& mesh = scene.mesh;
+    const size_t triangles = mesh.triangleCount();
+    auto normalOf = [&](size_t t) {
+        glm::vec3 a = mesh.position(mesh.indices[t * 3]);
+        glm::vec3 b = mesh.position(mesh.indices[t * 3 + 1]);
+        glm::vec3 c = mesh.position(mesh.indices[t * 3 + 2]);
+        glm::vec3 n = glm::cross(b - a, c - a);
+        float length = glm::length(n);
+        return length > 0.0f && std::isfinite(length) ? n / length : glm::vec3(0.0f);
+    };
+    if (binary) {
+        if (triangles > UINT32_MAX)
+            fail("STL", "binary STL holds at most 4294967295 triangles");
+        char header[84] = "binary STL written by penumbra";
+        uint32_t count = uint32_t(triangles);
+        std::memcpy(header + 80, &count, 4);
+        out.write(header, 84);
+        for (size_t t = 0; t < triangles; ++t) {
+            char* p = out.reserve(50);
+            glm::vec3 n = normalOf(t);
+            std::memcpy(p, &n, 12);
+            for (int k = 0; k < 3; ++k)
+                std::memcpy(p + 12 + k * 12, &mesh.positions[size_t(mesh.indices[t * 3 + size_t(k)]) * 3], 12);
+            p[48] = 0;
+            p[49] = 0;
+            out.advance(50);
+        }
+        return;
+    }
+    out.write("solid penumbra\n");
+    for (size_t t = 0; t < triangles; ++t) {
+        char* start = out.reserve(512);
+        char* p = start;
+        glm::vec3 n = normalOf(t);
+        auto put = [&](const char* text) {
+            size_t length = std::strlen(text);
+            std::memcpy(p, text, length);
+            p += length;
+        };
+        put("facet normal ");
+        p = formatFloat(p, n.x, ' ');
+        p = formatFloat(p, n.y, ' ');
+        p = formatFloat(p, n.z, '\n');
+        put(" outer loop\n");
+        for (int k = 0; k < 3; ++k) {
+            const float* v = &mesh.positions[size_t(mesh.indices[t * 3 + size_t(k)]) * 3];
+            put("  vertex ");
+            p = formatFloat(p, v[0], ' ');
+            p = formatFloat(p, v[1], ' ');
+            p = formatFloat(p, v[2], '\n');
+        }
+        put(" endloop\nendfacet\n");
+        out.advance(size_t(p - start));
+    }
+    out.write("endsolid penumbra\n");
+}
+
+} // namespace penumbra::detail

@@ -1,0 +1,24 @@
+// Procedural benchmark scenes that stand in for the paper's models.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "penumbra/mesh.h"
+
+namespace penumbra {
+
+struct GenerateOptions {
+    uint64_t triangles = 1'000'000;  // triangle budget; the result is within a few % of it
+    uint64_t seed = 1;               // same name, budget and seed: bit-identical output
+};
+
+// Names accepted by generateScene: "city", "interior", "plant", "scan".
+std::vector<std::string> generatorNames();
+
+// Builds the named scene with a suggested camera and light. Throws Error for
+// an unknown name or a budget outside the generator's range.
+Scene generateScene(const std::string& name, const GenerateOptions& options);
+
+} // namespace penumbra

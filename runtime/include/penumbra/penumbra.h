@@ -1,0 +1,130 @@
+// Penumbra public C++ API: load a model, set camera and lights, choose a
+// shadow method, render headless with Vulkan to an image in memory or a file,
+// and read per-pass statistics. The penumbra CLI is built on this API only.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "penumbra/error.h"
+#include "penumbra/io.h"
+#include "penumbra/mesh.h"
+#include "penumbra/scene_file.h"
+
+namespace penumbra {
+
+// How shadows are computed. Only the shadow-map baseline exists so far;
+// selective (srt) and full ray tracing (frt) come with the ray tracer.
+enum class ShadowMethod { ShadowMap };
+
+const char* shadowMethodName(ShadowMethod method);
+ShadowMethod parseShadowMethod(const std::string& name); // throws Error
+
+struct DeviceInfo {
+    uint32_t index = 0;          // position in vkEnumeratePhysicalDevices
+    std::string name;            // e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
+    std::string type;            // "discrete", "integrated", "virtual", "cpu", "other"
+    std::string driver;          // driver name and version, e.g. "llvmpipe Mesa 22.3.6"
+    std::string apiVersion;      // e.g. "1.3.230"
+};
+
+struct RendererOptions {
+    // Empty: the first discrete GPU, else integrated, else any other device
+    // (lavapipe). Otherwise a device index or a case-insensitive substring of its name.
+    std::string device;
+    // Enables VK_LAYER_KHRONOS_validation; every message is printed to stderr
+    // and counted (validationMessageCount). Also on when the environment
+    // variable PENUMBRA_VALIDATION=1 is set.
+    bool validation = false;
+};
+
+struct RenderSettings {
+    uint32_t width = 1024;
+    uint32_t height = 1024;
+    ShadowMethod shadows = ShadowMethod::ShadowMap;
+    uint32_t shadowMapSize = 2048;      // texels per side (per cube face for point lights)
+    float depthBiasConstant = 1.0f;     // vkCmdSetDepthBias constant factor (units of minimum resolvable depth)
+    float depthBiasSlope = 1.5f;        // vkCmdSetDepthBias slope factor
+    float ambient = 0.15f;              // ambient term, fraction of albedo
+    float albedo = 0.8f;                // grey surface reflectance
+    float background[3] = {0.06f, 0.07f, 0.09f};
+    bool readbackGBuffer = false;       // also return world positions and light-0 visibility
+};
+
+// Linear-light RGBA float image, row-major, top row first.
+struct Image {
+    uint32_t width = 0;
+    uint32_t height = 0;
+    std::vector<float> rgba;
+};
+
+struct PassTiming {
+    std::string name;   // "camera", "shadow_map", "shade", ...
+    double gpuMs = 0;   // from timestamp queries
+};
+
+struct FrameStats {
+    uint64_t triangles = 0;
+    uint32_t width = 0, height = 0;
+    uint32_t lights = 0;
+    DeviceInfo device;
+    std::vector<PassTiming> passes;
+    double gpuMs = 0;       // first to last timestamp
+    double cpuMs = 0;       // record + submit + wait + readback, wall clock
+};
+
+struct Frame {
+    Image color;
+    // With RenderSettings::readbackGBuffer: per pixel world position (xyz, w = 1
+    // when covered, 0 for background) and visibility of light 0 (1 lit,
+    // 0 shadowed, -1 background).
+    std::vector<float> positions;
+    std::vector<float> visibility;
+    FrameStats stats;
+};
+
+// Lists the Vulkan devices the loader reports (throws Error without Vulkan).
+std::vector<DeviceInfo> listDevices();
+
+class Renderer {
+public:
+    explicit Renderer(const RendererOptions& options = {});
+    ~Renderer();
+    Renderer(const Renderer&) = delete;
+    Renderer& operator=(const Renderer&) = delete;
+
+    const DeviceInfo& device() const;
+
+    // Uploads the mesh once; replaces any previous model.
+    void loadModel(const Mesh& mesh);
+    // Camera and lights; without setCamera, a camera framing the model is used;
+    // without lights, a directional sun. At most 8 lights.
+    void setCamera(const Camera& camera);
+    void setLights(const std::vector<Light>& lights);
+
+    Frame render(const RenderSettings& settings);
+
+    // Number of validation-layer messages seen so far (0 unless validation is on).
+    uint32_t validationMessageCount() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl;
+};
+
+// Camera looking at the model from above and to the side; directional sun.
+Camera defaultCamera(const Bounds& bounds);
+Light defaultLight();
+
+// Writes a PNG (8-bit sRGB), EXR (half float linear) or any other format
+// OpenImageIO knows by extension; to a temporary name, then renamed.
+void writeImage(const Image& image, const std::string& path);
+
+// Summary line: "triangles 1234567 | 1024x1024 | llvmpipe ... | camera 3.1 ms | ..."
+std::string summaryLine(const FrameStats& stats);
+// Stats as JSON text (device name and driver included).
+std::string statsJson(const FrameStats& stats);
+
+} // namespace penumbra

@@ -1,0 +1,297 @@
+#include "device.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+namespace penumbra::vk {
+
+const char* resultName(VkResult result)
+{
+    switch (result) {
+#define NAME(r) case r: return #r
+        NAME(VK_NOT_READY); NAME(VK_TIMEOUT); NAME(VK_INCOMPLETE);
+        NAME(VK_ERROR_OUT_OF_HOST_MEMORY); NAME(VK_ERROR_OUT_OF_DEVICE_MEMORY);
+        NAME(VK_ERROR_INITIALIZATION_FAILED); NAME(VK_ERROR_DEVICE_LOST);
+        NAME(VK_ERROR_MEMORY_MAP_FAILED); NAME(VK_ERROR_LAYER_NOT_PRESENT);
+        NAME(VK_ERROR_EXTENSION_NOT_PRESENT); NAME(VK_ERROR_FEATURE_NOT_PRESENT);
+        NAME(VK_ERROR_INCOMPATIBLE_DRIVER); NAME(VK_ERROR_TOO_MANY_OBJECTS);
+        NAME(VK_ERROR_FORMAT_NOT_SUPPORTED); NAME(VK_ERROR_OUT_OF_POOL_MEMORY);
+#undef NAME
+    default: return "VkResult error";
+    }
+}
+
+void vulkanFailure(const char* call, VkResult result, const char* file, int line)
+{
+    const char* base = std::strrchr(file, '/');
+    std::string where = std::string(base ? base + 1 : file) + ":" + std::to_string(line);
+    if (result == VK_ERROR_OUT_OF_DEVICE_MEMORY || result == VK_ERROR_OUT_OF_HOST_MEMORY)
+        fail("vulkan", std::string("out of memory (") + resultName(result) + ") in " + call + " at " + where);
+    fail("vulkan", std::string(call) + " failed with " + resultName(result) + " at " + where);
+}
+
+namespace {
+
+VKAPI_ATTR VkBool32 VKAPI_CALL debugCallback(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                            VkDebugUtilsMessageTypeFlagsEXT, const VkDebugUtilsMessengerCallbackDataEXT* data,
+                                            void* user)
+{
+    auto* device = static_cast<Device*>(user);
+    device->validationMessages.fetch_add(1);
+    const char* level = severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT ? "error" : "warning";
+    std::fprintf(stderr, "penumbra: validation %s: %s\n", level, data->pMessage ? data->pMessage : "");
+    return VK_FALSE;
+}
+
+bool validationRequested(const RendererOptions& options)
+{
+    const char* env = std::getenv("PENUMBRA_VALIDATION");
+    return options.validation || (env && std::strcmp(env, "0") != 0 && env[0] != '\0');
+}
+
+bool hasLayer(const char* name)
+{
+    uint32_t count = 0;
+    vkEnumerateInstanceLayerProperties(&count, nullptr);
+    std::vector<VkLayerProperties> layers(count);
+    vkEnumerateInstanceLayerProperties(&count, layers.data());
+    return std::any_of(layers.begin(), layers.end(), [&](const VkLayerProperties& l) { return std::strcmp(l.layerName, name) == 0; });
+}
+
+VkInstance createInstance(bool validation, const VkDebugUtilsMessengerCreateInfoEXT* messengerInfo)
+{
+    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+    app.pApplicationName = "penumbra";
+    app.pEngineName = "penumbra";
+    app.apiVersion = VK_API_VERSION_1_3;
+
+    const char* layer = "VK_LAYER_KHRONOS_validation";
+    const char* extension = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
+    VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+    info.pApplicationInfo = &app;
+    if (validation) {
+        if (!hasLayer(layer))
+            fail("vulkan", "validation requested but VK_LAYER_KHRONOS_validation is not installed (apt-get install vulkan-validationlayers)");
+        info.enabledLayerCount = 1;
+        info.ppEnabledLayerNames = &layer;
+        info.enabledExtensionCount = 1;
+        info.ppEnabledExtensionNames = &extension;
+        info.pNext = messengerInfo;
+    }
+    VkInstance instance = VK_NULL_HANDLE;
+    VkResult result = vkCreateInstance(&info, nullptr, &instance);
+    if (result == VK_ERROR_INCOMPATIBLE_DRIVER)
+        fail("vulkan", "no Vulkan 1.3 driver found (install mesa-vulkan-drivers for lavapipe)");
+    VK_CHECK(result);
+    return instance;
+}
+
+std::string lower(std::string s)
+{
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return s;
+}
+
+const char* typeName(VkPhysicalDeviceType type)
+{
+    switch (type) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return "cpu";
+    default: return "other";
+    }
+}
+
+DeviceInfo describe(VkPhysicalDevice physical, uint32_t index)
+{
+    VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+    VkPhysicalDeviceProperties2 props{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &driver};
+    vkGetPhysicalDeviceProperties2(physical, &props);
+    DeviceInfo info;
+    info.index = index;
+    info.name = props.properties.deviceName;
+    info.type = typeName(props.properties.deviceType);
+    info.driver = std::string(driver.driverName) + " " + driver.driverInfo;
+    uint32_t v = props.properties.apiVersion;
+    info.apiVersion = std::to_string(VK_API_VERSION_MAJOR(v)) + "." + std::to_string(VK_API_VERSION_MINOR(v)) + "." +
+                      std::to_string(VK_API_VERSION_PATCH(v));
+    return info;
+}
+
+int preference(VkPhysicalDeviceType type)
+{
+    switch (type) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return 0;
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return 1;
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return 2;
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return 3;
+    default: return 4;
+    }
+}
+
+bool graphicsComputeFamily(VkPhysicalDevice physical, uint32_t& family)
+{
+    uint32_t count = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(physical, &count, nullptr);
+    std::vector<VkQueueFamilyProperties> families(count);
+    vkGetPhysicalDeviceQueueFamilyProperties(physical, &count, families.data());
+    for (uint32_t i = 0; i < count; ++i) {
+        VkQueueFlags need = VK_QUEUE_GRAPHICS_BIT | VK_QUEUE_COMPUTE_BIT;
+        if ((families[i].queueFlags & need) == need && families[i].timestampValidBits > 0) {
+            family = i;
+            return true;
+        }
+    }
+    return false;
+}
+
+std::vector<VkPhysicalDevice> physicalDevices(VkInstance instance)
+{
+    uint32_t count = 0;
+    VK_CHECK(vkEnumeratePhysicalDevices(instance, &count, nullptr));
+    std::vector<VkPhysicalDevice> devices(count);
+    VK_CHECK(vkEnumeratePhysicalDevices(instance, &count, devices.data()));
+    return devices;
+}
+
+VkPhysicalDevice choosePhysicalDevice(VkInstance instance, const std::string& request)
+{
+    std::vector<VkPhysicalDevice> devices = physicalDevices(instance);
+    if (devices.empty())
+        fail("vulkan", "no Vulkan device found (install mesa-vulkan-drivers for lavapipe)");
+
+    auto usable = [](VkPhysicalDevice d) {
+        VkPhysicalDeviceProperties p;
+        vkGetPhysicalDeviceProperties(d, &p);
+        uint32_t family;
+        return p.apiVersion >= VK_API_VERSION_1_3 && graphicsComputeFamily(d, family);
+    };
+
+    if (!request.empty()) {
+        char* end = nullptr;
+        unsigned long index = std::strtoul(request.c_str(), &end, 10);
+        bool numeric = *end == '\0';
+        std::string names;
+        for (uint32_t i = 0; i < devices.size(); ++i) {
+            DeviceInfo info = describe(devices[i], i);
+            names += (i ? ", " : "") + std::to_string(i) + ": " + info.name;
+            bool match = numeric ? index == i : lower(info.name).find(lower(request)) != std::string::npos;
+            if (match) {
+                if (!usable(devices[i]))
+                    fail("--device " + request, "'" + info.name + "' lacks Vulkan 1.3 or a graphics+compute queue with timestamps");
+                return devices[i];
+            }
+        }
+        fail("--device " + request, "no such device (available: " + names + ")");
+    }
+
+    VkPhysicalDevice best = VK_NULL_HANDLE;
+    int bestRank = 1 << 30;
+    for (VkPhysicalDevice d : devices) {
+        VkPhysicalDeviceProperties p;
+        vkGetPhysicalDeviceProperties(d, &p);
+        if (usable(d) && preference(p.deviceType) < bestRank) {
+            best = d;
+            bestRank = preference(p.deviceType);
+        }
+    }
+    if (!best)
+        fail("vulkan", "no device supports Vulkan 1.3 with a graphics+compute queue");
+    return best;
+}
+
+} // namespace
+
+std::vector<DeviceInfo> enumerateDevices()
+{
+    VkInstance instance = createInstance(false, nullptr);
+    std::vector<DeviceInfo> result;
+    std::vector<VkPhysicalDevice> devices = physicalDevices(instance);
+    for (uint32_t i = 0; i < devices.size(); ++i)
+        result.push_back(describe(devices[i], i));
+    vkDestroyInstance(instance, nullptr);
+    return result;
+}
+
+void createDevice(Device& device, const RendererOptions& options)
+{
+    bool validation = validationRequested(options);
+    VkDebugUtilsMessengerCreateInfoEXT messengerInfo{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+    messengerInfo.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    messengerInfo.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                                VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+    messengerInfo.pfnUserCallback = debugCallback;
+    messengerInfo.pUserData = &device;
+
+    device.instance = createInstance(validation, &messengerInfo);
+    if (validation) {
+        auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+            vkGetInstanceProcAddr(device.instance, "vkCreateDebugUtilsMessengerEXT"));
+        VK_CHECK(create(device.instance, &messengerInfo, nullptr, &device.messenger));
+    }
+
+    device.physical = choosePhysicalDevice(device.instance, options.device);
+    vkGetPhysicalDeviceProperties(device.physical, &device.properties);
+    vkGetPhysicalDeviceMemoryProperties(device.physical, &device.memory);
+    graphicsComputeFamily(device.physical, device.queueFamily);
+    {
+        std::vector<VkPhysicalDevice> all = physicalDevices(device.instance);
+        uint32_t index = uint32_t(std::find(all.begin(), all.end(), device.physical) - all.begin());
+        device.info = describe(device.physical, index);
+    }
+
+    VkPhysicalDeviceVulkan13Features features13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+    VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &features13};
+    vkGetPhysicalDeviceFeatures2(device.physical, &supported);
+    if (!features13.dynamicRendering || !features13.synchronization2 || !features13.maintenance4)
+        fail("vulkan", device.info.name + " lacks a required Vulkan 1.3 feature (dynamicRendering, synchronization2, maintenance4)");
+
+    VkPhysicalDeviceVulkan13Features enable13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+    enable13.dynamicRendering = VK_TRUE;
+    enable13.synchronization2 = VK_TRUE;
+    enable13.maintenance4 = VK_TRUE; // glslang emits LocalSizeId for Vulkan 1.3 targets
+    VkPhysicalDeviceFeatures2 enable{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &enable13};
+    enable.features.fullDrawIndexUint32 = supported.features.fullDrawIndexUint32;
+    enable.features.shaderStorageImageWriteWithoutFormat = supported.features.shaderStorageImageWriteWithoutFormat;
+
+    float priority = 1.0f;
+    VkDeviceQueueCreateInfo queueInfo{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    queueInfo.queueFamilyIndex = device.queueFamily;
+    queueInfo.queueCount = 1;
+    queueInfo.pQueuePriorities = &priority;
+    VkDeviceCreateInfo info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO, &enable};
+    info.queueCreateInfoCount = 1;
+    info.pQueueCreateInfos = &queueInfo;
+    VK_CHECK(vkCreateDevice(device.physical, &info, nullptr, &device.device));
+    vkGetDeviceQueue(device.device, device.queueFamily, 0, &device.queue);
+
+    VkCommandPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    poolInfo.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+    poolInfo.queueFamilyIndex = device.queueFamily;
+    VK_CHECK(vkCreateCommandPool(device.device, &poolInfo, nullptr, &device.commandPool));
+}
+
+void destroyDevice(Device& device)
+{
+    if (device.device) {
+        vkDeviceWaitIdle(device.device);
+        vkDestroyCommandPool(device.device, device.commandPool, nullptr);
+        vkDestroyDevice(device.device, nullptr);
+    }
+    if (device.messenger) {
+        auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
+            vkGetInstanceProcAddr(device.instance, "vkDestroyDebugUtilsMessengerEXT"));
+        destroy(device.instance, device.messenger, nullptr);
+    }
+    if (device.instance)
+        vkDestroyInstance(device.instance, nullptr);
+    device.device = VK_NULL_HANDLE;
+    device.messenger = VK_NULL_HANDLE;
+    device.instance = VK_NULL_HANDLE;
+}
+
+} // namespace penumbra::vk

@@ -1,0 +1,126 @@
+#include "light_space.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "penumbra/error.h"
+
+namespace penumbra {
+
+namespace {
+
+// Flips y so that row 0 of every render target is the top of the view.
+glm::mat4 vulkanClip(glm::mat4 projection)
+{
+    projection[1][1] *= -1.0f;
+    return projection;
+}
+
+glm::vec3 corner(const Bounds& b, int i)
+{
+    return {i & 1 ? b.max.x : b.min.x, i & 2 ? b.max.y : b.min.y, i & 4 ? b.max.z : b.min.z};
+}
+
+// Any up vector not parallel to forward.
+glm::vec3 stableUp(glm::vec3 forward, glm::vec3 preferred)
+{
+    glm::vec3 f = glm::normalize(forward);
+    if (glm::length(preferred) > 0.0f && std::abs(glm::dot(f, glm::normalize(preferred))) < 0.999f)
+        return glm::normalize(preferred);
+    return std::abs(f.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
+}
+
+// Near and far distances along a view that contain the bounds.
+void depthRange(const glm::mat4& view, const Bounds& bounds, float& nearPlane, float& farPlane)
+{
+    float zMin = 1e30f, zMax = -1e30f;
+    for (int i = 0; i < 8; ++i) {
+        float z = -(view * glm::vec4(corner(bounds, i), 1.0f)).z;
+        zMin = std::min(zMin, z);
+        zMax = std::max(zMax, z);
+    }
+    farPlane = std::max(zMax * 1.01f, 1e-3f);
+    nearPlane = std::max(zMin * 0.99f, farPlane * 1e-4f);
+}
+
+glm::mat4 perspectiveFitted(glm::vec3 eye, glm::vec3 forward, glm::vec3 up, float fovRadians, float aspect, const Bounds& bounds,
+                            float nearPlane = 0.0f, float farPlane = 0.0f)
+{
+    glm::mat4 view = glm::lookAtRH(eye, eye + forward, stableUp(forward, up));
+    float n, f;
+    depthRange(view, bounds, n, f);
+    if (nearPlane > 0.0f) n = nearPlane;
+    if (farPlane > 0.0f) f = farPlane;
+    if (!(f > n))
+        f = n * 2.0f;
+    return vulkanClip(glm::perspectiveRH_ZO(fovRadians, aspect, n, f)) * view;
+}
+
+} // namespace
+
+ViewProjection cameraViewProjection(const Camera& camera, const Bounds& bounds, float aspect)
+{
+    glm::vec3 forward = camera.target - camera.position;
+    if (glm::length(forward) == 0.0f)
+        fail("camera", "position and target must differ");
+    forward = glm::normalize(forward);
+    ViewProjection result;
+    result.eye = camera.position;
+    if (camera.projection == Projection::Perspective) {
+        result.viewProj = perspectiveFitted(camera.position, forward, camera.up, glm::radians(camera.yfovDegrees), aspect, bounds,
+                                            camera.nearPlane, camera.farPlane);
+        return result;
+    }
+    glm::mat4 view = glm::lookAtRH(camera.position, camera.position + forward, stableUp(forward, camera.up));
+    float n, f;
+    depthRange(view, bounds, n, f);
+    n = camera.nearPlane > 0.0f ? camera.nearPlane : std::min(n, 0.0f) - 1e-3f * (f - n + 1.0f);
+    if (camera.farPlane > 0.0f) f = camera.farPlane;
+    float h = camera.orthoHeight * 0.5f, w = h * aspect;
+    result.viewProj = vulkanClip(glm::orthoRH_ZO(-w, w, -h, h, n, f)) * view;
+    return result;
+}
+
+uint32_t lightViewProjections(const Light& light, const Bounds& bounds, glm::mat4 out[6])
+{
+    if (light.type == LightType::Directional) {
+        glm::vec3 dir = glm::normalize(light.direction);
+        float radius = std::max(glm::length(bounds.extent()) * 0.5f, 1e-3f);
+        glm::vec3 eye = bounds.center() - dir * radius * 2.0f;
+        glm::mat4 view = glm::lookAtRH(eye, bounds.center(), stableUp(dir, light.up));
+        glm::vec3 lo(1e30f), hi(-1e30f);
+        for (int i = 0; i < 8; ++i) {
+            glm::vec3 p = glm::vec3(view * glm::vec4(corner(bounds, i), 1.0f));
+            lo = glm::min(lo, p);
+            hi = glm::max(hi, p);
+        }
+        float margin = radius * 1e-3f;
+        glm::mat4 projection = glm::orthoRH_ZO(lo.x - margin, hi.x + margin, lo.y - margin, hi.y + margin, -hi.z - margin, -lo.z + margin);
+        out[0] = vulkanClip(projection) * view;
+        return 1;
+    }
+    if (light.type == LightType::Spot) {
+        out[0] = perspectiveFitted(light.position, glm::normalize(light.direction), light.up,
+                                   glm::radians(2.0f * light.outerConeDegrees), 1.0f, bounds);
+        return 1;
+    }
+    static const glm::vec3 axes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    static const glm::vec3 ups[6] = {{0, -1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}, {0, -1, 0}, {0, -1, 0}};
+    for (int face = 0; face < 6; ++face) {
+        glm::mat4 view = glm::lookAtRH(light.position, light.position + axes[face], ups[face]);
+        float n, f;
+        depthRange(view, bounds, n, f);
+        // Every face shares one near plane small enough for the nearest geometry in any direction.
+        glm::vec3 nearest = glm::clamp(light.position, bounds.min, bounds.max);
+        float distance = glm::length(nearest - light.position);
+        n = std::max(distance * 0.5f, f * 1e-4f);
+        if (!(f > n))
+            f = n * 2.0f;
+        out[face] = vulkanClip(glm::perspectiveRH_ZO(glm::radians(90.0f), 1.0f, n, f)) * view;
+    }
+    return 6;
+}
+
+} // namespace penumbra

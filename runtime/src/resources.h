@@ -1,0 +1,62 @@
+// Buffers and images: plain structs with create/destroy, one allocation each.
+#pragma once
+
+#include <vulkan/vulkan.h>
+
+#include "device.h"
+
+namespace penumbra::vk {
+
+struct Buffer {
+    VkBuffer buffer = VK_NULL_HANDLE;
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+    VkDeviceSize size = 0;
+    void* mapped = nullptr;   // non-null for host-visible buffers
+};
+
+struct Image {
+    VkImage image = VK_NULL_HANDLE;
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+    VkImageView view = VK_NULL_HANDLE;       // all layers
+    VkImageView layerViews[6] = {};          // one per layer (render targets of layered images)
+    VkFormat format = VK_FORMAT_UNDEFINED;
+    uint32_t width = 0, height = 0, layers = 1;
+};
+
+enum class MemoryUse {
+    DeviceLocal,  // GPU only
+    Upload,       // host-visible; device-local when the device offers it (lavapipe, ReBAR)
+    Readback,     // host-visible, cached where possible
+};
+
+Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage, MemoryUse use);
+void destroyBuffer(Device& device, Buffer& buffer);
+
+// Creates a device-local buffer holding data: mapped directly when the
+// device-local heap is host-visible, else through a staging copy.
+Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage);
+
+Image createImage(Device& device, uint32_t width, uint32_t height, uint32_t layers, VkFormat format, VkImageUsageFlags usage);
+void destroyImage(Device& device, Image& image);
+
+// One-time command buffer: begin, record in fn, submit and wait.
+template <typename Fn>
+void immediateSubmit(Device& device, Fn&& fn);
+
+VkCommandBuffer beginOneTime(Device& device);
+void endOneTime(Device& device, VkCommandBuffer cmd);
+
+template <typename Fn>
+void immediateSubmit(Device& device, Fn&& fn)
+{
+    VkCommandBuffer cmd = beginOneTime(device);
+    fn(cmd);
+    endOneTime(device, cmd);
+}
+
+// Full image layout transition with a sync2 barrier.
+void transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to,
+                VkPipelineStageFlags2 srcStage, VkAccessFlags2 srcAccess, VkPipelineStageFlags2 dstStage,
+                VkAccessFlags2 dstAccess);
+
+} // namespace penumbra::vk

@@ -1,0 +1,54 @@
+// Limits and GPU struct layouts shared by C++ (runtime/src) and GLSL (shaders/).
+// Every tunable here has one line of explanation. Keep std140/std430-compatible.
+#ifndef PENUMBRA_SHADERS_CONFIG_H
+#define PENUMBRA_SHADERS_CONFIG_H
+
+#define PENUMBRA_MAX_LIGHTS 8            // lights shaded per frame
+#define PENUMBRA_SHADE_GROUP_SIZE 8      // shade.comp workgroup is 8x8 pixels
+
+#define PENUMBRA_LIGHT_POINT 0
+#define PENUMBRA_LIGHT_SPOT 1
+#define PENUMBRA_LIGHT_DIRECTIONAL 2
+#define PENUMBRA_LIGHT_RECTANGLE 3
+#define PENUMBRA_LIGHT_DISK 4
+#define PENUMBRA_LIGHT_SPHERE 5
+
+#ifdef __cplusplus
+#include <cstdint>
+#include <glm/mat4x4.hpp>
+#include <glm/vec4.hpp>
+namespace penumbra::gpu {
+using mat4 = glm::mat4;
+using vec4 = glm::vec4;
+using uint = uint32_t;
+#define PENUMBRA_STRUCT(name) struct alignas(16) name
+#else
+#define PENUMBRA_STRUCT(name) struct name
+#endif
+
+// One light as the shade pass sees it (std140 array element).
+PENUMBRA_STRUCT(LightData)
+{
+    mat4 viewProj[6];        // light-space projection per shadow-map layer (6 for point lights)
+    vec4 positionType;       // xyz position (point-like lights), w = PENUMBRA_LIGHT_* as float
+    vec4 directionRange;     // xyz direction light travels, w = range (0 = infinite)
+    vec4 colorIntensity;     // rgb colour, w = intensity
+    vec4 spotCosLayers;      // x = cos(inner), y = cos(outer), z = shadow-map layers, w = unused
+};
+
+// Per-frame constants of the shade pass (std140).
+PENUMBRA_STRUCT(FrameData)
+{
+    vec4 cameraPosition;     // xyz camera position, w unused
+    vec4 shading;            // x = ambient, y = albedo, zw unused
+    vec4 background;         // rgb background colour, a = 1
+    LightData lights[PENUMBRA_MAX_LIGHTS];
+};
+
+#ifdef __cplusplus
+static_assert(sizeof(LightData) == 6 * 64 + 4 * 16, "LightData layout must match std140");
+static_assert(sizeof(FrameData) == 3 * 16 + PENUMBRA_MAX_LIGHTS * sizeof(LightData), "FrameData layout must match std140");
+} // namespace penumbra::gpu
+#endif
+
+#endif
