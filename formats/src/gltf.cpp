@@ -27,6 +27,7 @@ constexpr uint32_t kGlbMagic = 0x46546C67;     // "glTF"
 constexpr uint32_t kChunkJson = 0x4E4F534A;    // "JSON"
 constexpr uint32_t kChunkBin = 0x004E4942;     // "BIN\0"
 constexpr uint64_t kMaxTriangles = uint64_t(1) << 30; // after instancing; bounds memory for hostile node graphs
+constexpr uint64_t kMaxVertices = uint64_t(1) << 30;  // after instancing
 constexpr size_t kMaxNodeDepth = 1024;
 constexpr double kPi = 3.14159265358979323846;
 
@@ -561,8 +562,9 @@ private:
         if (out.triangleCount() + triangles > kMaxTriangles)
             fail(path_, where + ": scene expands to more than " + std::to_string(kMaxTriangles) +
                             " triangles after instancing");
-        if (out.vertexCount() + vertices > UINT32_MAX)
-            fail(path_, where + ": scene has more than 4294967295 vertices");
+        if (out.vertexCount() + vertices > kMaxVertices)
+            fail(path_, where + ": scene expands to more than " + std::to_string(kMaxVertices) +
+                            " vertices after instancing");
     }
 
     static void transformInto(float* dst, const float* src, size_t count, const glm::mat4& m)

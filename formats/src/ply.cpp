@@ -122,10 +122,6 @@ PlyHeader parseHeader(const std::string& path, const MappedFile& file)
         if (keyword == "end_header") {
             if (!cursor.token().empty())
                 headerFail("unexpected text after end_header");
-            if (cursor.atEnd() || *cursor.p != '\n') {
-                if (!cursor.atEnd())
-                    headerFail("malformed end_header line");
-            }
             cursor.skipLine();
             break;
         }
@@ -313,14 +309,14 @@ public:
         for (int i : {ix, iy, iz})
             if (element.properties[size_t(i)].isList)
                 fail(path_, "vertex property '" + element.properties[size_t(i)].name + "' is a list");
+        size_t stride = element.fixedStride();
+        checkFixed(element, stride == 0 ? element.minimumStride() : stride, "vertices");
         if (element.count > UINT32_MAX)
             fail(path_, "too many vertices (" + std::to_string(element.count) + ", limit 4294967295)");
-        size_t stride = element.fixedStride();
         if (stride == 0) {
             readVerticesGeneric(element, mesh, ix, iy, iz);
             return;
         }
-        checkFixed(element, stride, "vertices");
         size_t offsets[3] = {0, 0, 0};
         size_t running = 0;
         for (size_t i = 0; i < element.properties.size(); ++i) {
@@ -580,14 +576,14 @@ public:
         if (vertices) {
             if (ix < 0 || iy < 0 || iz < 0)
                 fail(path_, "vertex element has no x, y and z properties");
-            if (element.count > UINT32_MAX)
-                fail(path_, "too many vertices (" + std::to_string(element.count) + ", limit 4294967295)");
         }
         // Every value takes at least two bytes ("0 "), so larger counts cannot fit.
         size_t minimumBytes = std::max<size_t>(element.properties.size(), 1) * 2;
         if (element.count > remaining() / minimumBytes + 1)
             fail(path_, "truncated: header claims " + std::to_string(element.count) + " '" + element.name +
                             "' records but only " + std::to_string(remaining()) + " bytes of data follow");
+        if (vertices && element.count > UINT32_MAX)
+            fail(path_, "too many vertices (" + std::to_string(element.count) + ", limit 4294967295)");
         if (vertices)
             vertices->positions.resize(size_t(element.count) * 3);
         for (uint64_t r = 0; r < element.count; ++r) {

@@ -41,6 +41,15 @@ void rejectUnknownKeys(const Json& object, const std::set<std::string>& known, c
 }
 
 // Applies one light property; false when key is not a light property.
+LightType lightTypeIn(const std::string& name, const std::string& subject)
+{
+    try {
+        return parseLightType(name);
+    } catch (const Error& e) {
+        fail(subject, e.what());
+    }
+}
+
 bool setLightProperty(Light& light, const std::string& key, const Json& value, const std::string& subject)
 {
     const char* k = key.c_str();
@@ -77,7 +86,7 @@ Light parseLight(const Json& object, const std::string& subject)
     Light light;
     if (!object.contains("type") || !object["type"].is_string())
         fail(subject, "a light needs a \"type\" string");
-    light.type = parseLightType(object["type"].get<std::string>());
+    light.type = lightTypeIn(object["type"].get<std::string>(), subject);
     for (auto it = object.begin(); it != object.end(); ++it)
         if (it.key() != "type" && !setLightProperty(light, it.key(), it.value(), subject))
             fail(subject, "unknown light key '" + it.key() + "'");
@@ -177,7 +186,7 @@ Light parseLightSpec(const std::string& spec)
     if (type.empty())
         fail(subject, "empty light spec");
     Light light;
-    light.type = parseLightType(type);
+    light.type = lightTypeIn(type, subject);
     std::string word;
     while (words >> word) {
         size_t eq = word.find('=');

@@ -97,8 +97,13 @@ Scene importStl(const std::string& path, const MappedFile& file)
     }
     std::string_view text = file.text();
     size_t start = text.find_first_not_of(" \t\r\n");
-    if (start != std::string_view::npos && text.substr(start, 5) == "solid")
-        return importAsciiStl(path, file);
+    // Some binary exporters also start their header with "solid"; ASCII files
+    // name a facet (or end the solid) within the first kilobyte.
+    if (start != std::string_view::npos && text.substr(start, 5) == "solid") {
+        std::string_view head = text.substr(0, 1024);
+        if (head.find("facet") != std::string_view::npos || head.find("endsolid") != std::string_view::npos)
+            return importAsciiStl(path, file);
+    }
     if (size < 84)
         fail(path, "truncated: " + std::to_string(size) + " bytes is shorter than a binary STL header (84 bytes)");
     uint64_t expected = 84 + 50 * uint64_t(triangleCount);

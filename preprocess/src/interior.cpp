@@ -33,9 +33,12 @@ struct Layout {
 };
 
 // Points on a circular arc in the plane spanned by u (horizontal) and up.
-void arcPath(std::vector<glm::vec3>& path, glm::vec3 centre, glm::vec3 u, float radius, uint32_t segments)
+void arcPath(const MeshBuilder& b, std::vector<glm::vec3>& path, glm::vec3 centre, glm::vec3 u, float radius,
+             uint32_t segments)
 {
     path.resize(segments + 1);
+    if (b.counting())
+        return;  // only the point count matters
     for (uint32_t i = 0; i <= segments; ++i) {
         float a = kPi * float(i) / float(segments);
         path[i] = centre + u * (radius * std::cos(a)) + glm::vec3(0, radius * std::sin(a), 0);
@@ -101,21 +104,21 @@ void nave(MeshBuilder& b, const Layout& layout, uint64_t seed)
     const uint32_t arcSegments = std::max(2u, s / 2);
     for (uint32_t i = 0; i < layout.bays; ++i)
         for (int side = -1; side <= 1; side += 2) {
-            arcPath(path, {float(side) * kColumnX, kColumnHeight, (float(i) + 0.5f) * kBay}, {0, 0, 1}, kBay * 0.5f,
+            arcPath(b, path, {float(side) * kColumnX, kColumnHeight, (float(i) + 0.5f) * kBay}, {0, 0, 1}, kBay * 0.5f,
                     arcSegments);
             b.sweep(path, arcade, {1, 0, 0}, true);
         }
     for (uint32_t i = 0; i <= layout.bays; ++i) {
-        arcPath(path, {0.0f, kColumnHeight, float(i) * kBay}, {1, 0, 0}, kColumnX, arcSegments);
+        arcPath(b, path, {0.0f, kColumnHeight, float(i) * kBay}, {1, 0, 0}, kColumnX, arcSegments);
         b.sweep(path, arcade, {0, 0, 1}, true);
-        arcPath(path, {0.0f, kWallHeight, float(i) * kBay}, {1, 0, 0}, kWallX - 0.3f, arcSegments);
+        arcPath(b, path, {0.0f, kWallHeight, float(i) * kBay}, {1, 0, 0}, kWallX - 0.3f, arcSegments);
         b.sweep(path, rib, {0, 0, 1}, true);
     }
 
     // Barrel vault, one segment per bay (normal along z, binormal radial).
     const glm::vec2 shell[] = {{-kBay * 0.5f, -0.2f}, {kBay * 0.5f, -0.2f}, {kBay * 0.5f, 0.2f}, {-kBay * 0.5f, 0.2f}};
     for (uint32_t i = 0; i < layout.bays; ++i) {
-        arcPath(path, {0.0f, kWallHeight, (float(i) + 0.5f) * kBay}, {1, 0, 0}, kWallX + 0.2f, std::max(2u, s));
+        arcPath(b, path, {0.0f, kWallHeight, (float(i) + 0.5f) * kBay}, {1, 0, 0}, kWallX + 0.2f, std::max(2u, s));
         b.sweep(path, shell, {0, 0, 1}, true);
     }
 }
@@ -139,7 +142,7 @@ Scene generateInterior(const GenerateOptions& options)
     const uint64_t target = budget - budget / 50;
     while (layout.bays > 1 && countNave(layout, seed) > target)
         --layout.bays;
-    uint32_t lo = 3, hi = 1u << 20;
+    uint32_t lo = 3, hi = uint32_t(std::clamp<uint64_t>(budget / (16ull * layout.bays), 3, 1u << 20));
     while (lo < hi) {
         const uint32_t mid = lo + (hi - lo + 1) / 2;
         if (countNave({layout.bays, mid}, seed) <= target)

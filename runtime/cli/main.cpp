@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <fstream>
 #include <new>
+#include <optional>
 
 #include <CLI/CLI.hpp>
 
@@ -75,26 +76,39 @@ void writeTextFile(const std::string& path, const std::string& text)
 
 int runRender(const RenderArgs& args)
 {
+    // Everything the command line says is checked before any slow work.
     RenderSettings settings;
     parseSize(args.size, settings);
     settings.shadows = parseShadowMethod(args.shadows);
     settings.shadowMapSize = args.shadowMapSize;
     settings.depthBiasConstant = args.biasConstant;
     settings.depthBiasSlope = args.biasSlope;
-
+    checkImagePath(args.output);
+    std::vector<Light> commandLineLights;
+    for (const std::string& spec : args.lights)
+        commandLineLights.push_back(parseLightSpec(spec));
+    std::optional<glm::vec3> position, target, up;
+    if (!args.cameraPosition.empty()) position = parseVec3(args.cameraPosition, "--camera-position");
+    if (!args.cameraTarget.empty()) target = parseVec3(args.cameraTarget, "--camera-target");
+    if (!args.cameraUp.empty()) up = parseVec3(args.cameraUp, "--camera-up");
     SceneDescription description;
     if (!args.scene.empty())
         description = loadSceneDescription(args.scene);
     std::string modelPath = !args.model.empty() ? args.model : description.model;
 
+    RendererOptions options;
+    options.device = args.device;
+    options.validation = args.validation;
+    Renderer renderer(options);
+
     auto loadStart = std::chrono::steady_clock::now();
     Scene scene;
     if (modelPath.empty()) {
-        GenerateOptions options;
-        options.triangles = kDemoTriangles;
-        scene = generateScene(kDemoScene, options);
-        std::fprintf(stderr, "penumbra: no model given, rendering the built-in demo scene (%s, %llu triangles)\n", kDemoScene,
-                     (unsigned long long)scene.mesh.triangleCount());
+        GenerateOptions generateOptions;
+        generateOptions.triangles = kDemoTriangles;
+        scene = generateScene(kDemoScene, generateOptions);
+        std::fprintf(stderr, "penumbra: no model given, rendering the built-in demo scene (%s, %zu triangles)\n", kDemoScene,
+                     scene.mesh.triangleCount());
     } else {
         scene = importScene(modelPath);
     }
@@ -110,9 +124,9 @@ int runRender(const RenderArgs& args)
     }
     if (description.camera)
         camera = *description.camera;
-    if (!args.cameraPosition.empty()) camera.position = parseVec3(args.cameraPosition, "--camera-position");
-    if (!args.cameraTarget.empty()) camera.target = parseVec3(args.cameraTarget, "--camera-target");
-    if (!args.cameraUp.empty()) camera.up = parseVec3(args.cameraUp, "--camera-up");
+    if (position) camera.position = *position;
+    if (target) camera.target = *target;
+    if (up) camera.up = *up;
     if (args.fov > 0.0f) {
         camera.projection = Projection::Perspective;
         camera.yfovDegrees = args.fov;
@@ -124,19 +138,13 @@ int runRender(const RenderArgs& args)
     if (camera.position == camera.target)
         fail("camera", "position and target must differ");
 
+    // Lights: command line over scene file over the model's own over the default sun.
     std::vector<Light> lights = scene.lights;
     if (!description.lights.empty())
         lights = description.lights;
-    if (!args.lights.empty()) {
-        lights.clear();
-        for (const std::string& spec : args.lights)
-            lights.push_back(parseLightSpec(spec));
-    }
+    if (!commandLineLights.empty())
+        lights = commandLineLights;
 
-    RendererOptions options;
-    options.device = args.device;
-    options.validation = args.validation;
-    Renderer renderer(options);
     renderer.loadModel(scene.mesh);
     renderer.setCamera(camera);
     renderer.setLights(lights);

@@ -58,8 +58,18 @@ float linearToSrgb(float v)
 
 } // namespace
 
+void checkImagePath(const std::string& path)
+{
+    size_t dot = path.find_last_of('.');
+    if (dot == std::string::npos || path.find('/', dot) != std::string::npos)
+        fail(path, "no file extension (use .png or .exr)");
+    if (!OIIO::ImageOutput::create(path))
+        fail(path, "unsupported image format '" + path.substr(dot) + "'");
+}
+
 void writeImage(const Image& image, const std::string& path)
 {
+    checkImagePath(path);
     if (image.width == 0 || image.height == 0 || image.rgba.size() != size_t(image.width) * image.height * 4)
         fail(path, "image is empty or inconsistent");
     std::string extension = path.substr(path.find_last_of('.') == std::string::npos ? path.size() : path.find_last_of('.'));

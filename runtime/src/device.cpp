@@ -35,12 +35,21 @@ void vulkanFailure(const char* call, VkResult result, const char* file, int line
 
 namespace {
 
+std::atomic<uint32_t> processValidationMessages{0};
+
+} // namespace
+
+uint32_t totalValidationMessages() { return processValidationMessages.load(); }
+
+namespace {
+
 VKAPI_ATTR VkBool32 VKAPI_CALL debugCallback(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
                                             VkDebugUtilsMessageTypeFlagsEXT, const VkDebugUtilsMessengerCallbackDataEXT* data,
                                             void* user)
 {
     auto* device = static_cast<Device*>(user);
     device->validationMessages.fetch_add(1);
+    processValidationMessages.fetch_add(1);
     const char* level = severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT ? "error" : "warning";
     std::fprintf(stderr, "penumbra: validation %s: %s\n", level, data->pMessage ? data->pMessage : "");
     return VK_FALSE;

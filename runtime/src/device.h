@@ -41,6 +41,9 @@ struct Device {
 void createDevice(Device& device, const RendererOptions& options);
 void destroyDevice(Device& device);
 
+// Validation messages seen by every device of this process.
+uint32_t totalValidationMessages();
+
 // Creates an instance with no layers and reports every physical device.
 std::vector<DeviceInfo> enumerateDevices();
 

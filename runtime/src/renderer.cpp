@@ -644,4 +644,6 @@ uint32_t Renderer::validationMessageCount() const { return impl->device.validati
 
 std::vector<DeviceInfo> listDevices() { return vk::enumerateDevices(); }
 
+uint32_t validationMessagesInProcess() { return vk::totalValidationMessages(); }
+
 } // namespace penumbra

@@ -3,7 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdio>
+#include <cstring>
+
+#include <glm/geometric.hpp>
 #include <fstream>
 #include <functional>
 #include <string>

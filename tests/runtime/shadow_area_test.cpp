@@ -17,13 +17,18 @@ void addQuad(Mesh& mesh, glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d)
     mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
 }
 
-// Plane y = 0 of half size 4, cube [-0.5, 0.5] x [2, 3] x [-0.5, 0.5].
+// Plane y = 0 of half size 4; unit cube spanning y in [2, 3], turned 30 degrees
+// about y so that its shadow edges do not line up with the pixel or texel grids.
 Mesh cubeOverPlane()
 {
     Mesh mesh;
     addQuad(mesh, {-4, 0, -4}, {-4, 0, 4}, {4, 0, 4}, {4, 0, -4});
     glm::vec3 lo(-0.5f, 2.0f, -0.5f), hi(0.5f, 3.0f, 0.5f);
-    auto v = [&](int i) { return glm::vec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z); };
+    const float c = std::cos(0.5235988f), s = std::sin(0.5235988f);
+    auto v = [&](int i) {
+        glm::vec3 p(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
+        return glm::vec3(c * p.x + s * p.z, p.y, -s * p.x + c * p.z);
+    };
     addQuad(mesh, v(0), v(1), v(5), v(4)); // bottom
     addQuad(mesh, v(2), v(6), v(7), v(3)); // top
     addQuad(mesh, v(0), v(4), v(6), v(2)); // -x
@@ -38,7 +43,9 @@ struct AreaResult {
     size_t planePixels = 0;
 };
 
-// Camera looks along (0,-1,-1)/sqrt(2); each pixel covers (h/size)^2 / cos(45 deg) of the plane.
+// Camera looks along (0,-1,-2)/sqrt(5), so the cube (seen 2 units per unit of
+// height away from its shadow) never hides the shadow; each pixel covers
+// (h/size)^2 * sqrt(5) of the plane.
 AreaResult measureShadowArea(const std::vector<Light>& lights, float orthoHeight, uint32_t size = 512)
 {
     Renderer renderer;
@@ -46,7 +53,7 @@ AreaResult measureShadowArea(const std::vector<Light>& lights, float orthoHeight
     Camera camera;
     camera.projection = Projection::Orthographic;
     camera.orthoHeight = orthoHeight;
-    camera.position = {0, 10, 10};
+    camera.position = {0, 5, 10};
     camera.target = {0, 0, 0};
     renderer.setCamera(camera);
     renderer.setLights(lights);
@@ -68,7 +75,7 @@ AreaResult measureShadowArea(const std::vector<Light>& lights, float orthoHeight
             ++shadowed;
     }
     double pixel = double(orthoHeight) / size;
-    result.area = double(shadowed) * pixel * pixel / std::sqrt(0.5);
+    result.area = double(shadowed) * pixel * pixel * std::sqrt(5.0);
     std::printf("shadowed plane pixels %zu of %zu, area %.5f\n", shadowed, result.planePixels, result.area);
     return result;
 }
@@ -78,7 +85,7 @@ TEST(ShadowMap, CubeOverPlaneDirectionalLightFromAbove)
     Light sun;
     sun.type = LightType::Directional;
     sun.direction = {0, -1, 0};
-    AreaResult result = measureShadowArea({sun}, 2.0f);
+    AreaResult result = measureShadowArea({sun}, 2.0f, 512);
     EXPECT_GT(result.planePixels, 100000u);
     EXPECT_NEAR(result.area, 1.0, 0.01) << "analytic shadow area of a unit cube under a vertical sun is 1";
 }

@@ -85,6 +85,9 @@ struct Frame {
     FrameStats stats;
 };
 
+// Validation-layer messages seen by every Renderer of this process so far.
+uint32_t validationMessagesInProcess();
+
 // Lists the Vulkan devices the loader reports (throws Error without Vulkan).
 std::vector<DeviceInfo> listDevices();
 
@@ -121,6 +124,8 @@ Light defaultLight();
 // Writes a PNG (8-bit sRGB), EXR (half float linear) or any other format
 // OpenImageIO knows by extension; to a temporary name, then renamed.
 void writeImage(const Image& image, const std::string& path);
+// Throws Error when writeImage could not write this path's format.
+void checkImagePath(const std::string& path);
 
 // Summary line: "triangles 1234567 | 1024x1024 | llvmpipe ... | camera 3.1 ms | ..."
 std::string summaryLine(const FrameStats& stats);

@@ -1,0 +1,126 @@
+// The penumbra CLI end to end: real files in, images out, and one clear
+// error line with a non-zero exit for every kind of bad input.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+    int status = -1;
+    std::string output; // stdout and stderr
+};
+
+Result run(const std::string& arguments)
+{
+    std::string command = std::string(PENUMBRA_CLI) + " " + arguments + " 2>&1";
+    Result result;
+    FILE* pipe = popen(command.c_str(), "r");
+    if (!pipe)
+        return result;
+    char buffer[4096];
+    while (size_t n = fread(buffer, 1, sizeof(buffer), pipe))
+        result.output.append(buffer, n);
+    int status = pclose(pipe);
+    result.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return result;
+}
+
+std::string tmp(const std::string& name)
+{
+    return std::string(PENUMBRA_TEST_TMP) + "/cli_" + name;
+}
+
+// One error line "penumbra: error: <subject>: <problem>" containing every fragment.
+void expectError(const Result& result, std::initializer_list<std::string> fragments)
+{
+    EXPECT_NE(result.status, 0) << result.output;
+    EXPECT_NE(result.output.find("error"), std::string::npos) << result.output;
+    EXPECT_EQ(std::count(result.output.begin(), result.output.end(), '\n'), 1) << "expected one line:\n" << result.output;
+    for (const std::string& fragment : fragments)
+        EXPECT_NE(result.output.find(fragment), std::string::npos) << "missing '" << fragment << "' in: " << result.output;
+}
+
+TEST(Cli, HelpForEverySubcommand)
+{
+    for (const char* command : {"--help", "render --help", "generate --help", "devices --help"}) {
+        Result result = run(command);
+        EXPECT_EQ(result.status, 0) << command;
+        EXPECT_NE(result.output.find("Usage"), std::string::npos) << command;
+    }
+}
+
+TEST(Cli, GenerateThenRenderWithValidation)
+{
+    std::string model = tmp("city.glb"), image = tmp("city.png"), stats = tmp("city.json");
+    fs::remove(image);
+    Result generated = run("generate city --triangles 20000 --seed 3 -o " + model);
+    ASSERT_EQ(generated.status, 0) << generated.output;
+    Result rendered = run("render " + model + " -o " + image + " --size 256x192 --validation --stats " + stats);
+    ASSERT_EQ(rendered.status, 0) << rendered.output;
+    EXPECT_NE(rendered.output.find("triangles"), std::string::npos);
+    EXPECT_NE(rendered.output.find("shadow_map"), std::string::npos);
+    EXPECT_EQ(rendered.output.find("validation"), std::string::npos) << rendered.output;
+    EXPECT_TRUE(fs::exists(image));
+    EXPECT_GT(fs::file_size(image), 1000u);
+    std::ifstream json(stats);
+    std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("\"driver\""), std::string::npos) << text;
+}
+
+TEST(Cli, RenderWithSceneFileAndLightsOnTheCommandLine)
+{
+    std::string model = tmp("plant.ply"), scene = tmp("scene.json"), image = tmp("scene.exr");
+    ASSERT_EQ(run("generate plant --triangles 20000 -o " + model).status, 0);
+    std::ofstream(scene) << R"({"model": "cli_plant.ply", "camera": {"position": [30, 25, 30], "target": [0, 0, 0], "fov": 50},
+        "lights": [{"type": "spot", "position": [5, 30, 5], "direction": [0, -1, 0], "outer_cone": 50, "intensity": 900}]})";
+    Result result = run("render --scene " + scene + " -o " + image + " --size 128 --validation");
+    EXPECT_EQ(result.status, 0) << result.output;
+    EXPECT_TRUE(fs::exists(image));
+    result = run("render " + model + " -o " + tmp("lights.png") +
+                 " --size 128 --validation --light 'point position=0,20,0 intensity=400' --light 'directional direction=1,-2,1'");
+    EXPECT_EQ(result.status, 0) << result.output;
+    EXPECT_NE(result.output.find("lights 2"), std::string::npos) << result.output;
+}
+
+TEST(Cli, BadInputGetsOneClearLineAndNoImage)
+{
+    std::string image = tmp("never.png");
+    fs::remove(image);
+
+    expectError(run("render " + tmp("does_not_exist.ply") + " -o " + image), {"does_not_exist.ply"});
+
+    std::string truncated = tmp("truncated.ply");
+    ASSERT_EQ(run("generate scan --triangles 5000 -o " + truncated).status, 0);
+    fs::resize_file(truncated, fs::file_size(truncated) / 2);
+    expectError(run("render " + truncated + " -o " + image), {"truncated.ply"});
+
+    std::string garbage = tmp("garbage.glb");
+    std::ofstream(garbage) << "this is not a model";
+    expectError(run("render " + garbage + " -o " + image), {"garbage.glb"});
+
+    std::string unknown = tmp("model.xyz");
+    std::ofstream(unknown) << "1 2 3";
+    expectError(run("render " + unknown + " -o " + image), {"model.xyz"});
+
+    std::string badScene = tmp("bad.json");
+    std::ofstream(badScene) << R"({"lights": [{"type": "laser"}]})";
+    expectError(run("render --scene " + badScene + " -o " + image), {"bad.json", "laser"});
+
+    expectError(run("render --size 0 -o " + image), {"--size"});
+    expectError(run("render --shadows magic -o " + image), {"--shadows", "magic"});
+    expectError(run("render --light 'point position=1,2' -o " + image), {"--light"});
+    expectError(run("render --device no-such-gpu -o " + image), {"no-such-gpu"});
+    expectError(run("render -o " + tmp("image.unknownformat") + " --size 32"), {"image.unknownformat"});
+    expectError(run("generate volcano -o " + tmp("volcano.ply")), {"volcano"});
+    expectError(run("generate city -o " + tmp("city.nope")), {"city.nope"});
+
+    EXPECT_FALSE(fs::exists(image));
+}
+
+} // namespace
