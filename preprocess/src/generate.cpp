@@ -138,8 +138,8 @@ struct Generator {
 const Generator kGenerators[] = {
     {"city", 1'000, 200'000'000, detail::generateCity},
     {"interior", 1'000, 100'000'000, detail::generateInterior},
-    {"plant", 1'000, 1'000'000'000, detail::generatePlant},
-    {"scan", 1'000, 1'200'000'000, detail::generateScan},
+    {"plant", 1'000, 1'200'000'000, detail::generatePlant},
+    {"scan", 1'000, 1'300'000'000, detail::generateScan},
 };
 
 } // namespace

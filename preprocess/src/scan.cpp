@@ -241,14 +241,14 @@ Scene generateScan(const GenerateOptions& options)
     ground.fillGround(-kGroundHalfSize, -kGroundHalfSize, kGroundHalfSize, kGroundHalfSize, 0.0f);
 
     Camera camera;
-    camera.position = {2.6f, 1.5f, 3.0f};
+    camera.position = {3.4f, 1.4f, 1.2f};
     camera.target = {0.0f, 0.75f, 0.0f};
     camera.yfovDegrees = 40.0f;
     scene.cameras.push_back(camera);
 
     Light sun;
     sun.type = LightType::Directional;
-    sun.direction = glm::normalize(glm::vec3(-0.65f, -0.42f, 0.55f));  // ~25 degrees elevation
+    sun.direction = glm::normalize(glm::vec3(-0.3f, -0.42f, -0.85f));  // ~25 degrees elevation
     sun.intensity = 3.0f;
     scene.lights.push_back(sun);
     return scene;

@@ -200,6 +200,11 @@ TEST(BadStl, Problems)
     append(hostile, uint32_t(0xffffffff));
     expectImportError("hostile.stl", hostile, {"truncated", "4294967295 triangles"});
     expectImportError("tiny.stl", "abc", {"truncated", "84 bytes"});
+    std::string solidHeader = "solid exported by some tool";
+    solidHeader.resize(80, ' ');
+    append(solidHeader, uint32_t(3));
+    solidHeader += std::string(70, '\0');
+    expectImportError("solid_truncated.stl", solidHeader, {"truncated", "3 triangles"});
     expectImportError("unterminated.stl", "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n",
                       {"truncated", "line 3"});
     expectImportError("bad_number.stl",
@@ -275,6 +280,8 @@ TEST(BadGltf, Container)
     expectImportError("bad_json.glb", glb("{\"asset\": ", triangleBin()), {"malformed JSON"});
     expectImportError("bad_json.gltf", "{]", {"malformed JSON"});
     expectImportError("no_asset.gltf", "{}", {"missing asset.version"});
+    expectImportError("deep.gltf", std::string(200000, '[') + std::string(200000, ']'), {"not a JSON object"});
+    expectImportError("deep_open.gltf", std::string(200000, '{'), {"malformed JSON"});
     expectImportError("v1.gltf", R"({"asset": {"version": "1.0"}})", {"unsupported glTF version '1.0'"});
     expectImportError("ext.gltf", R"({"asset": {"version": "2.0"}, "extensionsRequired": ["EXT_meshopt_compression"]})",
                       {"unsupported extension 'EXT_meshopt_compression'"});
