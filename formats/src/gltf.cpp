@@ -203,7 +203,7 @@ public:
                 fail(path_, where + " is not an object");
             glm::dmat4 world = pending.parent * localTransform(node, where);
             if (const json* mesh = member(node, "mesh"))
-                appendMesh(index(*mesh, where + " mesh"), world, scene.mesh);
+                appendMesh(index(*mesh, where + " mesh"), world, scene.mesh, where);
             if (const json* camera = member(node, "camera"))
                 cameras.push_back(readCamera(index(*camera, where + " camera"), world));
             if (const json* extensions = member(node, "extensions"))
@@ -301,8 +301,12 @@ private:
     {
         size_t count = arraySize(arrayName);
         if (i >= count)
-            fail(path_, where + " references " + std::string(arrayName).substr(0, std::strlen(arrayName) - 1) + " " +
-                            std::to_string(i) + " but there are " + std::to_string(count));
+        {
+            std::string singular = arrayName;
+            singular.resize(singular == "meshes" ? 4 : singular.size() - 1);
+            fail(path_, where + " references " + singular + " " + std::to_string(i) + " but there are " +
+                            std::to_string(count));
+        }
         const json& value = doc_[arrayName][i];
         if (!value.is_object())
             fail(path_, std::string(arrayName) + "[" + std::to_string(i) + "] is not an object");
@@ -527,10 +531,10 @@ private:
 
     // ---- meshes ----
 
-    void appendMesh(uint64_t meshIndex, const glm::dmat4& world, Mesh& out)
+    void appendMesh(uint64_t meshIndex, const glm::dmat4& world, Mesh& out, const std::string& nodeName)
     {
         const std::string meshName = "mesh " + std::to_string(meshIndex);
-        const json& mesh = item("meshes", meshIndex, "node");
+        const json& mesh = item("meshes", meshIndex, nodeName);
         const json* primitives = member(mesh, "primitives");
         if (!primitives || !primitives->is_array())
             fail(path_, meshName + " has no primitives array");
@@ -750,7 +754,7 @@ private:
     PendingCamera readCamera(uint64_t cameraIndex, const glm::dmat4& world)
     {
         const std::string where = "camera " + std::to_string(cameraIndex);
-        const json& camera = item("cameras", cameraIndex, "node");
+        const json& camera = item("cameras", cameraIndex, "a node");
         PendingCamera pending;
         Camera& result = pending.camera;
         const json* type = member(camera, "type");

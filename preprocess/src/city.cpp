@@ -14,9 +14,9 @@ namespace penumbra::detail {
 
 namespace {
 
-constexpr float kBlockPitch = 80.0f;    // block + street, metres
-constexpr float kBlockHalf = 32.0f;     // building area half size
-constexpr float kSidewalkHalf = 35.0f;  // sidewalk slab half size
+constexpr float kBlockPitch = 80.0f;   // block + street, metres
+constexpr float kBlockHalf = 32.0f;    // building area half size
+constexpr float kSidewalkHalf = 35.0f; // sidewalk slab half size
 constexpr float kSidewalkTop = 0.15f;
 constexpr float kFurnitureLine = 34.4f; // poles and railings, distance from block centre
 constexpr float kFloorHeight = 3.5f;
@@ -137,7 +137,8 @@ void railing(MeshBuilder& b, glm::vec3 a, glm::vec3 c)
     const int bars = int(length / kBarSpacing);
     for (int i = 1; i < bars; ++i) {
         glm::vec3 p = a + dir * (kBarSpacing * float(i));
-        b.box(p + glm::vec3(-kBarSize * 0.5f, 0.15f, -kBarSize * 0.5f), p + glm::vec3(kBarSize * 0.5f, 1.03f, kBarSize * 0.5f));
+        b.box(p + glm::vec3(-kBarSize * 0.5f, 0.15f, -kBarSize * 0.5f),
+              p + glm::vec3(kBarSize * 0.5f, 1.03f, kBarSize * 0.5f));
     }
 }
 
@@ -153,9 +154,10 @@ void block(MeshBuilder& b, uint64_t seed, uint64_t unit)
     // Side s runs along 'along' at offset 'out' (outward normal) from the centre.
     const glm::vec3 centre(c.x, kSidewalkTop, c.y);
     for (int side = 0; side < 4; ++side) {
-        const glm::vec3 out = side == 0 ? glm::vec3(0, 0, -1) : side == 1 ? glm::vec3(1, 0, 0)
-                                                             : side == 2 ? glm::vec3(0, 0, 1)
-                                                                         : glm::vec3(-1, 0, 0);
+        const glm::vec3 out = side == 0   ? glm::vec3(0, 0, -1)
+                              : side == 1 ? glm::vec3(1, 0, 0)
+                              : side == 2 ? glm::vec3(0, 0, 1)
+                                          : glm::vec3(-1, 0, 0);
         const glm::vec3 along = glm::cross(glm::vec3(0, 1, 0), out);
         const glm::vec3 start = centre + out * kFurnitureLine - along * kFurnitureLine;
         const int poles = int(2.0f * kFurnitureLine / kPoleSpacing);
@@ -182,8 +184,9 @@ void block(MeshBuilder& b, uint64_t seed, uint64_t unit)
     }
     for (int lot = 0; lot < 4; ++lot) {
         if (rng.chance(0.12f))
-            continue;  // an empty lot (plaza)
-        glm::vec2 lo(c.x - kBlockHalf + ((lot & 1) ? kBlockHalf : 0.0f), c.y - kBlockHalf + ((lot & 2) ? kBlockHalf : 0.0f));
+            continue; // an empty lot (plaza)
+        glm::vec2 lo(c.x - kBlockHalf + ((lot & 1) ? kBlockHalf : 0.0f),
+                     c.y - kBlockHalf + ((lot & 2) ? kBlockHalf : 0.0f));
         glm::vec2 hi = lo + kBlockHalf;
         building(b, rng, lo + rng.uniform(0.8f, 3.0f), hi - rng.uniform(0.8f, 3.0f));
     }
@@ -212,8 +215,8 @@ Scene generateCity(const GenerateOptions& options)
 
     Light sun;
     sun.type = LightType::Directional;
-    sun.direction = glm::normalize(glm::vec3(0.62f, -0.38f, 0.35f));  // ~22 degrees elevation
-    sun.intensity = 3.0f;
+    sun.direction = glm::normalize(glm::vec3(0.3f, -0.72f, 0.62f)); // ~46 degrees elevation, slanting along the streets
+    sun.intensity = 1.0f;
     scene.lights.push_back(sun);
     return scene;
 }

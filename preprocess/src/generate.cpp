@@ -59,10 +59,14 @@ glm::ivec2 spiralCell(uint64_t index)
     const uint64_t p = index - uint64_t(2 * r - 1) * uint64_t(2 * r - 1);
     const int side = int(p / uint64_t(2 * r)), offset = int(p % uint64_t(2 * r));
     switch (side) {
-    case 0: return {r, -r + 1 + offset};
-    case 1: return {r - 1 - offset, r};
-    case 2: return {-r, r - 1 - offset};
-    default: return {-r + 1 + offset, -r};
+    case 0:
+        return {r, -r + 1 + offset};
+    case 1:
+        return {r - 1 - offset, r};
+    case 2:
+        return {-r, r - 1 - offset};
+    default:
+        return {-r + 1 + offset, -r};
     }
 }
 
@@ -72,8 +76,8 @@ Mesh buildUnits(const std::string& subject, uint64_t triangleBudget, uint64_t ma
     struct Plan {
         uint64_t vertexOffset, triangleOffset, triangleLimit, vertices, triangles;
     };
-    constexpr uint64_t kFinishReserve = 2;   // the finish always gets at least one quad
-    constexpr uint64_t kMinUnitRoom = 12;    // stop adding units once less than a box is left
+    constexpr uint64_t kFinishReserve = 2; // the finish always gets at least one quad
+    constexpr uint64_t kMinUnitRoom = 12;  // stop adding units once less than a box is left
 
     // Step 1: count units in order until the budget is spent.
     std::vector<Plan> plans;
@@ -159,8 +163,7 @@ Scene generateScene(const std::string& name, const GenerateOptions& options)
             continue;
         if (options.triangles < g.minTriangles || options.triangles > g.maxTriangles)
             fail("generate " + name, "triangle budget " + std::to_string(options.triangles) + " is outside [" +
-                                         std::to_string(g.minTriangles) + ", " + std::to_string(g.maxTriangles) +
-                                         "]");
+                                         std::to_string(g.minTriangles) + ", " + std::to_string(g.maxTriangles) + "]");
         return g.build(options);
     }
     fail("generate " + name, "unknown scene name (expected city, interior, plant or scan)");

@@ -24,9 +24,9 @@ struct Rng {
         z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
         return z ^ (z >> 31);
     }
-    float uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }  // [0, 1)
+    float uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); } // [0, 1)
     float uniform(float lo, float hi) { return lo + (hi - lo) * uniform(); }
-    uint32_t below(uint32_t n) { return uint32_t(((next() >> 32) * n) >> 32); }  // [0, n)
+    uint32_t below(uint32_t n) { return uint32_t(((next() >> 32) * n) >> 32); } // [0, n)
     bool chance(float p) { return uniform() < p; }
 };
 

@@ -17,19 +17,19 @@ namespace penumbra::detail {
 namespace {
 
 constexpr float kPi = 3.14159265358979f;
-constexpr float kBay = 6.0f;            // bay length along z
-constexpr float kWallX = 7.5f;          // inner face of the side walls
+constexpr float kBay = 6.0f;   // bay length along z
+constexpr float kWallX = 7.5f; // inner face of the side walls
 constexpr float kWallThickness = 1.0f;
-constexpr float kWallHeight = 14.0f;    // vault springing line
-constexpr float kColumnX = 4.0f;        // arcade column rows
-constexpr float kColumnHeight = 7.5f;   // arch springing line
+constexpr float kWallHeight = 14.0f;  // vault springing line
+constexpr float kColumnX = 4.0f;      // arcade column rows
+constexpr float kColumnHeight = 7.5f; // arch springing line
 constexpr float kSillHeight = 5.5f;
 constexpr float kWindowTop = 11.0f;
 constexpr float kWindowWidth = 3.0f;
 
 struct Layout {
     uint32_t bays;
-    uint32_t segments;  // circle / arc tessellation
+    uint32_t segments; // circle / arc tessellation
 };
 
 // Points on a circular arc in the plane spanned by u (horizontal) and up.
@@ -38,7 +38,7 @@ void arcPath(const MeshBuilder& b, std::vector<glm::vec3>& path, glm::vec3 centr
 {
     path.resize(segments + 1);
     if (b.counting())
-        return;  // only the point count matters
+        return; // only the point count matters
     for (uint32_t i = 0; i <= segments; ++i) {
         float a = kPi * float(i) / float(segments);
         path[i] = centre + u * (radius * std::cos(a)) + glm::vec3(0, radius * std::sin(a), 0);
@@ -171,7 +171,7 @@ Scene generateInterior(const GenerateOptions& options)
     Light sun;
     sun.type = LightType::Directional;
     sun.direction = glm::normalize(glm::vec3(-0.62f, -0.5f, 0.3f));
-    sun.intensity = 4.0f;
+    sun.intensity = 1.0f;
     scene.lights.push_back(sun);
     return scene;
 }

@@ -93,8 +93,8 @@ bool MeshBuilder::orientedBox(const Frame& f, glm::vec3 h)
     // Corner c has bit 0 = +x, bit 1 = +y, bit 2 = +z.
     uint32_t base = 0;
     for (int c = 0; c < 8; ++c) {
-        glm::vec3 p = f.origin + f.x * ((c & 1) ? h.x : -h.x) + f.y * ((c & 2) ? h.y : -h.y) +
-                      f.z * ((c & 4) ? h.z : -h.z);
+        glm::vec3 p =
+            f.origin + f.x * ((c & 1) ? h.x : -h.x) + f.y * ((c & 2) ? h.y : -h.y) + f.z * ((c & 4) ? h.z : -h.z);
         uint32_t index = vertex(p);
         if (c == 0)
             base = index;
@@ -133,8 +133,8 @@ bool MeshBuilder::pipe(std::span<const glm::vec3> path, float radius, uint32_t s
         float a = kTwoPi * float(k) / float(segments);
         sectionScratch_[k] = glm::vec2(std::cos(a), std::sin(a)) * radius;
     }
-    glm::vec3 hint = path.size() >= 2 ? anyPerpendicular(safeNormalize(path[1] - path[0], glm::vec3(1, 0, 0)))
-                                      : glm::vec3(1, 0, 0);
+    glm::vec3 hint =
+        path.size() >= 2 ? anyPerpendicular(safeNormalize(path[1] - path[0], glm::vec3(1, 0, 0))) : glm::vec3(1, 0, 0);
     return sweep(path, sectionScratch_, hint, true);
 }
 

@@ -27,7 +27,7 @@ struct Frame {
 // in what is left of triangleLimit it is skipped, truncated() becomes true and the call
 // returns false. Both modes skip the same primitives for the same limit.
 class MeshBuilder {
-public:
+  public:
     // Counting builder.
     explicit MeshBuilder(uint64_t triangleLimit);
     // Emitting builder: vertex v goes to positions[3 * (vertexOffset + v)], triangle t to
@@ -55,8 +55,7 @@ public:
     // Sweeps a convex counter-clockwise cross-section (x along the frame normal, y along
     // the binormal) along path (>= 2 points). normalHint fixes the first frame's normal.
     // path.size()*section.size() vertices, 2*section*(path-1) (+2*(section-2) with caps) triangles.
-    bool sweep(std::span<const glm::vec3> path, std::span<const glm::vec2> section, glm::vec3 normalHint,
-               bool caps);
+    bool sweep(std::span<const glm::vec3> path, std::span<const glm::vec2> section, glm::vec3 normalHint, bool caps);
     // Surface of revolution about frame.y: profile point (r, h) maps to
     // origin + r*(cos a * x + sin a * z) + h*y. Points with r == 0 become single pole
     // vertices. A profile going from bottom to top (solid on the axis side) faces outward.
@@ -74,7 +73,7 @@ public:
         return 2 * sectionPoints * (pathPoints - 1) + (caps ? 2 * (sectionPoints - 2) : 0);
     }
 
-private:
+  private:
     bool fits(uint64_t triangles);
     bool countOnly(uint64_t vertices, uint64_t triangles);
     uint32_t vertex(glm::vec3 p);

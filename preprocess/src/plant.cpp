@@ -18,10 +18,10 @@ namespace {
 
 constexpr float kPi = 3.14159265358979f;
 constexpr float kModulePitch = 40.0f;
-constexpr float kModuleHalf = 19.0f;     // pipes stay inside the module
+constexpr float kModuleHalf = 19.0f; // pipes stay inside the module
 constexpr float kLevelHeight = 5.0f;
-constexpr float kGratingPitch = 0.06f;   // bearing bar spacing
-constexpr float kGratingBar = 0.005f;    // bearing bar thickness
+constexpr float kGratingPitch = 0.06f; // bearing bar spacing
+constexpr float kGratingBar = 0.005f;  // bearing bar thickness
 constexpr float kGratingDepth = 0.03f;
 
 struct Detail {
@@ -48,7 +48,8 @@ void grating(MeshBuilder& b, glm::vec2 lo, glm::vec2 hi, float y)
     const int bars = int((hi.y - lo.y) / kGratingPitch);
     for (int i = 0; i <= bars; ++i) {
         float z = lo.y + (hi.y - lo.y) * float(i) / float(bars);
-        b.beam({lo.x, y - kGratingDepth * 0.5f, z}, {hi.x, y - kGratingDepth * 0.5f, z}, up, kGratingBar, kGratingDepth);
+        b.beam({lo.x, y - kGratingDepth * 0.5f, z}, {hi.x, y - kGratingDepth * 0.5f, z}, up, kGratingBar,
+               kGratingDepth);
     }
     const int cross = std::max(1, int((hi.x - lo.x) / 1.0f));
     for (int i = 0; i <= cross; ++i) {
@@ -159,7 +160,7 @@ void routedPipe(MeshBuilder& b, Rng& rng, glm::vec3 origin, glm::vec3 start, flo
         const glm::vec3 a = corners[i - 1], c = corners[i], e = corners[i + 1];
         const float in = glm::length(c - a), out = glm::length(e - c);
         const glm::vec3 d0 = (c - a) / in, d1 = (e - c) / out;
-        if (std::abs(glm::dot(d0, d1)) > 0.01f) {  // straight on or reversal: no bend
+        if (std::abs(glm::dot(d0, d1)) > 0.01f) { // straight on or reversal: no bend
             path.push_back(c);
             continue;
         }
@@ -189,8 +190,9 @@ void plantModule(MeshBuilder& b, uint64_t seed, uint64_t unit, const Detail& d)
     // Stack: tall, thin, casts the longest shadow.
     {
         const float height = rng.uniform(25.0f, 45.0f), r = rng.uniform(0.8f, 1.4f);
-        const glm::vec2 profile[] = {{0.0f, 0.0f}, {r * 1.4f, 0.0f}, {r * 1.4f, 1.0f}, {r, 1.5f},
-                                     {r * 0.75f, height}, {r * 0.85f, height + 0.3f}, {r * 0.7f, height + 0.3f}};
+        const glm::vec2 profile[] = {
+            {0.0f, 0.0f},        {r * 1.4f, 0.0f},           {r * 1.4f, 1.0f},         {r, 1.5f},
+            {r * 0.75f, height}, {r * 0.85f, height + 0.3f}, {r * 0.7f, height + 0.3f}};
         Frame f;
         f.origin = o + glm::vec3(rng.uniform(8.0f, 14.0f), 0.0f, rng.uniform(8.0f, 14.0f));
         b.lathe(f, profile, d.pipeSides * 2);
@@ -216,7 +218,7 @@ void plantModule(MeshBuilder& b, uint64_t seed, uint64_t unit, const Detail& d)
         for (int i = 0; i < 2; ++i)
             for (int j = 0; j < 2; ++j) {
                 if (rng.chance(0.15f))
-                    continue;  // open bay
+                    continue; // open bay
                 glm::vec2 pmin(o.x + lo + span * float(i) + 0.1f, o.z + lo + span * float(j) + 0.1f);
                 grating(b, pmin, pmin + glm::vec2(span - 0.2f), y + 0.2f);
             }
@@ -235,8 +237,8 @@ void plantModule(MeshBuilder& b, uint64_t seed, uint64_t unit, const Detail& d)
     const int vertical = 1 + int(rng.below(3));
     for (int i = 0; i < vertical; ++i) {
         const float r = rng.uniform(1.5f, 3.0f);
-        verticalTank(b, o + glm::vec3(3.0f + r + 7.0f * float(i), 0.0f, rng.uniform(-17.0f, -13.0f) + r),
-                     r, rng.uniform(5.0f, 12.0f), d);
+        verticalTank(b, o + glm::vec3(3.0f + r + 7.0f * float(i), 0.0f, rng.uniform(-17.0f, -13.0f) + r), r,
+                     rng.uniform(5.0f, 12.0f), d);
     }
     const int horizontal = 1 + int(rng.below(2));
     for (int i = 0; i < horizontal; ++i) {
@@ -253,8 +255,9 @@ void plantModule(MeshBuilder& b, uint64_t seed, uint64_t unit, const Detail& d)
     const int pipes = 14 + int(rng.below(10));
     for (int i = 0; i < pipes; ++i) {
         const float u = rng.uniform();
-        const float radius = u < 0.6f ? rng.uniform(0.04f, 0.12f) : u < 0.9f ? rng.uniform(0.12f, 0.3f)
-                                                                             : rng.uniform(0.3f, 0.6f);
+        const float radius = u < 0.6f   ? rng.uniform(0.04f, 0.12f)
+                             : u < 0.9f ? rng.uniform(0.12f, 0.3f)
+                                        : rng.uniform(0.3f, 0.6f);
         glm::vec3 start = o + glm::vec3(rng.uniform(-kModuleHalf, kModuleHalf), rng.uniform(0.8f, 15.0f),
                                         rng.uniform(-kModuleHalf, kModuleHalf));
         routedPipe(b, rng, o, start, radius, d, corners, path);
@@ -287,8 +290,8 @@ Scene generatePlant(const GenerateOptions& options)
 
     Light sun;
     sun.type = LightType::Directional;
-    sun.direction = glm::normalize(glm::vec3(-0.55f, -0.45f, 0.4f));  // ~27 degrees elevation
-    sun.intensity = 3.0f;
+    sun.direction = glm::normalize(glm::vec3(-0.55f, -0.45f, 0.4f)); // ~27 degrees elevation
+    sun.intensity = 1.0f;
     scene.lights.push_back(sun);
     return scene;
 }

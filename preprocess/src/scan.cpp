@@ -16,10 +16,10 @@ namespace penumbra::detail {
 
 namespace {
 
-constexpr float kHalfHeight = 1.0f;       // statue half height before displacement, metres
-constexpr float kCentreY = 0.8f;          // statue centre above the ground
-constexpr float kBaseCutY = -0.02f;       // anything lower is flattened just under the ground
-constexpr float kDisplacement = 0.30f;    // relative radius change at noise amplitude 1
+constexpr float kHalfHeight = 1.0f;    // statue half height before displacement, metres
+constexpr float kCentreY = 0.8f;       // statue centre above the ground
+constexpr float kBaseCutY = -0.02f;    // anything lower is flattened just under the ground
+constexpr float kDisplacement = 0.30f; // relative radius change at noise amplitude 1
 constexpr int kOctaves = 6;
 constexpr float kGroundHalfSize = 3.0f;
 
@@ -36,28 +36,50 @@ uint32_t hash3(int x, int y, int z, uint32_t seed)
 
 float gradient(uint32_t h, float x, float y, float z)
 {
-    switch (h & 15u) {  // the 12 cube edge directions (Perlin 2002), 4 repeated
-    case 0: return x + y;
-    case 1: return -x + y;
-    case 2: return x - y;
-    case 3: return -x - y;
-    case 4: return x + z;
-    case 5: return -x + z;
-    case 6: return x - z;
-    case 7: return -x - z;
-    case 8: return y + z;
-    case 9: return -y + z;
-    case 10: return y - z;
-    case 11: return -y - z;
-    case 12: return x + y;
-    case 13: return -y + z;
-    case 14: return -x + y;
-    default: return -y - z;
+    switch (h & 15u) { // the 12 cube edge directions (Perlin 2002), 4 repeated
+    case 0:
+        return x + y;
+    case 1:
+        return -x + y;
+    case 2:
+        return x - y;
+    case 3:
+        return -x - y;
+    case 4:
+        return x + z;
+    case 5:
+        return -x + z;
+    case 6:
+        return x - z;
+    case 7:
+        return -x - z;
+    case 8:
+        return y + z;
+    case 9:
+        return -y + z;
+    case 10:
+        return y - z;
+    case 11:
+        return -y - z;
+    case 12:
+        return x + y;
+    case 13:
+        return -y + z;
+    case 14:
+        return -x + y;
+    default:
+        return -y - z;
     }
 }
 
-float fade(float t) { return t * t * t * (t * (t * 6.0f - 15.0f) + 10.0f); }
-float lerp(float a, float b, float t) { return a + (b - a) * t; }
+float fade(float t)
+{
+    return t * t * t * (t * (t * 6.0f - 15.0f) + 10.0f);
+}
+float lerp(float a, float b, float t)
+{
+    return a + (b - a) * t;
+}
 
 // Gradient noise in about [-1, 1].
 float gradientNoise(glm::vec3 p, uint32_t seed)
@@ -215,9 +237,8 @@ Scene generateScan(const GenerateOptions& options)
     };
     const int ni = int(n);
     const Face faces[6] = {
-        {{ni, 0, 0}, {0, 1, 0}, {0, 0, 1}}, {{0, 0, 0}, {0, 0, 1}, {0, 1, 0}},
-        {{0, ni, 0}, {0, 0, 1}, {1, 0, 0}}, {{0, 0, 0}, {1, 0, 0}, {0, 0, 1}},
-        {{0, 0, ni}, {1, 0, 0}, {0, 1, 0}}, {{0, 0, 0}, {0, 1, 0}, {1, 0, 0}},
+        {{ni, 0, 0}, {0, 1, 0}, {0, 0, 1}}, {{0, 0, 0}, {0, 0, 1}, {0, 1, 0}},  {{0, ni, 0}, {0, 0, 1}, {1, 0, 0}},
+        {{0, 0, 0}, {1, 0, 0}, {0, 0, 1}},  {{0, 0, ni}, {1, 0, 0}, {0, 1, 0}}, {{0, 0, 0}, {0, 1, 0}, {1, 0, 0}},
     };
     uint32_t* tri = mesh.indices.data();
     parallelFor(6 * n, [&](uint64_t job) {
@@ -248,8 +269,8 @@ Scene generateScan(const GenerateOptions& options)
 
     Light sun;
     sun.type = LightType::Directional;
-    sun.direction = glm::normalize(glm::vec3(-0.3f, -0.42f, -0.85f));  // ~25 degrees elevation
-    sun.intensity = 3.0f;
+    sun.direction = glm::normalize(glm::vec3(-0.3f, -0.42f, -0.85f)); // ~25 degrees elevation
+    sun.intensity = 1.0f;
     scene.lights.push_back(sun);
     return scene;
 }

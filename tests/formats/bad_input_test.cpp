@@ -252,9 +252,11 @@ std::string triangleBin(uint16_t lastIndex = 2)
 }
 
 // A one-triangle glTF; the parts can be overridden to inject faults.
-std::string triangleJson(const std::string& accessors = R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
-                {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])",
-                         const std::string& primitive = R"({"attributes": {"POSITION": 0}, "indices": 1})",
+const std::string kAccessors = R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+                {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])";
+const std::string kPrimitive = R"({"attributes": {"POSITION": 0}, "indices": 1})";
+
+std::string triangleJson(const std::string& accessors = kAccessors, const std::string& primitive = kPrimitive,
                          const std::string& nodes = R"([{"mesh": 0}])",
                          const std::string& bufferViews = R"([{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 8}])")
 {
@@ -348,6 +350,8 @@ TEST(BadGltf, CycleAndNonTriangles)
     expectImportError("nomesh.gltf", noMesh, {"no triangles"});
     std::string badMode = triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
                                        R"({"attributes": {"POSITION": 0}, "mode": 9})");
+    expectImportError("badmesh.glb", glb(triangleJson(kAccessors, kPrimitive, R"([{"mesh": 3}])"), triangleBin()),
+                      {"node 0 references mesh 3 but there are 1"});
     expectImportError("badmode.glb", glb(badMode, triangleBin()), {"invalid mode 9"});
 }
 

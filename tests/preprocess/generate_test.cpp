@@ -109,15 +109,15 @@ void expectValid(const Scene& scene, uint64_t budget)
         EXPECT_GT(bounds.extent()[axis], 0.1f);
         EXPECT_LT(bounds.extent()[axis], 1e5f);
     }
-    EXPECT_GE(bounds.min.y, -1.0f);  // stands on the ground at y = 0, +Y up
+    EXPECT_GE(bounds.min.y, -1.0f); // stands on the ground at y = 0, +Y up
     ASSERT_EQ(scene.cameras.size(), 1u);
     EXPECT_EQ(scene.cameras[0].projection, Projection::Perspective);
     EXPECT_GT(glm::length(scene.cameras[0].target - scene.cameras[0].position), 0.1f);
     ASSERT_EQ(scene.lights.size(), 1u);
     EXPECT_EQ(scene.lights[0].type, LightType::Directional);
     EXPECT_NEAR(glm::length(scene.lights[0].direction), 1.0f, 1e-4f);
-    EXPECT_LT(scene.lights[0].direction.y, -0.2f);  // sun above the horizon
-    EXPECT_GT(scene.lights[0].direction.y, -0.8f);  // but low enough for long shadows
+    EXPECT_LT(scene.lights[0].direction.y, -0.2f); // sun above the horizon
+    EXPECT_GT(scene.lights[0].direction.y, -0.8f); // but low enough for long shadows
 }
 
 } // namespace
@@ -210,7 +210,7 @@ TEST(GenerateScan, StatueIsClosed)
     Scene scene = generate("scan", 150'000, 11);
     const Mesh& mesh = scene.mesh;
     Components parts = components(mesh);
-    ASSERT_EQ(parts.count, 2u);  // statue and ground
+    ASSERT_EQ(parts.count, 2u); // statue and ground
     std::vector<size_t> sizes(parts.count, 0);
     for (uint32_t part : parts.triangleComponent)
         ++sizes[part];
