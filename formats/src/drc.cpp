@@ -29,9 +29,9 @@ DecodedDraco decodeDraco(const std::string& path, const std::string& what, const
     if (!decoded.ok())
         fail(path, prefix + "corrupt Draco data (" + decoded.status().error_msg_string() + ")");
     const draco::Mesh& mesh = *decoded.value();
-    const draco::PointAttribute* position =
-        positionUniqueId >= 0 ? mesh.GetAttributeByUniqueId(uint32_t(positionUniqueId))
-                              : mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);
+    const draco::PointAttribute* position = positionUniqueId >= 0
+                                                ? mesh.GetAttributeByUniqueId(uint32_t(positionUniqueId))
+                                                : mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);
     if (!position)
         fail(path, prefix + "Draco mesh has no position attribute" +
                        (positionUniqueId >= 0 ? " with id " + std::to_string(positionUniqueId) : std::string()));

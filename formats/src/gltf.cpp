@@ -23,9 +23,9 @@ namespace {
 
 using json = nlohmann::json;
 
-constexpr uint32_t kGlbMagic = 0x46546C67;     // "glTF"
-constexpr uint32_t kChunkJson = 0x4E4F534A;    // "JSON"
-constexpr uint32_t kChunkBin = 0x004E4942;     // "BIN\0"
+constexpr uint32_t kGlbMagic = 0x46546C67;            // "glTF"
+constexpr uint32_t kChunkJson = 0x4E4F534A;           // "JSON"
+constexpr uint32_t kChunkBin = 0x004E4942;            // "BIN\0"
 constexpr uint64_t kMaxTriangles = uint64_t(1) << 30; // after instancing; bounds memory for hostile node graphs
 constexpr uint64_t kMaxVertices = uint64_t(1) << 30;  // after instancing
 constexpr size_t kMaxNodeDepth = 1024;
@@ -134,7 +134,7 @@ struct PendingCamera {
 };
 
 class GltfReader {
-public:
+  public:
     GltfReader(const std::string& path, const MappedFile& file, bool binary) : path_(path), binary_(binary)
     {
         size_t slash = path.find_last_of('/');
@@ -228,14 +228,15 @@ public:
             if (!pending.hasTargetDistance) {
                 float distance = glm::length(center - pending.camera.position);
                 pending.camera.target =
-                    pending.camera.position + pending.forward * (distance > 1e-6f && std::isfinite(distance) ? distance : 1.0f);
+                    pending.camera.position +
+                    pending.forward * (distance > 1e-6f && std::isfinite(distance) ? distance : 1.0f);
             }
             scene.cameras.push_back(pending.camera);
         }
         return scene;
     }
 
-private:
+  private:
     // ---- container ----
 
     std::string_view parseGlbContainer(const MappedFile& file)
@@ -255,14 +256,16 @@ private:
             fail(path_, "unsupported glTF binary version " + std::to_string(u32(4)));
         const size_t length = u32(8);
         if (length > size)
-            fail(path_, "truncated: header says " + std::to_string(length) + " bytes, file has " + std::to_string(size));
+            fail(path_,
+                 "truncated: header says " + std::to_string(length) + " bytes, file has " + std::to_string(size));
         if (length < 20)
             fail(path_, "truncated: no JSON chunk");
         const size_t jsonLength = u32(12);
         if (u32(16) != kChunkJson)
             fail(path_, "malformed glTF binary: first chunk is not JSON");
         if (jsonLength > length - 20)
-            fail(path_, "truncated: JSON chunk of " + std::to_string(jsonLength) + " bytes runs past the end of the file");
+            fail(path_,
+                 "truncated: JSON chunk of " + std::to_string(jsonLength) + " bytes runs past the end of the file");
         std::string_view jsonText(reinterpret_cast<const char*>(data + 20), jsonLength);
         size_t offset = 20 + ((jsonLength + 3) & ~size_t(3));
         if (offset + 8 <= length) {
@@ -300,8 +303,7 @@ private:
     const json& item(const char* arrayName, uint64_t i, const std::string& where)
     {
         size_t count = arraySize(arrayName);
-        if (i >= count)
-        {
+        if (i >= count) {
             std::string singular = arrayName;
             singular.resize(singular == "meshes" ? 4 : singular.size() - 1);
             fail(path_, where + " references " + singular + " " + std::to_string(i) + " but there are " +
@@ -431,12 +433,19 @@ private:
         size_t componentSize = 0;
         switch (view.componentType) {
         case 5120:
-        case 5121: componentSize = 1; break;
+        case 5121:
+            componentSize = 1;
+            break;
         case 5122:
-        case 5123: componentSize = 2; break;
+        case 5123:
+            componentSize = 2;
+            break;
         case 5125:
-        case 5126: componentSize = 4; break;
-        default: fail(path_, name + ": unknown componentType " + std::to_string(view.componentType));
+        case 5126:
+            componentSize = 4;
+            break;
+        default:
+            fail(path_, name + ": unknown componentType " + std::to_string(view.componentType));
         }
         const json* type = member(a, "type");
         std::string typeName = type && type->is_string() ? type->get<std::string>() : std::string();
@@ -567,8 +576,8 @@ private:
             fail(path_, where + ": scene expands to more than " + std::to_string(kMaxTriangles) +
                             " triangles after instancing");
         if (out.vertexCount() + vertices > kMaxVertices)
-            fail(path_, where + ": scene expands to more than " + std::to_string(kMaxVertices) +
-                            " vertices after instancing");
+            fail(path_,
+                 where + ": scene expands to more than " + std::to_string(kMaxVertices) + " vertices after instancing");
     }
 
     static void transformInto(float* dst, const float* src, size_t count, const glm::mat4& m)
@@ -586,7 +595,8 @@ private:
         }
     }
 
-    void appendDracoPrimitive(const json& draco, const std::string& where, const glm::mat4& matrix, bool flip, Mesh& out)
+    void appendDracoPrimitive(const json& draco, const std::string& where, const glm::mat4& matrix, bool flip,
+                              Mesh& out)
     {
         size_t stride = 0;
         std::span<const uint8_t> bytes =
@@ -596,7 +606,8 @@ private:
         if (!position)
             fail(path_, where + ": KHR_draco_mesh_compression has no POSITION attribute");
         uint64_t id = index(*position, where + " Draco POSITION");
-        DecodedDraco decoded = decodeDraco(path_, where, bytes.data(), bytes.size(), int64_t(std::min<uint64_t>(id, INT32_MAX)));
+        DecodedDraco decoded =
+            decodeDraco(path_, where, bytes.data(), bytes.size(), int64_t(std::min<uint64_t>(id, INT32_MAX)));
         const size_t vertexCount = decoded.positions.size() / 3;
         reserveTriangles(decoded.indices.size() / 3, vertexCount, where, out);
         const size_t base = out.vertexCount();
@@ -718,7 +729,9 @@ private:
                 value = view.normalized ? std::max(float(v) / 127.0f, -1.0f) : float(v);
                 break;
             }
-            case 5121: value = view.normalized ? float(p[c]) / 255.0f : float(p[c]); break;
+            case 5121:
+                value = view.normalized ? float(p[c]) / 255.0f : float(p[c]);
+                break;
             case 5122: {
                 int16_t v;
                 std::memcpy(&v, p + c * 2, 2);
@@ -737,7 +750,9 @@ private:
                 value = float(v);
                 break;
             }
-            default: std::memcpy(&value, p + c * 4, 4); break;
+            default:
+                std::memcpy(&value, p + c * 4, 4);
+                break;
             }
             out[c] = value;
         }
@@ -884,7 +899,10 @@ glm::quat orientation(glm::vec3 forward, glm::vec3 up)
     return glm::normalize(glm::quat_cast(basis));
 }
 
-json vec3Json(glm::vec3 v) { return json::array({v.x, v.y, v.z}); }
+json vec3Json(glm::vec3 v)
+{
+    return json::array({v.x, v.y, v.z});
+}
 
 json nodeTransform(glm::vec3 position, glm::quat rotation)
 {
@@ -990,8 +1008,12 @@ void exportGltf(const Scene& scene, const std::string& path, AtomicFileWriter& o
         if (light.range > 0.0f)
             entry["range"] = light.range;
         switch (light.type) {
-        case LightType::Point: entry["type"] = "point"; break;
-        case LightType::Directional: entry["type"] = "directional"; break;
+        case LightType::Point:
+            entry["type"] = "point";
+            break;
+        case LightType::Directional:
+            entry["type"] = "directional";
+            break;
         case LightType::Spot:
             entry["type"] = "spot";
             entry["spot"] = {{"innerConeAngle", double(light.innerConeDegrees) * kPi / 180.0},

@@ -143,8 +143,8 @@ void validateMesh(const std::string& path, const Mesh& mesh)
         if (!std::isfinite(p[i])) {
             size_t v = i / 3;
             char text[160];
-            std::snprintf(text, sizeof(text), "vertex %zu has a non-finite position (%g, %g, %g)", v,
-                          double(p[v * 3]), double(p[v * 3 + 1]), double(p[v * 3 + 2]));
+            std::snprintf(text, sizeof(text), "vertex %zu has a non-finite position (%g, %g, %g)", v, double(p[v * 3]),
+                          double(p[v * 3 + 1]), double(p[v * 3 + 2]));
             fail(path, text);
         }
     }
@@ -247,12 +247,24 @@ Scene importScene(const std::string& path)
     detail::MappedFile file(path);
     Scene scene;
     switch (format) {
-    case ModelFormat::Obj: scene = detail::importObj(path, file); break;
-    case ModelFormat::Ply: scene = detail::importPly(path, file); break;
-    case ModelFormat::Stl: scene = detail::importStl(path, file); break;
-    case ModelFormat::Gltf: scene = detail::importGltf(path, file, false); break;
-    case ModelFormat::Glb: scene = detail::importGltf(path, file, true); break;
-    case ModelFormat::Draco: scene = detail::importDraco(path, file); break;
+    case ModelFormat::Obj:
+        scene = detail::importObj(path, file);
+        break;
+    case ModelFormat::Ply:
+        scene = detail::importPly(path, file);
+        break;
+    case ModelFormat::Stl:
+        scene = detail::importStl(path, file);
+        break;
+    case ModelFormat::Gltf:
+        scene = detail::importGltf(path, file, false);
+        break;
+    case ModelFormat::Glb:
+        scene = detail::importGltf(path, file, true);
+        break;
+    case ModelFormat::Draco:
+        scene = detail::importDraco(path, file);
+        break;
     }
     if (scene.mesh.triangleCount() == 0)
         fail(path, "no triangles");
@@ -270,12 +282,24 @@ void exportScene(const Scene& scene, const std::string& path, const ExportOption
         fail(path, "Draco position quantization must be 1..30 bits, not " + std::to_string(options.dracoPositionBits));
     detail::AtomicFileWriter out(path);
     switch (format) {
-    case ModelFormat::Obj: detail::exportObj(scene, out); break;
-    case ModelFormat::Ply: detail::exportPly(scene, out, options.binary); break;
-    case ModelFormat::Stl: detail::exportStl(scene, out, options.binary); break;
-    case ModelFormat::Gltf: detail::exportGltf(scene, path, out, false, options); break;
-    case ModelFormat::Glb: detail::exportGltf(scene, path, out, true, options); break;
-    case ModelFormat::Draco: detail::exportDraco(scene, path, out, options); break;
+    case ModelFormat::Obj:
+        detail::exportObj(scene, out);
+        break;
+    case ModelFormat::Ply:
+        detail::exportPly(scene, out, options.binary);
+        break;
+    case ModelFormat::Stl:
+        detail::exportStl(scene, out, options.binary);
+        break;
+    case ModelFormat::Gltf:
+        detail::exportGltf(scene, path, out, false, options);
+        break;
+    case ModelFormat::Glb:
+        detail::exportGltf(scene, path, out, true, options);
+        break;
+    case ModelFormat::Draco:
+        detail::exportDraco(scene, path, out, options);
+        break;
     }
     out.commit();
 }

@@ -18,7 +18,7 @@ namespace penumbra::detail {
 // Read-only view of a whole file, memory-mapped. Throws Error("<path>: file not
 // found" / "empty file" / "not a regular file" / "cannot open: ...").
 class MappedFile {
-public:
+  public:
     explicit MappedFile(const std::string& path);
     ~MappedFile();
     MappedFile(const MappedFile&) = delete;
@@ -28,7 +28,7 @@ public:
     size_t size() const { return size_; }
     std::string_view text() const { return {reinterpret_cast<const char*>(data_), size_}; }
 
-private:
+  private:
     const uint8_t* data_ = nullptr;
     size_t size_ = 0;
 };
@@ -37,7 +37,7 @@ private:
 // it over path. Destroying an uncommitted writer removes the temporary file.
 // Every failure throws Error naming path.
 class AtomicFileWriter {
-public:
+  public:
     explicit AtomicFileWriter(const std::string& path);
     ~AtomicFileWriter();
     AtomicFileWriter(const AtomicFileWriter&) = delete;
@@ -55,10 +55,11 @@ public:
     }
     void advance(size_t size) { used_ += size; }
     void commit();
+    const std::string& path() const { return path_; }
 
     static constexpr size_t kBufferSize = size_t(4) << 20;
 
-private:
+  private:
     void flush();
 
     std::string path_;

@@ -21,12 +21,15 @@ Scene importObj(const std::string& path, const MappedFile& file)
 {
     Scene scene;
     Mesh& mesh = scene.mesh;
-    TextCursor cursor{reinterpret_cast<const char*>(file.data()), reinterpret_cast<const char*>(file.data()) + file.size()};
-    auto lineFail = [&](const std::string& problem) { fail(path, "line " + std::to_string(cursor.line) + ": " + problem); };
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()),
+                      reinterpret_cast<const char*>(file.data()) + file.size()};
+    auto lineFail = [&](const std::string& problem) {
+        fail(path, "line " + std::to_string(cursor.line) + ": " + problem);
+    };
 
     size_t pointOrLineRecords = 0;
     size_t degenerateFaces = 0;
-    int64_t maxForwardIndex = 0;   // largest positive index, checked once all vertices are known
+    int64_t maxForwardIndex = 0; // largest positive index, checked once all vertices are known
     size_t maxForwardLine = 0;
     std::vector<uint32_t> polygon;
 

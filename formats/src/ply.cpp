@@ -42,22 +42,29 @@ size_t plyTypeSize(PlyType type)
 {
     switch (type) {
     case PlyType::Int8:
-    case PlyType::Uint8: return 1;
+    case PlyType::Uint8:
+        return 1;
     case PlyType::Int16:
-    case PlyType::Uint16: return 2;
+    case PlyType::Uint16:
+        return 2;
     case PlyType::Int32:
     case PlyType::Uint32:
-    case PlyType::Float32: return 4;
-    case PlyType::Float64: return 8;
+    case PlyType::Float32:
+        return 4;
+    case PlyType::Float64:
+        return 8;
     }
     return 1;
 }
 
-bool isIntegerType(PlyType type) { return type != PlyType::Float32 && type != PlyType::Float64; }
+bool isIntegerType(PlyType type)
+{
+    return type != PlyType::Float32 && type != PlyType::Float64;
+}
 
 struct PlyProperty {
     std::string name;
-    PlyType type = PlyType::Float32;   // value type (item type for lists)
+    PlyType type = PlyType::Float32; // value type (item type for lists)
     bool isList = false;
     PlyType countType = PlyType::Uint8; // lists only
 };
@@ -104,8 +111,11 @@ struct PlyHeader {
 
 PlyHeader parseHeader(const std::string& path, const MappedFile& file)
 {
-    TextCursor cursor{reinterpret_cast<const char*>(file.data()), reinterpret_cast<const char*>(file.data()) + file.size()};
-    auto headerFail = [&](const std::string& problem) { fail(path, "header line " + std::to_string(cursor.line) + ": " + problem); };
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()),
+                      reinterpret_cast<const char*>(file.data()) + file.size()};
+    auto headerFail = [&](const std::string& problem) {
+        fail(path, "header line " + std::to_string(cursor.line) + ": " + problem);
+    };
 
     if (cursor.token() != "ply")
         fail(path, "not a PLY file (missing 'ply' magic)");
@@ -194,8 +204,7 @@ PlyHeader parseHeader(const std::string& path, const MappedFile& file)
 
 // ---- binary ----
 
-template <typename T>
-T loadSwapped(const uint8_t* p, bool swap)
+template <typename T> T loadSwapped(const uint8_t* p, bool swap)
 {
     T value;
     std::memcpy(&value, p, sizeof(T));
@@ -223,14 +232,22 @@ T loadSwapped(const uint8_t* p, bool swap)
 double loadNumber(const uint8_t* p, PlyType type, bool swap)
 {
     switch (type) {
-    case PlyType::Int8: return double(int8_t(*p));
-    case PlyType::Uint8: return double(*p);
-    case PlyType::Int16: return double(loadSwapped<int16_t>(p, swap));
-    case PlyType::Uint16: return double(loadSwapped<uint16_t>(p, swap));
-    case PlyType::Int32: return double(loadSwapped<int32_t>(p, swap));
-    case PlyType::Uint32: return double(loadSwapped<uint32_t>(p, swap));
-    case PlyType::Float32: return double(loadSwapped<float>(p, swap));
-    case PlyType::Float64: return loadSwapped<double>(p, swap);
+    case PlyType::Int8:
+        return double(int8_t(*p));
+    case PlyType::Uint8:
+        return double(*p);
+    case PlyType::Int16:
+        return double(loadSwapped<int16_t>(p, swap));
+    case PlyType::Uint16:
+        return double(loadSwapped<uint16_t>(p, swap));
+    case PlyType::Int32:
+        return double(loadSwapped<int32_t>(p, swap));
+    case PlyType::Uint32:
+        return double(loadSwapped<uint32_t>(p, swap));
+    case PlyType::Float32:
+        return double(loadSwapped<float>(p, swap));
+    case PlyType::Float64:
+        return loadSwapped<double>(p, swap);
     }
     return 0.0;
 }
@@ -238,13 +255,20 @@ double loadNumber(const uint8_t* p, PlyType type, bool swap)
 int64_t loadInteger(const uint8_t* p, PlyType type, bool swap)
 {
     switch (type) {
-    case PlyType::Int8: return int8_t(*p);
-    case PlyType::Uint8: return *p;
-    case PlyType::Int16: return loadSwapped<int16_t>(p, swap);
-    case PlyType::Uint16: return loadSwapped<uint16_t>(p, swap);
-    case PlyType::Int32: return loadSwapped<int32_t>(p, swap);
-    case PlyType::Uint32: return loadSwapped<uint32_t>(p, swap);
-    default: return 0;
+    case PlyType::Int8:
+        return int8_t(*p);
+    case PlyType::Uint8:
+        return *p;
+    case PlyType::Int16:
+        return loadSwapped<int16_t>(p, swap);
+    case PlyType::Uint16:
+        return loadSwapped<uint16_t>(p, swap);
+    case PlyType::Int32:
+        return loadSwapped<int32_t>(p, swap);
+    case PlyType::Uint32:
+        return loadSwapped<uint32_t>(p, swap);
+    default:
+        return 0;
     }
 }
 
@@ -270,7 +294,7 @@ struct FaceStats {
 };
 
 class BinaryPlyReader {
-public:
+  public:
     BinaryPlyReader(const std::string& path, const MappedFile& file, const PlyHeader& header)
         : path_(path), data_(file.data()), size_(file.size()), offset_(header.dataOffset),
           swap_((header.encoding == PlyEncoding::BinaryBig) == (std::endian::native == std::endian::little))
@@ -360,8 +384,8 @@ public:
         checkFixed(element, element.minimumStride(), "faces");
         // Each face needs at least minimumStride bytes, so this reservation is bounded by the file size.
         IndexOutput out{mesh.indices};
-        size_t guess = size_t(std::min<uint64_t>(element.count, remaining() / std::max<size_t>(
-                                                                                    element.minimumStride() + 3 * plyTypeSize(list.type), 1)));
+        size_t guess = size_t(std::min<uint64_t>(
+            element.count, remaining() / std::max<size_t>(element.minimumStride() + 3 * plyTypeSize(list.type), 1)));
         mesh.indices.resize(guess * 3);
 
         const bool fast = element.properties.size() == 1 && list.countType == PlyType::Uint8 &&
@@ -373,7 +397,7 @@ public:
         mesh.indices.resize(out.used);
     }
 
-private:
+  private:
     [[noreturn]] void truncated(const char* what, uint64_t record)
     {
         fail(path_, std::string("truncated: file ends inside ") + what + " " + std::to_string(record));
@@ -412,7 +436,8 @@ private:
                     if (remaining() < plyTypeSize(property.type))
                         truncated("vertex", v);
                     int c = int(i) == ix ? 0 : int(i) == iy ? 1 : 2;
-                    mesh.positions[size_t(v) * 3 + size_t(c)] = float(loadNumber(data_ + offset_, property.type, swap_));
+                    mesh.positions[size_t(v) * 3 + size_t(c)] =
+                        float(loadNumber(data_ + offset_, property.type, swap_));
                     offset_ += plyTypeSize(property.type);
                 } else {
                     skipProperty(element, v, property);
@@ -542,10 +567,10 @@ private:
         }
     }
 
-public:
+  public:
     bool faceIndexSigned_ = true;
 
-private:
+  private:
     const std::string& path_;
     const uint8_t* data_;
     size_t size_;
@@ -556,7 +581,7 @@ private:
 // ---- ASCII ----
 
 class AsciiPlyReader {
-public:
+  public:
     AsciiPlyReader(const std::string& path, const MappedFile& file, const PlyHeader& header)
         : path_(path), cursor_{reinterpret_cast<const char*>(file.data()) + header.dataOffset,
                                reinterpret_cast<const char*>(file.data()) + file.size()}
@@ -632,7 +657,7 @@ public:
         }
     }
 
-private:
+  private:
     std::string_view next(const PlyElement& element, uint64_t record)
     {
         cursor_.skipWhitespace();
@@ -691,10 +716,9 @@ Scene importPly(const std::string& path, const MappedFile& file)
         }
     } else {
         BinaryPlyReader reader(path, file, header);
-        reader.faceIndexSigned_ =
-            faceElement->properties[size_t(listIndex)].type == PlyType::Int32 ||
-            faceElement->properties[size_t(listIndex)].type == PlyType::Int16 ||
-            faceElement->properties[size_t(listIndex)].type == PlyType::Int8;
+        reader.faceIndexSigned_ = faceElement->properties[size_t(listIndex)].type == PlyType::Int32 ||
+                                  faceElement->properties[size_t(listIndex)].type == PlyType::Int16 ||
+                                  faceElement->properties[size_t(listIndex)].type == PlyType::Int8;
         for (const PlyElement& element : header.elements) {
             if (&element == vertexElement)
                 reader.readVertices(element, mesh);
@@ -713,8 +737,8 @@ void exportPly(const Scene& scene, AtomicFileWriter& out, bool binary)
 {
     const Mesh& mesh = scene.mesh;
     std::string header = "ply\nformat ";
-    header += binary ? (std::endian::native == std::endian::little ? "binary_little_endian" : "binary_big_endian")
-                     : "ascii";
+    header +=
+        binary ? (std::endian::native == std::endian::little ? "binary_little_endian" : "binary_big_endian") : "ascii";
     header += " 1.0\ncomment written by penumbra\nelement vertex " + std::to_string(mesh.vertexCount()) +
               "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
               std::to_string(mesh.triangleCount()) + "\nproperty list uchar uint vertex_indices\nend_header\n";

@@ -23,14 +23,17 @@ Scene importBinaryStl(const std::string& path, const MappedFile& file, uint32_t 
 
 Scene importAsciiStl(const std::string& path, const MappedFile& file)
 {
-    TextCursor cursor{reinterpret_cast<const char*>(file.data()), reinterpret_cast<const char*>(file.data()) + file.size()};
-    auto lineFail = [&](const std::string& problem) { fail(path, "line " + std::to_string(cursor.line) + ": " + problem); };
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()),
+                      reinterpret_cast<const char*>(file.data()) + file.size()};
+    auto lineFail = [&](const std::string& problem) {
+        fail(path, "line " + std::to_string(cursor.line) + ": " + problem);
+    };
     std::vector<float> corners;
     std::vector<float> loop;
     bool inLoop = false;
     size_t loopLine = 0;
     cursor.skipWhitespace();
-    cursor.token(); // "solid"
+    cursor.token();    // "solid"
     cursor.skipLine(); // solid name
     for (;;) {
         cursor.skipWhitespace();
@@ -128,7 +131,7 @@ void exportStl(const Scene& scene, AtomicFileWriter& out, bool binary)
     };
     if (binary) {
         if (triangles > UINT32_MAX)
-            fail("STL", "binary STL holds at most 4294967295 triangles");
+            fail(out.path(), "binary STL holds at most 4294967295 triangles");
         char header[84] = "binary STL written by penumbra";
         uint32_t count = uint32_t(triangles);
         std::memcpy(header + 80, &count, 4);

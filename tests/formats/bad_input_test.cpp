@@ -28,7 +28,8 @@ std::string plyHeader(const std::string& format, const std::string& vertexCount,
 
 std::string binaryPly(std::vector<float> positions, std::vector<std::vector<int32_t>> faces)
 {
-    std::string bytes = plyHeader("binary_little_endian", std::to_string(positions.size() / 3), std::to_string(faces.size()));
+    std::string bytes =
+        plyHeader("binary_little_endian", std::to_string(positions.size() / 3), std::to_string(faces.size()));
     for (float f : positions)
         append(bytes, f);
     for (const auto& face : faces) {
@@ -116,8 +117,7 @@ TEST(BadPly, IndexOutOfRange)
                       {"face 1 references vertex 99 but there are 4 vertices"});
     expectImportError("negative_index.ply", binaryPly(kQuad, {{0, -1, 2}}),
                       {"face 0 references vertex -1 but there are 4 vertices"});
-    expectImportError("bad_index_quad.ply", binaryPly(kQuad, {{0, 1, 2, 7}}),
-                      {"face 0 references vertex 7"});
+    expectImportError("bad_index_quad.ply", binaryPly(kQuad, {{0, 1, 2, 7}}), {"face 0 references vertex 7"});
     std::string ascii = plyHeader("ascii", "4", "1") + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 4\n";
     expectImportError("bad_index_ascii.ply", ascii, {"face 0 references vertex 4 but there are 4 vertices"});
 }
@@ -152,8 +152,9 @@ TEST(BadPly, MalformedHeader)
 
 TEST(BadPly, NoTrianglesAndMissingXyz)
 {
-    std::string cloud = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
-                        "end_header\n0 0 0\n";
+    std::string cloud =
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+        "end_header\n0 0 0\n";
     expectImportError("cloud.ply", cloud, {"no triangles", "point cloud"});
     expectImportError("lines.ply", binaryPly(kQuad, {{0, 1}, {2, 3}}), {"no triangles"});
     std::string noY = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float z\nelement face 1\n"
@@ -258,7 +259,8 @@ const std::string kPrimitive = R"({"attributes": {"POSITION": 0}, "indices": 1})
 
 std::string triangleJson(const std::string& accessors = kAccessors, const std::string& primitive = kPrimitive,
                          const std::string& nodes = R"([{"mesh": 0}])",
-                         const std::string& bufferViews = R"([{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 8}])")
+                         const std::string& bufferViews =
+                             R"([{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 8}])")
 {
     return R"({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 44}], "bufferViews": )" + bufferViews +
            R"(, "accessors": )" + accessors + R"(, "meshes": [{"primitives": [)" + primitive + R"(]}], "nodes": )" +
@@ -300,45 +302,51 @@ TEST(BadGltf, ReferencesAndBounds)
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
                           triangleBin()),
                       {"truncated", "accessor 0", "runs past the end of its bufferView"});
-    expectImportError("hostile_count.glb",
-                      glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 1099511627776, "type": "VEC3"},
+    expectImportError(
+        "hostile_count.glb",
+        glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 1099511627776, "type": "VEC3"},
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
-                          triangleBin()),
-                      {"truncated", "1099511627776 elements"});
-    expectImportError("view_overrun.glb",
-                      glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+            triangleBin()),
+        {"truncated", "1099511627776 elements"});
+    expectImportError(
+        "view_overrun.glb",
+        glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])",
-                                       R"({"attributes": {"POSITION": 0}, "indices": 1})", R"([{"mesh": 0}])",
-                                       R"([{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 40, "byteLength": 8}])"),
-                          triangleBin()),
-                      {"bufferView 1", "runs past the end of its buffer"});
-    expectImportError("buffer_short.gltf",
-                      R"({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 44, "uri": "data:application/octet-stream;base64,AAAA"}],
+                         R"({"attributes": {"POSITION": 0}, "indices": 1})", R"([{"mesh": 0}])",
+                         R"([{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 40, "byteLength": 8}])"),
+            triangleBin()),
+        {"bufferView 1", "runs past the end of its buffer"});
+    expectImportError(
+        "buffer_short.gltf",
+        R"({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 44, "uri": "data:application/octet-stream;base64,AAAA"}],
                           "bufferViews": [{"buffer": 0, "byteLength": 36}], "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
                           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}]})",
-                      {"truncated", "buffer 0 declares 44 bytes but only 3"});
+        {"truncated", "buffer 0 declares 44 bytes but only 3"});
     expectImportError("missing_bin.gltf",
                       R"({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 44, "uri": "nowhere.bin"}],
                           "bufferViews": [{"buffer": 0, "byteLength": 36}], "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
                           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}]})",
                       {"buffer 0", "nowhere.bin: file not found"});
-    expectImportError("wrong_type.glb", glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
-                                                        R"({"attributes": {"POSITION": "zero"}})"),
-                                           triangleBin()),
-                      {"POSITION", "expected a non-negative integer"});
-    expectImportError("sparse.glb",
-                      glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "sparse": {}},
-                                           {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
+    expectImportError("wrong_type.glb",
+                      glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
+                                       R"({"attributes": {"POSITION": "zero"}})"),
                           triangleBin()),
-                      {"sparse accessors are not supported"});
+                      {"POSITION", "expected a non-negative integer"});
+    expectImportError(
+        "sparse.glb",
+        glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "sparse": {}},
+                                           {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
+            triangleBin()),
+        {"sparse accessors are not supported"});
 }
 
 TEST(BadGltf, CycleAndNonTriangles)
 {
-    std::string cyclic = triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+    std::string cyclic =
+        triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
                 {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])",
-                                      R"({"attributes": {"POSITION": 0}, "indices": 1})",
-                                      R"([{"mesh": 0, "children": [1]}, {"children": [0]}], "scenes": [{"nodes": [0]}])");
+                     R"({"attributes": {"POSITION": 0}, "indices": 1})",
+                     R"([{"mesh": 0, "children": [1]}, {"children": [0]}], "scenes": [{"nodes": [0]}])");
     expectImportError("cycle2.glb", glb(cyclic, triangleBin()), {"node 0 appears more than once"});
     std::string points = triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
                                       R"({"attributes": {"POSITION": 0}, "mode": 0})");
@@ -421,11 +429,10 @@ TEST(BadInput, TruncationAndCorruptionNeverCrash)
         bool draco;
     };
     std::mt19937 random(1234);
-    for (Variant variant : {Variant{"fuzz.ply", true, false}, Variant{"fuzz_ascii.ply", false, false},
-                            Variant{"fuzz.obj", true, false}, Variant{"fuzz.stl", true, false},
-                            Variant{"fuzz_ascii.stl", false, false}, Variant{"fuzz.glb", true, false},
-                            Variant{"fuzz_draco.glb", true, true}, Variant{"fuzz.gltf", true, false},
-                            Variant{"fuzz.drc", true, false}}) {
+    for (Variant variant :
+         {Variant{"fuzz.ply", true, false}, Variant{"fuzz_ascii.ply", false, false}, Variant{"fuzz.obj", true, false},
+          Variant{"fuzz.stl", true, false}, Variant{"fuzz_ascii.stl", false, false}, Variant{"fuzz.glb", true, false},
+          Variant{"fuzz_draco.glb", true, true}, Variant{"fuzz.gltf", true, false}, Variant{"fuzz.drc", true, false}}) {
         std::string source = tempPath(std::string("source_") + variant.name);
         ExportOptions options;
         options.binary = variant.binary;

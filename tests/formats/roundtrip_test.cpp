@@ -72,18 +72,15 @@ TEST_P(RoundTrip, GridSurvivesExportAndImport)
         EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << entry.path();
 }
 
-INSTANTIATE_TEST_SUITE_P(AllFormats, RoundTrip,
-                         ::testing::Values(RoundTripCase{"ply_binary", ".ply", true, false},
-                                           RoundTripCase{"ply_ascii", ".ply", false, false},
-                                           RoundTripCase{"obj", ".obj", true, false},
-                                           RoundTripCase{"stl_binary", ".stl", true, false},
-                                           RoundTripCase{"stl_ascii", ".stl", false, false},
-                                           RoundTripCase{"glb", ".glb", true, false},
-                                           RoundTripCase{"gltf", ".gltf", true, false},
-                                           RoundTripCase{"glb_draco", ".glb", true, true},
-                                           RoundTripCase{"gltf_draco", ".gltf", true, true},
-                                           RoundTripCase{"drc", ".drc", true, false}),
-                         [](const auto& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(
+    AllFormats, RoundTrip,
+    ::testing::Values(RoundTripCase{"ply_binary", ".ply", true, false},
+                      RoundTripCase{"ply_ascii", ".ply", false, false}, RoundTripCase{"obj", ".obj", true, false},
+                      RoundTripCase{"stl_binary", ".stl", true, false},
+                      RoundTripCase{"stl_ascii", ".stl", false, false}, RoundTripCase{"glb", ".glb", true, false},
+                      RoundTripCase{"gltf", ".gltf", true, false}, RoundTripCase{"glb_draco", ".glb", true, true},
+                      RoundTripCase{"gltf_draco", ".gltf", true, true}, RoundTripCase{"drc", ".drc", true, false}),
+    [](const auto& info) { return std::string(info.param.name); });
 
 TEST(RoundTrip, StlWeldsSharedCorners)
 {
@@ -267,12 +264,12 @@ TEST(ImportPly, BigEndianWithExtraPropertiesAndQuads)
         beFloat(bytes, v[1]);
         beFloat(bytes, v[2]);
     }
-    be32(bytes, 7);           // edge vertex1
-    bytes += char(2);         // edge list of 2
+    be32(bytes, 7);   // edge vertex1
+    bytes += char(2); // edge list of 2
     be32(bytes, 1);
     be32(bytes, 2);
-    bytes += char(0);         // face 0 flags
-    bytes += char(4);         // quad
+    bytes += char(0); // face 0 flags
+    bytes += char(4); // quad
     for (uint32_t i : {0u, 1u, 2u, 3u})
         be32(bytes, i);
     bytes += char(0);
@@ -397,7 +394,8 @@ TEST(ImportGltf, NodeTransformsInstancingStripsAndMirroring)
     EXPECT_NEAR(rotated.y, 1.0f, 1e-5f);
     // Every triangle keeps +z facing (the mirrored strip has its winding flipped back).
     for (size_t t = 0; t < scene.mesh.triangleCount(); ++t) {
-        glm::vec3 a = scene.mesh.position(scene.mesh.indices[t * 3]), b = scene.mesh.position(scene.mesh.indices[t * 3 + 1]),
+        glm::vec3 a = scene.mesh.position(scene.mesh.indices[t * 3]),
+                  b = scene.mesh.position(scene.mesh.indices[t * 3 + 1]),
                   c = scene.mesh.position(scene.mesh.indices[t * 3 + 2]);
         glm::vec3 normal = glm::cross(b - a, c - a);
         EXPECT_GT(normal.z, 0.0f) << "triangle " << t;

@@ -8,9 +8,9 @@
 #include <cstdio>
 #include <cstring>
 
-#include <glm/geometric.hpp>
 #include <fstream>
 #include <functional>
+#include <glm/geometric.hpp>
 #include <string>
 #include <vector>
 
@@ -19,7 +19,10 @@
 
 namespace penumbra::test {
 
-inline std::string tempPath(const std::string& name) { return std::string(PENUMBRA_TEST_TMP) + "/" + name; }
+inline std::string tempPath(const std::string& name)
+{
+    return std::string(PENUMBRA_TEST_TMP) + "/" + name;
+}
 
 inline std::string writeFile(const std::string& name, const std::string& bytes)
 {
@@ -35,8 +38,7 @@ inline std::string readFile(const std::string& path)
     return std::string(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
 }
 
-template <typename T>
-void append(std::string& bytes, T value)
+template <typename T> void append(std::string& bytes, T value)
 {
     bytes.append(reinterpret_cast<const char*>(&value), sizeof(T));
 }
