@@ -1,7 +1,8 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // Camera pass: world position and a facing normal per pixel (the G-buffer).
 
-layout(location = 0) in vec3 inPosition;
+#include "model_vertex.glsli"
 
 layout(push_constant) uniform CameraPush {
     mat4 viewProj;
@@ -12,6 +13,6 @@ layout(location = 0) out vec3 worldPosition;
 
 void main()
 {
-    worldPosition = inPosition;
-    gl_Position = camera.viewProj * vec4(inPosition, 1.0);
+    worldPosition = modelPosition();
+    gl_Position = camera.viewProj * vec4(worldPosition, 1.0);
 }

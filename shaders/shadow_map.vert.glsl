@@ -1,8 +1,9 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // Shadow-map pass: depth only, from the light. Slope-scaled bias is set as
 // dynamic depth-bias state by the runtime.
 
-layout(location = 0) in vec3 inPosition;
+#include "model_vertex.glsli"
 
 layout(push_constant) uniform LightPush {
     mat4 viewProj;
@@ -10,5 +11,5 @@ layout(push_constant) uniform LightPush {
 
 void main()
 {
-    gl_Position = light.viewProj * vec4(inPosition, 1.0);
+    gl_Position = light.viewProj * vec4(modelPosition(), 1.0);
 }

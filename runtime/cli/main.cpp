@@ -3,11 +3,14 @@
 #include <cstdio>
 #include <fstream>
 #include <new>
+#include <cmath>
+#include <unistd.h>
 #include <optional>
 
 #include <CLI/CLI.hpp>
 
 #include "penumbra/generate.h"
+#include "penumbra/preprocess.h"
 #include "penumbra/penumbra.h"
 
 namespace {
@@ -35,6 +38,17 @@ struct RenderArgs {
     bool validation = false;
     std::string statsPath;
     uint32_t frames = 1;
+};
+
+struct PreprocessArgs {
+    std::string input;
+    std::string output;
+    std::string simplify = "1";
+    uint32_t clusterVertices = PreprocessOptions{}.maxClusterVertices;
+    uint32_t clusterTriangles = PreprocessOptions{}.maxClusterTriangles;
+    uint32_t leafTriangles = PreprocessOptions{}.maxLeafTriangles;
+    unsigned threads = 0;
+    bool quiet = false;
 };
 
 struct GenerateArgs {
@@ -103,19 +117,31 @@ int runRender(const RenderArgs& args)
 
     auto loadStart = std::chrono::steady_clock::now();
     Scene scene;
+    CompressedModel compressed;
     if (modelPath.empty()) {
         GenerateOptions generateOptions;
         generateOptions.triangles = kDemoTriangles;
         scene = generateScene(kDemoScene, generateOptions);
         std::fprintf(stderr, "penumbra: no model given, rendering the built-in demo scene (%s, %zu triangles)\n", kDemoScene,
                      scene.mesh.triangleCount());
+    } else if (modelPath.size() > 9 && modelPath.substr(modelPath.size() - 9) == ".penumbra") {
+        compressed = openModelFile(modelPath);
     } else {
         scene = importScene(modelPath);
     }
+    if (!compressed.clusters.empty())
+        renderer.loadModel(compressed);
+    else
+        renderer.loadModel(scene.mesh);
     double loadMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - loadStart).count();
 
     // Camera: command line over scene file over the model's own over the default.
-    Camera camera = defaultCamera(computeBounds(scene.mesh));
+    Bounds bounds = computeBounds(scene.mesh);
+    if (!compressed.clusters.empty()) {
+        bounds.min = glm::vec3(compressed.header.boundsMin[0], compressed.header.boundsMin[1], compressed.header.boundsMin[2]);
+        bounds.max = glm::vec3(compressed.header.boundsMax[0], compressed.header.boundsMax[1], compressed.header.boundsMax[2]);
+    }
+    Camera camera = defaultCamera(bounds);
     if (!scene.cameras.empty()) {
         if (args.cameraIndex < 0 || size_t(args.cameraIndex) >= scene.cameras.size())
             fail("--camera-index " + std::to_string(args.cameraIndex),
@@ -145,7 +171,6 @@ int runRender(const RenderArgs& args)
     if (!commandLineLights.empty())
         lights = commandLineLights;
 
-    renderer.loadModel(scene.mesh);
     renderer.setCamera(camera);
     renderer.setLights(lights);
     Frame frame;
@@ -160,6 +185,160 @@ int runRender(const RenderArgs& args)
         std::fprintf(stderr, "penumbra: error: %u validation message(s)\n", renderer.validationMessageCount());
         return 1;
     }
+    return 0;
+}
+
+// One-line progress bar on stderr, redrawn at most ~10 times a second; silent
+// when stderr is not a terminal.
+class ProgressBar {
+public:
+    explicit ProgressBar(bool enabled) : enabled(enabled && isatty(STDERR_FILENO)) {}
+    ~ProgressBar() { finish(); }
+
+    void update(const std::string& label, double fraction)
+    {
+        if (!enabled)
+            return;
+        auto now = std::chrono::steady_clock::now();
+        if (label == lastLabel && now - lastDraw < std::chrono::milliseconds(100) && fraction < 1.0)
+            return;
+        lastDraw = now;
+        lastLabel = label;
+        int filled = int(std::lround(std::clamp(fraction, 0.0, 1.0) * kWidth));
+        std::fprintf(stderr, "\r%-24.24s [%s%s] %3d%%", label.c_str(), std::string(size_t(filled), '#').c_str(),
+                     std::string(size_t(kWidth - filled), '.').c_str(), int(std::lround(fraction * 100.0)));
+        std::fflush(stderr);
+        drawn = true;
+    }
+
+    void finish()
+    {
+        if (drawn)
+            std::fprintf(stderr, "\r%*s\r", kWidth + 34, "");
+        drawn = false;
+    }
+
+private:
+    static constexpr int kWidth = 40;
+    bool enabled;
+    bool drawn = false;
+    std::string lastLabel;
+    std::chrono::steady_clock::time_point lastDraw{};
+};
+
+std::vector<float> parseRatios(const std::string& text)
+{
+    std::vector<float> ratios;
+    size_t start = 0;
+    while (start <= text.size()) {
+        size_t end = text.find(',', start);
+        std::string part = text.substr(start, end == std::string::npos ? std::string::npos : end - start);
+        char* stop = nullptr;
+        float ratio = std::strtof(part.c_str(), &stop);
+        if (part.empty() || *stop != '\0' || !(ratio > 0.0f && ratio <= 1.0f))
+            fail("--simplify " + text, "'" + part + "' is not a ratio in (0, 1]");
+        ratios.push_back(ratio);
+        if (end == std::string::npos)
+            break;
+        start = end + 1;
+    }
+    return ratios;
+}
+
+// "scan.penumbra" with ratio 0.25 of several -> "scan.0.25.penumbra".
+std::string levelPath(const std::string& output, float ratio, bool several)
+{
+    if (!several)
+        return output;
+    char text[32];
+    std::snprintf(text, sizeof(text), "%g", double(ratio));
+    size_t dot = output.find_last_of('.');
+    size_t slash = output.find_last_of('/');
+    if (dot == std::string::npos || (slash != std::string::npos && dot < slash))
+        return output + "." + text;
+    return output.substr(0, dot) + "." + text + output.substr(dot);
+}
+
+int runPreprocess(const PreprocessArgs& args)
+{
+    std::vector<float> ratios = parseRatios(args.simplify);
+    std::string extension = args.output.size() >= 9 ? args.output.substr(args.output.size() - 9) : "";
+    if (extension != ".penumbra")
+        fail(args.output, "the output must end in .penumbra");
+    PreprocessOptions options;
+    options.maxClusterVertices = args.clusterVertices;
+    options.maxClusterTriangles = args.clusterTriangles;
+    options.maxLeafTriangles = args.leafTriangles;
+    options.threads = args.threads;
+
+    ProgressBar progress(!args.quiet);
+    auto start = std::chrono::steady_clock::now();
+    auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+    progress.update("import", 0.0);
+    Scene scene = importScene(args.input);
+    double importSeconds = seconds();
+
+    for (float ratio : ratios) {
+        std::string path = levelPath(args.output, ratio, ratios.size() > 1);
+        char label[64];
+        std::snprintf(label, sizeof(label), "level %g: ", double(ratio));
+        double levelStart = seconds();
+        SimplifiedMesh simplified;
+        const Mesh* mesh = &scene.mesh;
+        if (ratio < 1.0f) {
+            progress.update(std::string(label) + "simplify", 0.0);
+            simplified = simplifyMesh(scene.mesh, ratio);
+            mesh = &simplified.mesh;
+        }
+        options.progress = [&](const char* stage, double fraction) { progress.update(std::string(label) + stage, fraction); };
+        PreprocessStats stats;
+        CompressedModel model = buildCompressedModel(*mesh, options, &stats);
+        model.header.sourceTriangleCount = scene.mesh.triangleCount();
+        model.header.build.simplifyTarget = ratio;
+        model.header.simplifyError = ratio < 1.0f ? simplified.error : 0.0f;
+        progress.update(std::string(label) + "write", 1.0);
+        writeModelFile(model, path);
+        progress.finish();
+        uint64_t bytes = model.clusters.size_bytes() + model.nodes.size_bytes() + model.vertices.size_bytes() + model.indices.size_bytes();
+        std::printf("%s: %llu triangles (%.4g of %zu%s), %u clusters, %u nodes, %.2f B/tri, max error %.3g, %.2f s "
+                    "(%.2f M tris/s incl. import %.2f s)\n",
+                    path.c_str(), (unsigned long long)model.header.triangleCount, double(model.header.triangleCount) / scene.mesh.triangleCount(),
+                    scene.mesh.triangleCount(), ratio < 1.0f && simplified.sloppy ? ", sloppy" : "", model.header.clusterCount,
+                    model.header.nodeCount, double(bytes) / double(model.header.triangleCount), double(model.header.maxPositionError),
+                    seconds() - levelStart, double(mesh->triangleCount()) / (seconds() - levelStart + importSeconds) * 1e-6,
+                    importSeconds);
+    }
+    return 0;
+}
+
+int runInfo(const std::string& path)
+{
+    CompressedModel model = openModelFile(path);
+    const model::FileHeader& h = model.header;
+    double triangles = double(std::max<uint64_t>(h.triangleCount, 1));
+    std::printf("%s: Penumbra model, version %u, %llu bytes\n", path.c_str(), h.version, (unsigned long long)h.fileSize);
+    std::printf("  triangles        %llu (source %llu, simplify target %g, error %.3g)\n", (unsigned long long)h.triangleCount,
+                (unsigned long long)h.sourceTriangleCount, double(h.build.simplifyTarget), double(h.simplifyError));
+    std::printf("  vertices         %llu (%.3f per triangle)\n", (unsigned long long)h.vertexCount, double(h.vertexCount) / triangles);
+    std::printf("  clusters         %u (avg %.0f triangles, %.0f vertices)\n", h.clusterCount, triangles / h.clusterCount,
+                double(h.vertexCount) / h.clusterCount);
+    std::printf("  BVH              %u nodes, depth %u\n", h.nodeCount, h.bvhDepth);
+    std::printf("  bounds           (%g, %g, %g) - (%g, %g, %g)\n", double(h.boundsMin[0]), double(h.boundsMin[1]), double(h.boundsMin[2]),
+                double(h.boundsMax[0]), double(h.boundsMax[1]), double(h.boundsMax[2]));
+    std::printf("  quantization     %u-bit positions per cluster box, max error %.3g; %u-bit node bounds\n", h.build.positionBits,
+                double(h.maxPositionError), h.build.nodeBoundsBits);
+    std::printf("  build            cluster <= %u vertices / %u triangles, leaves <= %u triangles, %u SAH bins\n",
+                h.build.maxClusterVertices, h.build.maxClusterTriangles, h.build.maxLeafTriangles, h.build.sahBins);
+    struct Row { const char* name; uint64_t bytes; } rows[] = {
+        {"clusters", model.clusters.size_bytes()}, {"nodes", model.nodes.size_bytes()},
+        {"vertices", model.vertices.size_bytes()}, {"indices", model.indices.size_bytes()}};
+    uint64_t total = 0;
+    std::printf("  %-16s %14s %10s\n", "section", "bytes", "B/tri");
+    for (const Row& row : rows) {
+        std::printf("  %-16s %14llu %10.3f\n", row.name, (unsigned long long)row.bytes, double(row.bytes) / triangles);
+        total += row.bytes;
+    }
+    std::printf("  %-16s %14llu %10.3f\n", "geometry + BVH", (unsigned long long)total, double(total) / triangles);
     return 0;
 }
 
@@ -201,7 +380,7 @@ int main(int argc, char** argv)
 
     RenderArgs render;
     CLI::App* renderCommand = app.add_subcommand("render", "Render a model (or the built-in demo scene) with shadows to an image");
-    renderCommand->add_option("model", render.model, "Model file: .obj .ply .stl .gltf .glb .drc (default: built-in demo scene)");
+    renderCommand->add_option("model", render.model, "Model file: .penumbra .obj .ply .stl .gltf .glb .drc (default: built-in demo scene)");
     renderCommand->add_option("-o,--output", render.output, "Output image: .png (8-bit sRGB) or .exr (linear half float)")->capture_default_str();
     renderCommand->add_option("--size", render.size, "Image size: N or WxH")->capture_default_str();
     renderCommand->add_option("--scene", render.scene, "JSON scene file with camera, lights and optionally the model");
@@ -224,6 +403,21 @@ int main(int argc, char** argv)
     renderCommand->add_option("--stats", render.statsPath, "Write per-pass statistics as JSON to this file");
     renderCommand->add_option("--frames", render.frames, "Render this many frames (timings are of the last)")->capture_default_str()->check(CLI::Range(1, 10000));
 
+    PreprocessArgs preprocess;
+    CLI::App* preprocessCommand = app.add_subcommand("preprocess", "Compress a model into a .penumbra file: strip clusters + one BVH");
+    preprocessCommand->add_option("input", preprocess.input, "Model file: .obj .ply .stl .gltf .glb .drc")->required();
+    preprocessCommand->add_option("-o,--output", preprocess.output, "Output .penumbra file (with several --simplify ratios: NAME.<ratio>.penumbra)")->required();
+    preprocessCommand->add_option("--simplify", preprocess.simplify, "Comma-separated triangle ratios, one file each, e.g. 1,0.5,0.25")->capture_default_str();
+    preprocessCommand->add_option("--cluster-vertices", preprocess.clusterVertices, "Vertices per cluster (8-bit local indices)")->capture_default_str()->check(CLI::Range(3, 255));
+    preprocessCommand->add_option("--cluster-triangles", preprocess.clusterTriangles, "Triangles per cluster")->capture_default_str()->check(CLI::Range(1, 1024));
+    preprocessCommand->add_option("--leaf-triangles", preprocess.leafTriangles, "Triangles per strip-range leaf of a cluster's BVH")->capture_default_str()->check(CLI::Range(1, 1024));
+    preprocessCommand->add_option("--threads", preprocess.threads, "Worker threads (0: all cores)")->capture_default_str();
+    preprocessCommand->add_flag("--quiet", preprocess.quiet, "No progress bar");
+
+    std::string infoPath;
+    CLI::App* infoCommand = app.add_subcommand("info", "Describe a .penumbra model file (validates it completely)");
+    infoCommand->add_option("model", infoPath, "A .penumbra file")->required();
+
     GenerateArgs generate;
     CLI::App* generateCommand = app.add_subcommand("generate", "Write a procedural benchmark scene: city, interior, plant or scan");
     generateCommand->add_option("name", generate.name, "Scene: city, interior, plant, scan")->required();
@@ -245,6 +439,10 @@ int main(int argc, char** argv)
             return runRender(render);
         if (generateCommand->parsed())
             return runGenerate(generate);
+        if (preprocessCommand->parsed())
+            return runPreprocess(preprocess);
+        if (infoCommand->parsed())
+            return runInfo(infoPath);
         return runDevices();
     } catch (const Error& e) {
         std::fprintf(stderr, "penumbra: error: %s\n", e.what());

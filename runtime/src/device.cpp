@@ -158,6 +158,16 @@ bool graphicsComputeFamily(VkPhysicalDevice physical, uint32_t& family)
     return false;
 }
 
+bool hasDeviceExtension(VkPhysicalDevice physical, const char* name)
+{
+    uint32_t count = 0;
+    vkEnumerateDeviceExtensionProperties(physical, nullptr, &count, nullptr);
+    std::vector<VkExtensionProperties> extensions(count);
+    vkEnumerateDeviceExtensionProperties(physical, nullptr, &count, extensions.data());
+    return std::any_of(extensions.begin(), extensions.end(),
+                       [&](const VkExtensionProperties& e) { return std::strcmp(e.extensionName, name) == 0; });
+}
+
 std::vector<VkPhysicalDevice> physicalDevices(VkInstance instance)
 {
     uint32_t count = 0;
@@ -244,6 +254,7 @@ void createDevice(Device& device, const RendererOptions& options)
     }
 
     device.physical = choosePhysicalDevice(device.instance, options.device);
+    device.maxModelBufferBytes = options.maxModelBufferBytes;
     vkGetPhysicalDeviceProperties(device.physical, &device.properties);
     vkGetPhysicalDeviceMemoryProperties(device.physical, &device.memory);
     graphicsComputeFamily(device.physical, device.queueFamily);
@@ -253,19 +264,35 @@ void createDevice(Device& device, const RendererOptions& options)
         device.info = describe(device.physical, index);
     }
 
-    VkPhysicalDeviceVulkan13Features features13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+    if (!hasDeviceExtension(device.physical, VK_EXT_INDEX_TYPE_UINT8_EXTENSION_NAME))
+        fail("vulkan", device.info.name + " lacks VK_EXT_index_type_uint8 (8-bit strip indices)");
+    VkPhysicalDeviceIndexTypeUint8FeaturesEXT uint8Features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_INDEX_TYPE_UINT8_FEATURES_EXT};
+    VkPhysicalDeviceVulkan13Features features13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &uint8Features};
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &features13};
     vkGetPhysicalDeviceFeatures2(device.physical, &supported);
-    if (!features13.dynamicRendering || !features13.synchronization2 || !features13.maintenance4)
-        fail("vulkan", device.info.name + " lacks a required Vulkan 1.3 feature (dynamicRendering, synchronization2, maintenance4)");
+    if (!features13.dynamicRendering || !features13.synchronization2 || !features13.maintenance4 || !uint8Features.indexTypeUint8 ||
+        !supported.features.multiDrawIndirect || !supported.features.drawIndirectFirstInstance)
+        fail("vulkan", device.info.name +
+                           " lacks a required feature (dynamicRendering, synchronization2, maintenance4, indexTypeUint8, "
+                           "multiDrawIndirect, drawIndirectFirstInstance)");
+    device.vertexStores = supported.features.vertexPipelineStoresAndAtomics;
+    VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
+    VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &maintenance3};
+    vkGetPhysicalDeviceProperties2(device.physical, &properties2);
+    device.maxAllocationSize = maintenance3.maxMemoryAllocationSize;
 
-    VkPhysicalDeviceVulkan13Features enable13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+    VkPhysicalDeviceIndexTypeUint8FeaturesEXT enableUint8{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_INDEX_TYPE_UINT8_FEATURES_EXT};
+    enableUint8.indexTypeUint8 = VK_TRUE;
+    VkPhysicalDeviceVulkan13Features enable13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &enableUint8};
     enable13.dynamicRendering = VK_TRUE;
     enable13.synchronization2 = VK_TRUE;
     enable13.maintenance4 = VK_TRUE; // glslang emits LocalSizeId for Vulkan 1.3 targets
     VkPhysicalDeviceFeatures2 enable{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &enable13};
     enable.features.fullDrawIndexUint32 = supported.features.fullDrawIndexUint32;
-    enable.features.shaderStorageImageWriteWithoutFormat = supported.features.shaderStorageImageWriteWithoutFormat;
+    enable.features.multiDrawIndirect = VK_TRUE;
+    enable.features.drawIndirectFirstInstance = VK_TRUE;
+    enable.features.vertexPipelineStoresAndAtomics = supported.features.vertexPipelineStoresAndAtomics;
+    const char* extensions[] = {VK_EXT_INDEX_TYPE_UINT8_EXTENSION_NAME};
 
     float priority = 1.0f;
     VkDeviceQueueCreateInfo queueInfo{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
@@ -275,6 +302,8 @@ void createDevice(Device& device, const RendererOptions& options)
     VkDeviceCreateInfo info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO, &enable};
     info.queueCreateInfoCount = 1;
     info.pQueueCreateInfos = &queueInfo;
+    info.enabledExtensionCount = 1;
+    info.ppEnabledExtensionNames = extensions;
     VK_CHECK(vkCreateDevice(device.physical, &info, nullptr, &device.device));
     vkGetDeviceQueue(device.device, device.queueFamily, 0, &device.queue);
 

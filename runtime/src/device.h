@@ -33,6 +33,9 @@ struct Device {
     VkPhysicalDeviceProperties properties{};
     VkPhysicalDeviceMemoryProperties memory{};
     DeviceInfo info;
+    VkDeviceSize maxAllocationSize = 1ull << 30; // VkPhysicalDeviceMaintenance3Properties
+    bool vertexStores = false;
+    VkDeviceSize maxModelBufferBytes = 0;        // RendererOptions::maxModelBufferBytes                   // vertexPipelineStoresAndAtomics (decode check)
     std::atomic<uint32_t> validationMessages{0};
 };
 

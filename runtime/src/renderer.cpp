@@ -4,11 +4,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "config.h"
 #include "device.h"
 #include "light_space.h"
+#include "model_geometry.h"
+#include "penumbra/preprocess.h"
 #include "penumbra/penumbra.h"
 #include "penumbra/shaders/registry.h"
 #include "resources.h"
@@ -43,16 +46,20 @@ VkShaderModule createShaderModule(vk::Device& device, const char* name)
 }
 
 struct GraphicsPipelineDesc {
-    const char* vertexShader = nullptr;
+    std::string vertexShader;                 // registry name; ".float" is appended for the reference encoding
     const char* fragmentShader = nullptr;     // null: depth only
     std::vector<VkFormat> colorFormats;
     bool depthBias = false;
+    bool depthAttachment = true;
+    bool rasterizerDiscard = false;
+    GeometryEncoding encoding = GeometryEncoding::Compressed;
     VkPipelineLayout layout = VK_NULL_HANDLE;
 };
 
 VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc& desc)
 {
-    VkShaderModule vertex = createShaderModule(device, desc.vertexShader);
+    std::string vertexName = desc.vertexShader + (desc.encoding == GeometryEncoding::UncompressedReference ? ".float" : "");
+    VkShaderModule vertex = createShaderModule(device, vertexName.c_str());
     VkShaderModule fragment = desc.fragmentShader ? createShaderModule(device, desc.fragmentShader) : VK_NULL_HANDLE;
     VkPipelineShaderStageCreateInfo stages[2] = {{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO},
                                                  {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO}};
@@ -63,16 +70,16 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     stages[1].module = fragment;
     stages[1].pName = "main";
 
-    VkVertexInputBindingDescription binding{0, 3 * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
-    VkVertexInputAttributeDescription attribute{0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0};
+    GeometryInputState input = geometryInputState(desc.encoding);
     VkPipelineVertexInputStateCreateInfo vertexInput{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
-    vertexInput.vertexBindingDescriptionCount = 1;
-    vertexInput.pVertexBindingDescriptions = &binding;
-    vertexInput.vertexAttributeDescriptionCount = 1;
-    vertexInput.pVertexAttributeDescriptions = &attribute;
+    vertexInput.vertexBindingDescriptionCount = input.bindingCount;
+    vertexInput.pVertexBindingDescriptions = input.bindings;
+    vertexInput.vertexAttributeDescriptionCount = input.attributeCount;
+    vertexInput.pVertexAttributeDescriptions = input.attributes;
 
     VkPipelineInputAssemblyStateCreateInfo assembly{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
-    assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+    assembly.topology = input.topology;
+    assembly.primitiveRestartEnable = input.primitiveRestart;
     VkPipelineViewportStateCreateInfo viewport{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
     viewport.viewportCount = 1;
     viewport.scissorCount = 1;
@@ -81,6 +88,7 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     raster.cullMode = VK_CULL_MODE_NONE;   // CAD and scanned models are often open or two-sided
     raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
     raster.depthBiasEnable = desc.depthBias;
+    raster.rasterizerDiscardEnable = desc.rasterizerDiscard;
     raster.lineWidth = 1.0f;
     VkPipelineMultisampleStateCreateInfo multisample{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
     multisample.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
@@ -104,7 +112,7 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     VkPipelineRenderingCreateInfo rendering{VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO};
     rendering.colorAttachmentCount = uint32_t(desc.colorFormats.size());
     rendering.pColorAttachmentFormats = desc.colorFormats.data();
-    rendering.depthAttachmentFormat = kDepthFormat;
+    rendering.depthAttachmentFormat = desc.depthAttachment ? kDepthFormat : VK_FORMAT_UNDEFINED;
 
     VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO, &rendering};
     info.stageCount = fragment ? 2 : 1;
@@ -114,7 +122,7 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     info.pViewportState = &viewport;
     info.pRasterizationState = &raster;
     info.pMultisampleState = &multisample;
-    info.pDepthStencilState = &depth;
+    info.pDepthStencilState = desc.depthAttachment ? &depth : nullptr;
     info.pColorBlendState = &blend;
     info.pDynamicState = &dynamic;
     info.layout = desc.layout;
@@ -178,15 +186,15 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds)
 struct Renderer::Impl {
     vk::Device device;
     // Model
-    vk::Buffer vertexBuffer, indexBuffer;
-    uint64_t triangleCount = 0;
-    Bounds bounds;
+    GpuGeometry geometry;
     std::optional<Camera> camera;
     std::vector<Light> lights;
     // Pipelines
     VkDescriptorSetLayout shadeSetLayout = VK_NULL_HANDLE;
     VkPipelineLayout gbufferLayout = VK_NULL_HANDLE, shadowLayout = VK_NULL_HANDLE, shadeLayout = VK_NULL_HANDLE;
-    VkPipeline gbufferPipeline = VK_NULL_HANDLE, shadowPipeline = VK_NULL_HANDLE, shadePipeline = VK_NULL_HANDLE;
+    // Raster pipelines per geometry encoding (index: GeometryEncoding).
+    VkPipeline gbufferPipelines[2] = {}, shadowPipelines[2] = {};
+    VkPipeline shadePipeline = VK_NULL_HANDLE;
     VkSampler nearestSampler = VK_NULL_HANDLE;
     VkDescriptorPool descriptorPool = VK_NULL_HANDLE;
     VkDescriptorSet shadeSet = VK_NULL_HANDLE;
@@ -229,18 +237,22 @@ struct Renderer::Impl {
         shadowLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(glm::mat4), VK_SHADER_STAGE_VERTEX_BIT);
         shadeLayout = createPipelineLayout(device, shadeSetLayout, sizeof(ShadePush), VK_SHADER_STAGE_COMPUTE_BIT);
 
-        GraphicsPipelineDesc gbuffer;
-        gbuffer.vertexShader = "gbuffer.vert";
-        gbuffer.fragmentShader = "gbuffer.frag";
-        gbuffer.colorFormats = {kPositionFormat, kNormalFormat};
-        gbuffer.layout = gbufferLayout;
-        gbufferPipeline = createGraphicsPipeline(device, gbuffer);
+        for (GeometryEncoding encoding : {GeometryEncoding::Compressed, GeometryEncoding::UncompressedReference}) {
+            GraphicsPipelineDesc gbuffer;
+            gbuffer.vertexShader = "gbuffer.vert";
+            gbuffer.fragmentShader = "gbuffer.frag";
+            gbuffer.colorFormats = {kPositionFormat, kNormalFormat};
+            gbuffer.layout = gbufferLayout;
+            gbuffer.encoding = encoding;
+            gbufferPipelines[int(encoding)] = createGraphicsPipeline(device, gbuffer);
 
-        GraphicsPipelineDesc shadow;
-        shadow.vertexShader = "shadow_map.vert";
-        shadow.depthBias = true;
-        shadow.layout = shadowLayout;
-        shadowPipeline = createGraphicsPipeline(device, shadow);
+            GraphicsPipelineDesc shadow;
+            shadow.vertexShader = "shadow_map.vert";
+            shadow.depthBias = true;
+            shadow.layout = shadowLayout;
+            shadow.encoding = encoding;
+            shadowPipelines[int(encoding)] = createGraphicsPipeline(device, shadow);
+        }
 
         VkShaderModule shade = createShaderModule(device, "shade.comp");
         VkComputePipelineCreateInfo computeInfo{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
@@ -306,14 +318,14 @@ struct Renderer::Impl {
         vkDeviceWaitIdle(device.device);
         destroyTargets();
         vk::destroyImage(device, shadowMap);
-        for (vk::Buffer* buffer : {&vertexBuffer, &indexBuffer, &frameUniforms})
-            vk::destroyBuffer(device, *buffer);
+        destroyGeometry(device, geometry);
+        vk::destroyBuffer(device, frameUniforms);
         VkDevice d = device.device;
         if (fence) vkDestroyFence(d, fence, nullptr);
         if (queryPool) vkDestroyQueryPool(d, queryPool, nullptr);
         if (descriptorPool) vkDestroyDescriptorPool(d, descriptorPool, nullptr);
         if (nearestSampler) vkDestroySampler(d, nearestSampler, nullptr);
-        for (VkPipeline p : {gbufferPipeline, shadowPipeline, shadePipeline})
+        for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1], shadePipeline})
             if (p) vkDestroyPipeline(d, p, nullptr);
         for (VkPipelineLayout l : {gbufferLayout, shadowLayout, shadeLayout})
             if (l) vkDestroyPipelineLayout(d, l, nullptr);
@@ -375,17 +387,14 @@ struct Renderer::Impl {
         vkUpdateDescriptorSets(device.device, 6, writes, 0, nullptr);
     }
 
-    void drawModel(VkCommandBuffer cmd)
+    void setGeometry(GpuGeometry uploaded)
     {
-        VkDeviceSize offset = 0;
-        vkCmdBindVertexBuffers(cmd, 0, 1, &vertexBuffer.buffer, &offset);
-        vkCmdBindIndexBuffer(cmd, indexBuffer.buffer, 0, VK_INDEX_TYPE_UINT32);
-        // Split huge draws so that no single call exceeds the index limits.
-        const uint64_t maxIndices = 1ull << 30;
-        uint64_t total = triangleCount * 3;
-        for (uint64_t first = 0; first < total; first += maxIndices)
-            vkCmdDrawIndexed(cmd, uint32_t(std::min(maxIndices, total - first)), 1, uint32_t(first), 0, 0);
+        vkDeviceWaitIdle(device.device);
+        destroyGeometry(device, geometry);
+        geometry = std::move(uploaded);
     }
+
+    std::vector<float> decodeVerticesOnGpu();
 
     static void setViewport(VkCommandBuffer cmd, uint32_t w, uint32_t h)
     {
@@ -400,8 +409,9 @@ struct Renderer::Impl {
 
 Frame Renderer::Impl::render(const RenderSettings& settings)
 {
-    if (!triangleCount)
+    if (!geometry.triangles)
         fail("render", "no model loaded");
+    const Bounds& bounds = geometry.bounds;
     if (settings.width == 0 || settings.height == 0 || settings.width > 16384 || settings.height > 16384)
         fail("render", "image size must be 1..16384 pixels per side");
     if (settings.shadowMapSize < 16 || settings.shadowMapSize > device.properties.limits.maxImageDimension2D)
@@ -474,11 +484,11 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         rendering.pColorAttachments = colors;
         rendering.pDepthAttachment = &depthAttachment;
         vkCmdBeginRendering(cmd, &rendering);
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipeline);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelines[int(geometry.encoding)]);
         setViewport(cmd, width, height);
         CameraPush push{view.viewProj, glm::vec4(view.eye, 1.0f)};
         vkCmdPushConstants(cmd, gbufferLayout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(push), &push);
-        drawModel(cmd);
+        drawGeometry(cmd, geometry);
         vkCmdEndRendering(cmd);
     }
     timestamp(PassCamera);
@@ -508,11 +518,11 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             rendering.layerCount = 1;
             rendering.pDepthAttachment = &depthAttachment;
             vkCmdBeginRendering(cmd, &rendering);
-            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipeline);
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipelines[int(geometry.encoding)]);
             setViewport(cmd, shadowSize, shadowSize);
             vkCmdSetDepthBias(cmd, settings.depthBiasConstant, 0.0f, settings.depthBiasSlope);
             vkCmdPushConstants(cmd, shadowLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &light.viewProj[layer]);
-            drawModel(cmd);
+            drawGeometry(cmd, geometry);
             vkCmdEndRendering(cmd);
         }
         timestamp(PassShadowMap);
@@ -593,7 +603,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     for (size_t i = 1; i < ticks.size(); ++i)
         passMs[timestampPass[i]] += double(ticks[i] - ticks[i - 1]) * period;
     FrameStats& stats = frame.stats;
-    stats.triangles = triangleCount;
+    stats.triangles = geometry.triangles;
     stats.width = width;
     stats.height = height;
     stats.lights = uint32_t(frameLights.size());
@@ -605,29 +615,123 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     return frame;
 }
 
+std::vector<float> Renderer::Impl::decodeVerticesOnGpu()
+{
+    if (geometry.encoding != GeometryEncoding::Compressed || geometry.triangles == 0)
+        fail("decode check", "no compressed model loaded");
+    if (!device.vertexStores)
+        fail("decode check", device.info.name + " lacks vertexPipelineStoresAndAtomics");
+    VkDeviceSize bytes = geometry.vertexCount * 3 * sizeof(float);
+    if (bytes > device.properties.limits.maxStorageBufferRange)
+        fail("decode check", "model too large for one storage buffer");
+
+    // Resources of this check only; created and destroyed here.
+    VkDescriptorSetLayoutBinding binding{0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT, nullptr};
+    VkDescriptorSetLayoutCreateInfo setInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    setInfo.bindingCount = 1;
+    setInfo.pBindings = &binding;
+    VkDescriptorSetLayout setLayout = VK_NULL_HANDLE;
+    VkPipelineLayout layout = VK_NULL_HANDLE;
+    VkPipeline pipeline = VK_NULL_HANDLE;
+    VkDescriptorPool pool = VK_NULL_HANDLE;
+    vk::Buffer output;
+    auto cleanup = [&] {
+        vk::destroyBuffer(device, output);
+        if (pipeline) vkDestroyPipeline(device.device, pipeline, nullptr);
+        if (layout) vkDestroyPipelineLayout(device.device, layout, nullptr);
+        if (pool) vkDestroyDescriptorPool(device.device, pool, nullptr);
+        if (setLayout) vkDestroyDescriptorSetLayout(device.device, setLayout, nullptr);
+    };
+    try {
+        VK_CHECK(vkCreateDescriptorSetLayout(device.device, &setInfo, nullptr, &setLayout));
+        layout = createPipelineLayout(device, setLayout, sizeof(uint32_t), VK_SHADER_STAGE_VERTEX_BIT);
+        GraphicsPipelineDesc desc;
+        desc.vertexShader = "decode_check.vert";
+        desc.depthAttachment = false;
+        desc.rasterizerDiscard = true;
+        desc.layout = layout;
+        pipeline = createGraphicsPipeline(device, desc);
+
+        VkDescriptorPoolSize poolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1};
+        VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+        poolInfo.maxSets = 1;
+        poolInfo.poolSizeCount = 1;
+        poolInfo.pPoolSizes = &poolSize;
+        VK_CHECK(vkCreateDescriptorPool(device.device, &poolInfo, nullptr, &pool));
+        VkDescriptorSetAllocateInfo allocInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+        allocInfo.descriptorPool = pool;
+        allocInfo.descriptorSetCount = 1;
+        allocInfo.pSetLayouts = &setLayout;
+        VkDescriptorSet set;
+        VK_CHECK(vkAllocateDescriptorSets(device.device, &allocInfo, &set));
+        output = vk::createBuffer(device, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Readback);
+        std::fill_n(static_cast<float*>(output.mapped), geometry.vertexCount * 3, std::numeric_limits<float>::quiet_NaN());
+        VkDescriptorBufferInfo bufferInfo{output.buffer, 0, bytes};
+        VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+        write.dstSet = set;
+        write.descriptorCount = 1;
+        write.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        write.pBufferInfo = &bufferInfo;
+        vkUpdateDescriptorSets(device.device, 1, &write, 0, nullptr);
+
+        vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
+            VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
+            rendering.renderArea = {{0, 0}, {1, 1}};
+            rendering.layerCount = 1;
+            vkCmdBeginRendering(cmd, &rendering);
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &set, 0, nullptr);
+            setViewport(cmd, 1, 1);
+            drawGeometry(cmd, geometry, [&](uint64_t vertexBase) {
+                uint32_t base = uint32_t(vertexBase);
+                vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(base), &base);
+            });
+            vkCmdEndRendering(cmd);
+            VkMemoryBarrier2 barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
+            barrier.srcStageMask = VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT;
+            barrier.srcAccessMask = VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
+            barrier.dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT;
+            barrier.dstAccessMask = VK_ACCESS_2_HOST_READ_BIT;
+            VkDependencyInfo dependency{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+            dependency.memoryBarrierCount = 1;
+            dependency.pMemoryBarriers = &barrier;
+            vkCmdPipelineBarrier2(cmd, &dependency);
+        });
+        const float* decoded = static_cast<const float*>(output.mapped);
+        std::vector<float> result(decoded, decoded + geometry.vertexCount * 3);
+        cleanup();
+        return result;
+    } catch (...) {
+        cleanup();
+        throw;
+    }
+}
+
 Renderer::Renderer(const RendererOptions& options) : impl(std::make_unique<Impl>(options)) {}
 Renderer::~Renderer() = default;
 
 const DeviceInfo& Renderer::device() const { return impl->device.info; }
 
+void Renderer::loadModel(const CompressedModel& model)
+{
+    impl->setGeometry(uploadCompressed(impl->device, model));
+}
+
 void Renderer::loadModel(const Mesh& mesh)
 {
     if (mesh.triangleCount() == 0)
         fail("model", "has no triangles");
-    vk::Device& device = impl->device;
-    if (mesh.vertexCount() > device.properties.limits.maxDrawIndexedIndexValue)
-        fail("model", std::to_string(mesh.vertexCount()) + " vertices exceed this device's index limit");
-    vkDeviceWaitIdle(device.device);
-    vk::destroyBuffer(device, impl->vertexBuffer);
-    vk::destroyBuffer(device, impl->indexBuffer);
-    impl->triangleCount = 0;
-    impl->vertexBuffer = vk::createBufferWithData(device, mesh.positions.data(), mesh.positions.size() * sizeof(float),
-                                                  VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
-    impl->indexBuffer = vk::createBufferWithData(device, mesh.indices.data(), mesh.indices.size() * sizeof(uint32_t),
-                                                 VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
-    impl->triangleCount = mesh.triangleCount();
-    impl->bounds = computeBounds(mesh);
+    loadModel(buildCompressedModel(mesh, PreprocessOptions{}));
 }
+
+void Renderer::loadUncompressedReference(const Mesh& mesh)
+{
+    impl->setGeometry(uploadReference(impl->device, mesh));
+}
+
+uint64_t Renderer::modelDeviceBytes() const { return impl->geometry.deviceBytes; }
+
+std::vector<float> Renderer::decodeVerticesOnGpu() { return impl->decodeVerticesOnGpu(); }
 
 void Renderer::setCamera(const Camera& camera) { impl->camera = camera; }
 

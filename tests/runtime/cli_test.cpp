@@ -48,7 +48,7 @@ void expectError(const Result& result, std::initializer_list<std::string> fragme
 
 TEST(Cli, HelpForEverySubcommand)
 {
-    for (const char* command : {"--help", "render --help", "generate --help", "devices --help"}) {
+    for (const char* command : {"--help", "render --help", "generate --help", "preprocess --help", "info --help", "devices --help"}) {
         Result result = run(command);
         EXPECT_EQ(result.status, 0) << command;
         EXPECT_NE(result.output.find("Usage"), std::string::npos) << command;
@@ -86,6 +86,58 @@ TEST(Cli, RenderWithSceneFileAndLightsOnTheCommandLine)
                  " --size 128 --validation --light 'point position=0,20,0 intensity=400' --light 'directional direction=1,-2,1'");
     EXPECT_EQ(result.status, 0) << result.output;
     EXPECT_NE(result.output.find("lights 2"), std::string::npos) << result.output;
+}
+
+TEST(Cli, PreprocessInfoAndRenderAPenumbraFile)
+{
+    std::string input = tmp("scan_pp.ply"), model = tmp("scan_pp.penumbra"), image = tmp("scan_pp.png");
+    ASSERT_EQ(run("generate scan --triangles 40000 -o " + input).status, 0);
+    Result preprocessed = run("preprocess " + input + " -o " + model + " --quiet");
+    ASSERT_EQ(preprocessed.status, 0) << preprocessed.output;
+    EXPECT_NE(preprocessed.output.find("B/tri"), std::string::npos) << preprocessed.output;
+
+    Result info = run("info " + model);
+    ASSERT_EQ(info.status, 0) << info.output;
+    for (const char* field : {"triangles", "clusters", "BVH", "depth", "max error", "vertices", "indices", "B/tri", "build"})
+        EXPECT_NE(info.output.find(field), std::string::npos) << field << " missing in:\n" << info.output;
+
+    Result rendered = run("render " + model + " -o " + image + " --size 128 --validation");
+    EXPECT_EQ(rendered.status, 0) << rendered.output;
+    EXPECT_TRUE(fs::exists(image));
+}
+
+TEST(Cli, PreprocessWritesOneFilePerSimplificationLevel)
+{
+    std::string input = tmp("levels.ply");
+    ASSERT_EQ(run("generate scan --triangles 40000 -o " + input).status, 0);
+    Result result = run("preprocess " + input + " -o " + tmp("levels.penumbra") + " --simplify 1,0.5,0.25 --quiet");
+    ASSERT_EQ(result.status, 0) << result.output;
+    for (const char* level : {"1", "0.5", "0.25"}) {
+        std::string path = tmp(std::string("levels.") + level + ".penumbra");
+        ASSERT_TRUE(fs::exists(path)) << path;
+        Result info = run("info " + path);
+        EXPECT_EQ(info.status, 0) << info.output;
+        EXPECT_NE(info.output.find(std::string("simplify target ") + level), std::string::npos) << info.output;
+    }
+    EXPECT_GT(fs::file_size(tmp("levels.1.penumbra")), fs::file_size(tmp("levels.0.25.penumbra")) * 3);
+}
+
+TEST(Cli, BadModelFilesAndPreprocessOptions)
+{
+    std::string input = tmp("bad_pp.ply"), model = tmp("bad_pp.penumbra"), image = tmp("bad_pp.png");
+    ASSERT_EQ(run("generate plant --triangles 20000 -o " + input).status, 0);
+    ASSERT_EQ(run("preprocess " + input + " -o " + model + " --quiet").status, 0);
+    std::string truncated = tmp("truncated_pp.penumbra");
+    fs::copy_file(model, truncated, fs::copy_options::overwrite_existing);
+    fs::resize_file(truncated, fs::file_size(model) - 100);
+    expectError(run("render " + truncated + " -o " + image), {"truncated_pp.penumbra"});
+    expectError(run("info " + truncated), {"truncated_pp.penumbra"});
+    expectError(run("info " + input), {"bad_pp.ply"});
+    expectError(run("preprocess " + input + " -o " + tmp("out.ply")), {"out.ply", ".penumbra"});
+    expectError(run("preprocess " + input + " -o " + tmp("x.penumbra") + " --simplify 0"), {"--simplify"});
+    expectError(run("preprocess " + tmp("missing_input.obj") + " -o " + tmp("y.penumbra")), {"missing_input.obj"});
+    EXPECT_FALSE(fs::exists(image));
+    EXPECT_FALSE(fs::exists(tmp("x.penumbra")));
 }
 
 TEST(Cli, BadInputGetsOneClearLineAndNoImage)

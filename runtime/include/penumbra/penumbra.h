@@ -11,6 +11,7 @@
 #include "penumbra/error.h"
 #include "penumbra/io.h"
 #include "penumbra/mesh.h"
+#include "penumbra/model_format.h"
 #include "penumbra/scene_file.h"
 
 namespace penumbra {
@@ -38,6 +39,9 @@ struct RendererOptions {
     // and counted (validationMessageCount). Also on when the environment
     // variable PENUMBRA_VALIDATION=1 is set.
     bool validation = false;
+    // Largest model buffer in bytes (0: min(1 GiB, maxMemoryAllocationSize)).
+    // Larger models are split into chunks; tests set it small to exercise that.
+    uint64_t maxModelBufferBytes = 0;
 };
 
 struct RenderSettings {
@@ -100,8 +104,23 @@ public:
 
     const DeviceInfo& device() const;
 
-    // Uploads the mesh once; replaces any previous model.
+    // Uploads a compressed model (a .penumbra file from openModelFile, or
+    // buildCompressedModel's result) once and draws straight from it: 8-bit
+    // strips, 16-bit quantized vertices, no uncompressed copy on the device.
+    // Replaces any previous model.
+    void loadModel(const CompressedModel& model);
+    // Preprocesses the mesh in memory with default options, then loadModel.
     void loadModel(const Mesh& mesh);
+    // Benchmarks only: uploads an indexed float triangle list and draws that
+    // instead, so raster time can be compared against the compressed form.
+    void loadUncompressedReference(const Mesh& mesh);
+    // Bytes of device memory the loaded model occupies.
+    uint64_t modelDeviceBytes() const;
+    // Tests only: draws the loaded compressed model exactly as the raster
+    // passes do, with the rasterizer discarded, and returns every vertex's
+    // position as decoded by the vertex shader (xyz per vertex; NaN where no
+    // strip references the vertex).
+    std::vector<float> decodeVerticesOnGpu();
     // Camera and lights; without setCamera, a camera framing the model is used;
     // without lights, a directional sun. At most 8 lights.
     void setCamera(const Camera& camera);

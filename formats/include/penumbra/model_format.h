@@ -1,0 +1,211 @@
+// The .penumbra model file: strip-compressed clusters with quantized vertices
+// ("ReduceM-like", Lauterbach et al. 2009, section 5.1) plus ONE BVH that the
+// rasterizer (culling) and the ray tracer share. Field-by-field documentation:
+// formats/README.md. All integers little-endian; every section 64-byte aligned
+// so it can be memory-mapped and uploaded without conversion.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace penumbra {
+
+namespace model {
+
+inline constexpr char kMagic[8] = {'P', 'E', 'N', 'U', 'M', 'B', 'R', 'A'};
+inline constexpr uint32_t kVersion = 1;
+inline constexpr uint32_t kSectionAlignment = 64;      // bytes; offsets and the file size are multiples
+inline constexpr uint8_t kStripRestart = 0xFF;         // primitive-restart value of the 8-bit strip indices
+inline constexpr uint32_t kMaxClusterVertices = 255;   // local indices 0..254; 255 is the restart
+inline constexpr uint32_t kMaxClusterTriangles = 1024; // hard limit of the format
+inline constexpr uint32_t kMaxLeafIndexBytes = 65535;  // a leaf's strip range fits 16 bits
+inline constexpr uint32_t kPositionBits = 16;          // quantized coordinate width
+inline constexpr uint32_t kNodeBoundsBits = 8;         // node bounds within the parent's box
+inline constexpr uint32_t kMaxBvhDepth = 64;           // readers may use fixed traversal stacks
+
+enum class SectionType : uint32_t {
+    Clusters = 1, // ClusterRecord[clusterCount]
+    Nodes = 2,    // Node[nodeCount]; node 0 is the root
+    Vertices = 3, // QuantizedVertex[vertexCount]
+    Indices = 4,  // uint8_t[indexBytes]: per cluster, strips of local indices separated by kStripRestart
+};
+inline constexpr uint32_t kSectionCount = 4;
+
+// One entry of the section table.
+struct SectionEntry {
+    uint32_t type;        // SectionType
+    uint32_t elementSize; // bytes per element (1 for Indices)
+    uint64_t offset;      // from the start of the file; multiple of kSectionAlignment
+    uint64_t size;        // bytes of payload (elementSize * element count); padding after it is zero
+    uint64_t checksum;    // XXH64 (seed 0) of the payload bytes
+};
+static_assert(sizeof(SectionEntry) == 32);
+
+// Parameters the data depends on; a reader rejects values outside the format limits.
+struct BuildParameters {
+    uint32_t maxClusterVertices;  // <= kMaxClusterVertices
+    uint32_t maxClusterTriangles; // <= kMaxClusterTriangles
+    uint32_t maxLeafTriangles;    // triangles per strip-range leaf inside a cluster
+    uint32_t sahBins;             // bins of the binned SAH build
+    uint32_t positionBits;        // == kPositionBits
+    uint32_t nodeBoundsBits;      // == kNodeBoundsBits
+    float simplifyTarget;         // requested triangle ratio (1 = not simplified)
+    uint32_t reserved;            // 0
+};
+static_assert(sizeof(BuildParameters) == 32);
+
+struct FileHeader {
+    char magic[8];                 // kMagic
+    uint32_t version;              // kVersion
+    uint32_t headerSize;           // sizeof(FileHeader)
+    uint64_t fileSize;             // total bytes, multiple of kSectionAlignment
+    uint64_t triangleCount;        // triangles stored (sum over clusters)
+    uint64_t sourceTriangleCount;  // triangles of the input before simplification
+    uint64_t vertexCount;          // QuantizedVertex elements
+    uint64_t indexBytes;           // Indices section payload bytes
+    uint32_t clusterCount;         // ClusterRecord elements (>= 1)
+    uint32_t nodeCount;            // Node elements (>= 1)
+    uint32_t bvhDepth;             // levels from the root (1 = root only); <= kMaxBvhDepth
+    uint32_t reserved0;            // 0
+    float boundsMin[3];            // root node box, model units
+    float boundsMax[3];
+    float maxPositionError;        // largest |decoded - input| coordinate over all vertices, model units
+    float simplifyError;           // meshoptimizer's relative error of the simplification (0 if none)
+    BuildParameters build;
+    SectionEntry sections[kSectionCount]; // one per SectionType, in any order
+    uint64_t reserved1[6];         // 0
+    uint64_t headerChecksum;       // XXH64 of this struct with headerChecksum = 0
+};
+static_assert(sizeof(FileHeader) == 320);
+
+// A cluster: up to 255 vertices and its triangles as 8-bit strips.
+// Decoded position = boxMin + float(q) * step, evaluated without fused multiply-add.
+struct ClusterRecord {
+    float boxMin[3];       // quantization origin (the cluster's bounds minimum)
+    float step[3];         // model units per quantization step, per axis (>= 0)
+    uint32_t firstVertex;  // first QuantizedVertex of this cluster
+    uint32_t firstIndex;   // byte offset of this cluster's strips in Indices
+    uint32_t indexBytes;   // bytes of strips (restarts included); first and last byte are not restarts
+    uint16_t vertexCount;  // 3..maxClusterVertices
+    uint16_t triangleCount;// 1..maxClusterTriangles
+    uint32_t node;         // index of this cluster's Node (kind Cluster)
+    uint32_t reserved;     // 0
+};
+static_assert(sizeof(ClusterRecord) == 48);
+
+struct QuantizedVertex {
+    uint16_t x, y, z; // position in the cluster box, 0..65535
+    uint16_t w;       // 0 (reserved: keeps vertices 8-byte aligned for R16G16B16A16_UINT)
+};
+static_assert(sizeof(QuantizedVertex) == 8);
+
+enum class NodeKind : uint8_t {
+    Interior = 0, // children: nodes first .. first+childCount-1
+    Cluster = 1,  // a cluster's root; children as Interior; second = cluster index
+    Leaf = 2,     // a strip range: first = cluster index, second = start | count << 16 (bytes, relative to the cluster's firstIndex)
+};
+
+// BVH node. Bounds are stored relative to the parent's decoded box with 8 bits
+// per coordinate, rounded outward: lo = parentMin + lo/255 * parentExtent,
+// hi likewise. The root's box is the header's bounds (its lo/hi are 0 and 255).
+// Children always have larger indices than their parent and each node but the
+// root is the child of exactly one node.
+struct Node {
+    uint8_t lo[3];
+    uint8_t hi[3];
+    uint8_t kind;       // NodeKind
+    uint8_t childCount; // Interior/Cluster: 1..2; Leaf: 0
+    uint32_t first;
+    uint32_t second;
+};
+static_assert(sizeof(Node) == 16);
+
+} // namespace model
+
+// A model in memory, either built by the preprocessor (owning vectors) or
+// mapped from a file. The spans stay valid as long as the object lives.
+struct CompressedModel {
+    model::FileHeader header{};
+    std::span<const model::ClusterRecord> clusters;
+    std::span<const model::Node> nodes;
+    std::span<const model::QuantizedVertex> vertices;
+    std::span<const uint8_t> indices;
+    std::shared_ptr<const void> storage; // keeps the vectors or the mapping alive
+
+    uint64_t triangleCount() const { return header.triangleCount; }
+};
+
+// Owning storage filled by the preprocessor; view() makes a CompressedModel
+// sharing it (header fields are the caller's to fill before view()).
+struct CompressedModelData {
+    model::FileHeader header{};
+    std::vector<model::ClusterRecord> clusters;
+    std::vector<model::Node> nodes;
+    std::vector<model::QuantizedVertex> vertices;
+    std::vector<uint8_t> indices;
+};
+CompressedModel makeCompressedModel(std::shared_ptr<CompressedModelData> data);
+
+// Decoded position of a cluster's local vertex (exactly the GPU's arithmetic).
+glm::vec3 decodePosition(const model::ClusterRecord& cluster, const model::QuantizedVertex& vertex);
+
+// Decoded box of a child node given its parent's box.
+void decodeChildBounds(const model::Node& child, const glm::vec3& parentMin, const glm::vec3& parentMax, glm::vec3& min,
+                       glm::vec3& max);
+
+// Calls fn(a, b, c) with the local vertex indices of every triangle of the
+// strip bytes [begin, end) (restart-separated strips, alternating winding
+// undone so every triangle has its original orientation). Degenerate
+// triangles (repeated index) are skipped.
+template <typename Fn> void forEachStripTriangle(const uint8_t* begin, const uint8_t* end, Fn&& fn);
+
+// Writes a model file: header, section table, 64-byte aligned sections with
+// checksums; to a temporary name, then renamed. Throws Error.
+void writeModelFile(const CompressedModel& model, const std::string& path);
+
+// Maps and fully validates a model file (header, section table, checksums,
+// every count, offset, index and child reference). Throws Error("<path>: <problem>").
+CompressedModel openModelFile(const std::string& path);
+
+// Validates the bytes of a whole model file held in memory (what
+// openModelFile does after mapping): header, section table, checksums, zero
+// padding, then validateModel. bytes.data() must be 8-byte aligned (mmap and
+// malloc results are). The returned spans point into bytes; keepAlive becomes
+// CompressedModel::storage and must own them. Throws Error("<subject>: <problem>").
+CompressedModel openModelMemory(std::span<const uint8_t> bytes, std::shared_ptr<const void> keepAlive,
+                                const std::string& subject);
+
+// Validates an in-memory model the same way (used by the reader and tests).
+// subject names the source in error messages. Checks the header's counts
+// against the spans, the build parameters against the format limits, every
+// cluster (ranges, strips, quantization), every node (kinds, child links form
+// a tree with children after parents, leaf ranges) and the BVH depth; O(size).
+void validateModel(const CompressedModel& model, const std::string& subject);
+
+// ---------------------------------------------------------------------------
+
+template <typename Fn> void forEachStripTriangle(const uint8_t* begin, const uint8_t* end, Fn&& fn)
+{
+    const uint8_t* p = begin;
+    while (p < end) {
+        const uint8_t* stripEnd = p;
+        while (stripEnd < end && *stripEnd != model::kStripRestart)
+            ++stripEnd;
+        for (const uint8_t* q = p; q + 2 < stripEnd; ++q) {
+            uint32_t a = q[0], b = q[1], c = q[2];
+            if ((q - p) & 1)
+                std::swap(a, b);
+            if (a != b && b != c && a != c)
+                fn(a, b, c);
+        }
+        p = stripEnd + 1;
+    }
+}
+
+} // namespace penumbra

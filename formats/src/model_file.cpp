@@ -1,0 +1,98 @@
+// Writing and mapping .penumbra model files (layout: formats/README.md,
+// section ".penumbra model file"). The checks a reader applies live in
+// model_validate.cpp so that the fuzzer can build them without the importers.
+#include <xxhash.h>
+
+#include <cstring>
+#include <limits>
+
+#include "io_internal.h"
+#include "penumbra/model_format.h"
+
+namespace penumbra {
+namespace {
+
+using namespace model;
+
+uint64_t alignUp(uint64_t value)
+{
+    return (value + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
+}
+
+void writeZeros(detail::AtomicFileWriter& out, uint64_t count)
+{
+    static constexpr char kZeros[kSectionAlignment] = {};
+    out.write(kZeros, size_t(count));
+}
+
+} // namespace
+
+void writeModelFile(const CompressedModel& model, const std::string& path)
+{
+    if (model.clusters.size() > std::numeric_limits<uint32_t>::max() ||
+        model.nodes.size() > std::numeric_limits<uint32_t>::max())
+        fail(path, "too many clusters or nodes for the format (limit 4294967295 each)");
+
+    // Header: counts from the spans, everything else from model.header.
+    FileHeader header = model.header;
+    std::memcpy(header.magic, kMagic, sizeof(kMagic));
+    header.version = kVersion;
+    header.headerSize = sizeof(FileHeader);
+    header.clusterCount = uint32_t(model.clusters.size());
+    header.nodeCount = uint32_t(model.nodes.size());
+    header.vertexCount = model.vertices.size();
+    header.indexBytes = model.indices.size();
+
+    // Never write a file the reader would reject.
+    CompressedModel checked = model;
+    checked.header = header;
+    validateModel(checked, path + ": refusing to write an invalid model");
+
+    // Sections in the order Clusters, Nodes, Vertices, Indices, each 64-byte aligned.
+    struct Payload {
+        SectionType type;
+        uint32_t elementSize;
+        const void* data;
+        uint64_t size;
+    };
+    const Payload payloads[kSectionCount] = {
+        {SectionType::Clusters, sizeof(ClusterRecord), model.clusters.data(), model.clusters.size_bytes()},
+        {SectionType::Nodes, sizeof(Node), model.nodes.data(), model.nodes.size_bytes()},
+        {SectionType::Vertices, sizeof(QuantizedVertex), model.vertices.data(), model.vertices.size_bytes()},
+        {SectionType::Indices, 1, model.indices.data(), model.indices.size_bytes()},
+    };
+    uint64_t end = sizeof(FileHeader);
+    for (uint32_t i = 0; i < kSectionCount; ++i) {
+        SectionEntry& entry = header.sections[i];
+        entry.type = uint32_t(payloads[i].type);
+        entry.elementSize = payloads[i].elementSize;
+        entry.offset = alignUp(end);
+        entry.size = payloads[i].size;
+        entry.checksum = XXH64(payloads[i].data, size_t(payloads[i].size), 0);
+        end = entry.offset + entry.size;
+    }
+    header.fileSize = alignUp(end);
+    header.headerChecksum = 0;
+    header.headerChecksum = XXH64(&header, sizeof(header), 0);
+
+    // Payloads go straight from the caller's memory to write(2).
+    detail::AtomicFileWriter out(path);
+    out.write(&header, sizeof(header));
+    uint64_t written = sizeof(header);
+    for (uint32_t i = 0; i < kSectionCount; ++i) {
+        writeZeros(out, header.sections[i].offset - written);
+        out.write(payloads[i].data, size_t(payloads[i].size));
+        written = header.sections[i].offset + header.sections[i].size;
+    }
+    writeZeros(out, header.fileSize - written);
+    out.commit();
+}
+
+CompressedModel openModelFile(const std::string& path)
+{
+    auto file = std::make_shared<detail::MappedFile>(path);
+    std::span<const uint8_t> bytes(file->data(), file->size());
+    return openModelMemory(bytes, std::move(file), path);
+}
+
+} // namespace penumbra

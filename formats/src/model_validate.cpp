@@ -1,0 +1,497 @@
+// Reader-side checks of the .penumbra model file (formats/README.md, section
+// ".penumbra model file"): header, section table, checksums, zero padding and
+// every structural invariant of clusters, strips and the BVH, so that a
+// hostile file is rejected with a one-line error before any of its data is
+// used. Everything is O(file size) with a fixed number of allocations; this
+// file needs only the C++ library and libxxhash (the fuzzer compiles it alone).
+#include <xxhash.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "penumbra/error.h"
+#include "penumbra/model_format.h"
+
+namespace penumbra {
+namespace {
+
+using namespace model;
+
+constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+
+std::string str(uint64_t value)
+{
+    return std::to_string(value);
+}
+
+std::string strf(float value)
+{
+    char text[32];
+    std::snprintf(text, sizeof(text), "%g", double(value));
+    return text;
+}
+
+const char* sectionName(uint32_t type)
+{
+    switch (SectionType(type)) {
+    case SectionType::Clusters:
+        return "Clusters";
+    case SectionType::Nodes:
+        return "Nodes";
+    case SectionType::Vertices:
+        return "Vertices";
+    case SectionType::Indices:
+        return "Indices";
+    }
+    return "unknown";
+}
+
+uint32_t elementSizeOf(uint32_t type)
+{
+    switch (SectionType(type)) {
+    case SectionType::Clusters:
+        return sizeof(ClusterRecord);
+    case SectionType::Nodes:
+        return sizeof(Node);
+    case SectionType::Vertices:
+        return sizeof(QuantizedVertex);
+    case SectionType::Indices:
+        return 1;
+    }
+    return 0;
+}
+
+// Element count the header declares for a section type.
+uint64_t declaredCount(const FileHeader& header, uint32_t type)
+{
+    switch (SectionType(type)) {
+    case SectionType::Clusters:
+        return header.clusterCount;
+    case SectionType::Nodes:
+        return header.nodeCount;
+    case SectionType::Vertices:
+        return header.vertexCount;
+    case SectionType::Indices:
+        return header.indexBytes;
+    }
+    return 0;
+}
+
+void validateBuildParameters(const BuildParameters& build, const std::string& subject)
+{
+    if (build.maxClusterVertices < 3 || build.maxClusterVertices > kMaxClusterVertices)
+        fail(subject, "build parameter maxClusterVertices " + str(build.maxClusterVertices) + " is outside 3.." +
+                          str(kMaxClusterVertices));
+    if (build.maxClusterTriangles < 1 || build.maxClusterTriangles > kMaxClusterTriangles)
+        fail(subject, "build parameter maxClusterTriangles " + str(build.maxClusterTriangles) + " is outside 1.." +
+                          str(kMaxClusterTriangles));
+    if (build.maxLeafTriangles < 1 || build.maxLeafTriangles > build.maxClusterTriangles)
+        fail(subject, "build parameter maxLeafTriangles " + str(build.maxLeafTriangles) +
+                          " is outside 1..maxClusterTriangles (" + str(build.maxClusterTriangles) + ")");
+    if (build.positionBits != kPositionBits)
+        fail(subject, "build parameter positionBits " + str(build.positionBits) + " is not " + str(kPositionBits) +
+                          " (the only value this version supports)");
+    if (build.nodeBoundsBits != kNodeBoundsBits)
+        fail(subject, "build parameter nodeBoundsBits " + str(build.nodeBoundsBits) + " is not " +
+                          str(kNodeBoundsBits) + " (the only value this version supports)");
+    if (!(build.simplifyTarget > 0.0f && build.simplifyTarget <= 1.0f))
+        fail(subject, "build parameter simplifyTarget " + strf(build.simplifyTarget) + " is outside (0, 1]");
+    if (build.reserved != 0)
+        fail(subject, "reserved build parameter is not zero");
+}
+
+// Header fields that do not depend on the sections (shared by the file
+// reader and validateModel).
+void validateHeaderFields(const FileHeader& header, const std::string& subject)
+{
+    validateBuildParameters(header.build, subject);
+    if (header.clusterCount == 0)
+        fail(subject, "no clusters");
+    if (header.nodeCount == 0)
+        fail(subject, "no BVH nodes");
+    if (header.bvhDepth < 1 || header.bvhDepth > kMaxBvhDepth)
+        fail(subject, "header bvhDepth " + str(header.bvhDepth) + " is outside 1.." + str(kMaxBvhDepth));
+    for (int axis = 0; axis < 3; ++axis) {
+        if (!std::isfinite(header.boundsMin[axis]) || !std::isfinite(header.boundsMax[axis]))
+            fail(subject, "non-finite model bounds");
+        if (header.boundsMin[axis] > header.boundsMax[axis])
+            fail(subject, "model bounds min " + strf(header.boundsMin[axis]) + " > max " +
+                              strf(header.boundsMax[axis]) + " on axis " + str(uint64_t(axis)));
+    }
+    if (!(header.maxPositionError >= 0.0f) || !std::isfinite(header.maxPositionError))
+        fail(subject, "maxPositionError " + strf(header.maxPositionError) + " is not a finite value >= 0");
+    if (!(header.simplifyError >= 0.0f) || !std::isfinite(header.simplifyError))
+        fail(subject, "simplifyError " + strf(header.simplifyError) + " is not a finite value >= 0");
+    bool reservedZero = header.reserved0 == 0;
+    for (uint64_t reserved : header.reserved1)
+        reservedZero &= reserved == 0;
+    if (!reservedZero)
+        fail(subject, "reserved header field is not zero");
+}
+
+// Sets bits [begin, end) (begin < end); returns false if any was already set.
+bool claimRange(std::vector<uint64_t>& bits, uint32_t begin, uint32_t end)
+{
+    const uint32_t firstWord = begin >> 6, lastWord = (end - 1) >> 6;
+    for (uint32_t word = firstWord; word <= lastWord; ++word) {
+        uint64_t mask = ~uint64_t(0);
+        if (word == firstWord)
+            mask &= ~uint64_t(0) << (begin & 63);
+        if (word == lastWord)
+            mask &= ~uint64_t(0) >> (63 - ((end - 1) & 63));
+        if (bits[word] & mask)
+            return false;
+        bits[word] |= mask;
+    }
+    return true;
+}
+
+uint32_t countStripTriangles(const uint8_t* begin, const uint8_t* end)
+{
+    uint32_t count = 0;
+    forEachStripTriangle(begin, end, [&count](uint32_t, uint32_t, uint32_t) { ++count; });
+    return count;
+}
+
+void validateClusters(const CompressedModel& model, const std::string& subject, uint32_t& maxIndexBytes)
+{
+    const BuildParameters& build = model.header.build;
+    const uint64_t vertexCount = model.vertices.size();
+    const uint64_t indexBytes = model.indices.size();
+    const uint8_t* indices = model.indices.data();
+    auto failCluster = [&subject](size_t c, const std::string& problem) {
+        fail(subject, "cluster " + str(uint64_t(c)) + ": " + problem);
+    };
+    uint64_t triangleSum = 0;
+    maxIndexBytes = 0;
+    for (size_t c = 0; c < model.clusters.size(); ++c) {
+        const ClusterRecord& cluster = model.clusters[c];
+        if (cluster.vertexCount < 3 || cluster.vertexCount > build.maxClusterVertices)
+            failCluster(c, "vertex count " + str(cluster.vertexCount) + " is outside 3..maxClusterVertices (" +
+                               str(build.maxClusterVertices) + ")");
+        if (cluster.triangleCount < 1 || cluster.triangleCount > build.maxClusterTriangles)
+            failCluster(c, "triangle count " + str(cluster.triangleCount) + " is outside 1..maxClusterTriangles (" +
+                               str(build.maxClusterTriangles) + ")");
+        if (uint64_t(cluster.firstVertex) + cluster.vertexCount > vertexCount)
+            failCluster(c, "vertices " + str(cluster.firstVertex) + ".." +
+                               str(uint64_t(cluster.firstVertex) + cluster.vertexCount) + " run past the " +
+                               str(vertexCount) + " vertices");
+        if (cluster.indexBytes < 3)
+            failCluster(c, "strip bytes " + str(cluster.indexBytes) + " < 3");
+        if (uint64_t(cluster.firstIndex) + cluster.indexBytes > indexBytes)
+            failCluster(c, "strip bytes " + str(cluster.firstIndex) + ".." +
+                               str(uint64_t(cluster.firstIndex) + cluster.indexBytes) + " run past the " +
+                               str(indexBytes) + " index bytes");
+        for (int axis = 0; axis < 3; ++axis) {
+            const float boxMin = cluster.boxMin[axis], step = cluster.step[axis];
+            if (!std::isfinite(boxMin))
+                failCluster(c, "non-finite boxMin " + strf(boxMin) + " on axis " + str(uint64_t(axis)));
+            if (!std::isfinite(step) || !(step >= 0.0f))
+                failCluster(c,
+                            "step " + strf(step) + " on axis " + str(uint64_t(axis)) + " is not a finite value >= 0");
+            if (!std::isfinite(boxMin + 65535.0f * step))
+                failCluster(c, "quantization range overflows on axis " + str(uint64_t(axis)));
+        }
+        if (cluster.reserved != 0)
+            failCluster(c, "reserved field is not zero");
+        if (cluster.node >= model.nodes.size())
+            failCluster(c, "node " + str(cluster.node) + " out of range (" + str(uint64_t(model.nodes.size())) +
+                               " nodes)");
+        const Node& node = model.nodes[cluster.node];
+        if (node.kind != uint8_t(NodeKind::Cluster) || node.second != c)
+            failCluster(c, "node " + str(cluster.node) + " is not this cluster's Cluster node");
+
+        // Strips: local indices < vertexCount separated by single restarts.
+        const uint8_t* strip = indices + cluster.firstIndex;
+        const uint32_t size = cluster.indexBytes;
+        if (strip[0] == kStripRestart || strip[size - 1] == kStripRestart)
+            failCluster(c, "strips begin or end with a restart");
+        const uint8_t localVertexCount = uint8_t(cluster.vertexCount); // <= 255 checked above
+        bool bad = false;
+        for (uint32_t i = 0; i < size; ++i) {
+            const uint8_t byte = strip[i];
+            bad |= byte == kStripRestart ? strip[i - 1] == kStripRestart : byte >= localVertexCount;
+        }
+        if (bad) {
+            for (uint32_t i = 0; i < size; ++i) {
+                if (strip[i] == kStripRestart && strip[i - 1] == kStripRestart)
+                    failCluster(c, "two consecutive restarts at strip byte " + str(i));
+                if (strip[i] != kStripRestart && strip[i] >= cluster.vertexCount)
+                    failCluster(c, "strip index " + str(strip[i]) + " >= vertex count " + str(cluster.vertexCount) +
+                                       " (strip byte " + str(i) + ")");
+            }
+        }
+        const uint32_t triangles = countStripTriangles(strip, strip + size);
+        if (triangles != cluster.triangleCount)
+            failCluster(c,
+                        "strips hold " + str(triangles) + " triangles, the record says " + str(cluster.triangleCount));
+        triangleSum += cluster.triangleCount;
+        maxIndexBytes = std::max(maxIndexBytes, cluster.indexBytes);
+    }
+    if (triangleSum != model.header.triangleCount)
+        fail(subject,
+             "header says " + str(model.header.triangleCount) + " triangles but the clusters hold " + str(triangleSum));
+}
+
+// Per node: kind, child links (after the parent, in range, exactly one
+// parent each), bounds. Together these make the nodes a tree rooted at 0.
+void validateNodeLinks(const CompressedModel& model, const std::string& subject)
+{
+    const size_t nodeCount = model.nodes.size();
+    auto failNode = [&subject](size_t n, const std::string& problem) {
+        fail(subject, "node " + str(uint64_t(n)) + ": " + problem);
+    };
+    std::vector<uint32_t> parent(nodeCount, kNone);
+    for (size_t n = 0; n < nodeCount; ++n) {
+        const Node& node = model.nodes[n];
+        for (int axis = 0; axis < 3; ++axis)
+            if (node.lo[axis] > node.hi[axis])
+                failNode(n, "bounds lo " + str(node.lo[axis]) + " > hi " + str(node.hi[axis]) + " on axis " +
+                                str(uint64_t(axis)));
+        switch (NodeKind(node.kind)) {
+        case NodeKind::Leaf:
+            if (node.childCount != 0)
+                failNode(n, "leaf with " + str(node.childCount) + " children");
+            continue;
+        case NodeKind::Cluster:
+            if (node.second >= model.clusters.size())
+                failNode(n, "cluster " + str(node.second) + " out of range (" + str(uint64_t(model.clusters.size())) +
+                                " clusters)");
+            if (model.clusters[node.second].node != n)
+                failNode(n,
+                         "cluster " + str(node.second) + " belongs to node " + str(model.clusters[node.second].node));
+            break;
+        case NodeKind::Interior:
+            break;
+        default:
+            failNode(n, "unknown kind " + str(node.kind));
+        }
+        if (node.childCount < 1 || node.childCount > 2)
+            failNode(n, str(node.childCount) + " children (interior and cluster nodes have 1 or 2)");
+        if (node.first <= n)
+            failNode(n, "child " + str(node.first) + " is not after its parent");
+        if (uint64_t(node.first) + node.childCount > nodeCount)
+            failNode(n, "child " + str(uint64_t(node.first) + node.childCount - 1) + " out of range (" +
+                            str(uint64_t(nodeCount)) + " nodes)");
+        for (uint32_t child = node.first; child < node.first + node.childCount; ++child) {
+            if (parent[child] != kNone)
+                fail(subject, "node " + str(child) + " is referenced by two parents (nodes " + str(parent[child]) +
+                                  " and " + str(uint64_t(n)) + ")");
+            parent[child] = uint32_t(n);
+        }
+    }
+    const Node& root = model.nodes[0];
+    for (int axis = 0; axis < 3; ++axis)
+        if (root.lo[axis] != 0 || root.hi[axis] != 255)
+            failNode(0, "root bounds must be lo 0, hi 255 (the header's box)");
+    for (size_t n = 1; n < nodeCount; ++n) {
+        if (parent[n] != kNone)
+            continue;
+        const Node& node = model.nodes[n];
+        if (node.kind == uint8_t(NodeKind::Cluster))
+            fail(subject,
+                 "cluster " + str(node.second) + " (node " + str(uint64_t(n)) + ") is not reachable from the root");
+        failNode(n, "not referenced by any parent (unreachable)");
+    }
+}
+
+// Depth-first traversal from the root: clusters do not nest, every leaf lies
+// in the subtree of the Cluster node of its cluster and covers whole strips,
+// the leaves of a cluster cover its strips once, and the depth is as declared.
+void validateTree(const CompressedModel& model, const std::string& subject, uint32_t maxIndexBytes)
+{
+    struct Entry {
+        uint32_t node;
+        uint32_t depth;
+        uint32_t cluster; // enclosing cluster or kNone
+    };
+    // A binary tree of depth <= kMaxBvhDepth never holds more than depth + 1 pending entries.
+    std::array<Entry, 2 * kMaxBvhDepth + 2> stack;
+    size_t top = 0;
+    stack[top++] = {0, 1, kNone};
+    std::vector<uint32_t> leafTriangles(model.clusters.size(), 0);
+    std::vector<uint64_t> covered(maxIndexBytes / 64 + 1, 0); // strip bytes of the current cluster owned by a leaf
+    auto failNode = [&subject](size_t n, const std::string& problem) {
+        fail(subject, "node " + str(uint64_t(n)) + ": " + problem);
+    };
+    uint32_t depth = 0;
+    while (top > 0) {
+        const Entry entry = stack[--top];
+        const Node& node = model.nodes[entry.node];
+        depth = std::max(depth, entry.depth);
+        uint32_t cluster = entry.cluster;
+        if (node.kind == uint8_t(NodeKind::Cluster)) {
+            if (cluster != kNone)
+                failNode(entry.node, "cluster node inside the subtree of cluster " + str(cluster));
+            cluster = node.second;
+            // A cluster's subtree is traversed contiguously, so one bitmap serves all clusters.
+            std::fill_n(covered.begin(), model.clusters[cluster].indexBytes / 64 + 1, 0);
+        } else if (node.kind == uint8_t(NodeKind::Leaf)) {
+            if (cluster == kNone)
+                failNode(entry.node, "leaf outside any cluster");
+            if (node.first != cluster)
+                failNode(entry.node,
+                         "leaf names cluster " + str(node.first) + " but lies under cluster " + str(cluster));
+            const ClusterRecord& record = model.clusters[cluster];
+            const uint32_t start = node.second & 0xFFFF, count = node.second >> 16;
+            const uint32_t end = start + count;
+            auto range = [&] { return "leaf range " + str(start) + ".." + str(end); }; // text only on failure
+            if (count == 0)
+                failNode(entry.node, "empty leaf range");
+            if (end > record.indexBytes)
+                failNode(entry.node, range() + " lies outside the " + str(record.indexBytes) +
+                                         " strip bytes of cluster " + str(cluster));
+            const uint8_t* strip = model.indices.data() + record.firstIndex;
+            if (start > 0 && strip[start - 1] != kStripRestart)
+                failNode(entry.node, range() + " does not begin at a strip start");
+            if (end < record.indexBytes && strip[end] != kStripRestart)
+                failNode(entry.node, range() + " does not end at a strip end");
+            if (!claimRange(covered, start, end))
+                failNode(entry.node, range() + " overlaps another leaf of cluster " + str(cluster));
+            const uint32_t triangles = countStripTriangles(strip + start, strip + end);
+            if (triangles == 0)
+                failNode(entry.node, range() + " holds no triangles");
+            leafTriangles[cluster] += triangles;
+            continue;
+        }
+        if (entry.depth >= kMaxBvhDepth)
+            fail(subject, "BVH deeper than " + str(kMaxBvhDepth) + " levels");
+        if (top + node.childCount > stack.size())
+            fail(subject, "internal error: BVH traversal stack overflow");
+        for (uint32_t k = node.childCount; k-- > 0;)
+            stack[top++] = {node.first + k, entry.depth + 1, cluster};
+    }
+    if (depth != model.header.bvhDepth)
+        fail(subject, "header says the BVH has " + str(model.header.bvhDepth) + " levels but it has " + str(depth));
+    for (size_t c = 0; c < model.clusters.size(); ++c)
+        if (leafTriangles[c] != model.clusters[c].triangleCount)
+            fail(subject, "cluster " + str(uint64_t(c)) + ": its leaves hold " + str(leafTriangles[c]) +
+                              " triangles, the cluster " + str(model.clusters[c].triangleCount));
+}
+
+} // namespace
+
+void validateModel(const CompressedModel& model, const std::string& subject)
+{
+    const FileHeader& header = model.header;
+    validateHeaderFields(header, subject);
+    if (header.clusterCount != model.clusters.size())
+        fail(subject, "header says " + str(header.clusterCount) + " clusters but there are " +
+                          str(uint64_t(model.clusters.size())));
+    if (header.nodeCount != model.nodes.size())
+        fail(subject,
+             "header says " + str(header.nodeCount) + " nodes but there are " + str(uint64_t(model.nodes.size())));
+    if (header.vertexCount != model.vertices.size())
+        fail(subject, "header says " + str(header.vertexCount) + " vertices but there are " +
+                          str(uint64_t(model.vertices.size())));
+    if (header.indexBytes != model.indices.size())
+        fail(subject, "header says " + str(header.indexBytes) + " index bytes but there are " +
+                          str(uint64_t(model.indices.size())));
+    uint32_t maxIndexBytes = 0;
+    validateClusters(model, subject, maxIndexBytes);
+    validateNodeLinks(model, subject);
+    validateTree(model, subject, maxIndexBytes);
+}
+
+CompressedModel openModelMemory(std::span<const uint8_t> bytes, std::shared_ptr<const void> keepAlive,
+                                const std::string& subject)
+{
+    const uint8_t* data = bytes.data();
+    const uint64_t size = bytes.size();
+    if (reinterpret_cast<uintptr_t>(data) % 8 != 0)
+        fail(subject, "internal error: model buffer is not 8-byte aligned");
+    if (size >= sizeof(kMagic) && std::memcmp(data, kMagic, sizeof(kMagic)) != 0)
+        fail(subject, "not a Penumbra model file (bad magic)");
+    if (size < sizeof(FileHeader))
+        fail(subject, "truncated: file has " + str(size) + " bytes, the header alone needs " +
+                          str(uint64_t(sizeof(FileHeader))));
+
+    // Header.
+    FileHeader header;
+    std::memcpy(&header, data, sizeof(header));
+    if (header.version != kVersion)
+        fail(subject,
+             "unsupported version " + str(header.version) + " (this build reads version " + str(kVersion) + ")");
+    if (header.headerSize != sizeof(FileHeader))
+        fail(subject, "header size " + str(header.headerSize) + " is not " + str(uint64_t(sizeof(FileHeader))));
+    FileHeader unsummed = header;
+    unsummed.headerChecksum = 0;
+    if (XXH64(&unsummed, sizeof(unsummed), 0) != header.headerChecksum)
+        fail(subject, "header checksum mismatch (corrupt header)");
+    if (header.fileSize > size)
+        fail(subject, "truncated: header says " + str(header.fileSize) + " bytes, file has " + str(size));
+    if (header.fileSize < size)
+        fail(subject, "trailing data: header says " + str(header.fileSize) + " bytes, file has " + str(size));
+    if (header.fileSize % kSectionAlignment != 0)
+        fail(subject, "file size " + str(header.fileSize) + " is not a multiple of " + str(kSectionAlignment));
+    validateHeaderFields(header, subject);
+
+    // Section table: each type once, aligned, inside the file, sized by the header's counts.
+    std::array<const SectionEntry*, kSectionCount> byType{};
+    for (uint32_t i = 0; i < kSectionCount; ++i) {
+        const SectionEntry& entry = header.sections[i];
+        if (entry.type < 1 || entry.type > kSectionCount)
+            fail(subject, "section table entry " + str(i) + " has unknown type " + str(entry.type));
+        const std::string name = std::string("section ") + sectionName(entry.type);
+        if (byType[entry.type - 1])
+            fail(subject, name + " appears twice in the section table");
+        byType[entry.type - 1] = &entry;
+        const uint32_t elementSize = elementSizeOf(entry.type);
+        if (entry.elementSize != elementSize)
+            fail(subject, name + ": element size " + str(entry.elementSize) + ", expected " + str(elementSize));
+        const uint64_t count = declaredCount(header, entry.type);
+        if (count > std::numeric_limits<uint64_t>::max() / elementSize || entry.size != count * elementSize)
+            fail(subject, name + ": " + str(entry.size) + " bytes, but the header's count " + str(count) + " needs " +
+                              str(count) + " x " + str(elementSize));
+        if (entry.offset % kSectionAlignment != 0)
+            fail(subject, name + ": offset " + str(entry.offset) + " is not a multiple of " + str(kSectionAlignment));
+        if (entry.offset < sizeof(FileHeader))
+            fail(subject, name + ": offset " + str(entry.offset) + " overlaps the header");
+        if (entry.offset > size || entry.size > size - entry.offset)
+            fail(subject, name + ": " + str(entry.size) + " bytes at offset " + str(entry.offset) +
+                              " run past the end of the file (" + str(size) + " bytes)");
+    }
+    std::array<const SectionEntry*, kSectionCount> byOffset = byType;
+    std::sort(byOffset.begin(), byOffset.end(),
+              [](const SectionEntry* a, const SectionEntry* b) { return a->offset < b->offset; });
+    for (uint32_t i = 0; i + 1 < kSectionCount; ++i)
+        if (byOffset[i]->offset + byOffset[i]->size > byOffset[i + 1]->offset)
+            fail(subject, std::string("sections ") + sectionName(byOffset[i]->type) + " and " +
+                              sectionName(byOffset[i + 1]->type) + " overlap");
+
+    // Every byte outside the header and the payloads is zero padding.
+    uint64_t gapBegin = sizeof(FileHeader);
+    for (uint32_t i = 0; i <= kSectionCount; ++i) {
+        const uint64_t gapEnd = i < kSectionCount ? byOffset[i]->offset : size;
+        for (uint64_t at = gapBegin; at < gapEnd; ++at)
+            if (data[at] != 0)
+                fail(subject, "nonzero padding byte at offset " + str(at));
+        if (i < kSectionCount)
+            gapBegin = byOffset[i]->offset + byOffset[i]->size;
+    }
+
+    for (const SectionEntry* entry : byType)
+        if (XXH64(data + entry->offset, entry->size, 0) != entry->checksum)
+            fail(subject, std::string("checksum mismatch in section ") + sectionName(entry->type));
+
+    // Offsets are multiples of 64 from an 8-byte aligned base: the casts are aligned.
+    auto section = [&](SectionType type) { return data + byType[uint32_t(type) - 1]->offset; };
+    CompressedModel model;
+    model.header = header;
+    model.clusters = {reinterpret_cast<const ClusterRecord*>(section(SectionType::Clusters)), header.clusterCount};
+    model.nodes = {reinterpret_cast<const Node*>(section(SectionType::Nodes)), header.nodeCount};
+    model.vertices = {reinterpret_cast<const QuantizedVertex*>(section(SectionType::Vertices)),
+                      size_t(header.vertexCount)};
+    model.indices = {section(SectionType::Indices), size_t(header.indexBytes)};
+    model.storage = std::move(keepAlive);
+    validateModel(model, subject);
+    return model;
+}
+
+} // namespace penumbra

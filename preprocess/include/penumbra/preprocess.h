@@ -1,0 +1,78 @@
+// The preprocessor: turns an indexed triangle mesh into the .penumbra model
+// (model_format.h): 8-bit strip clusters with 16-bit quantized vertices and ONE
+// BVH whose upper levels cull clusters and whose lower levels (inside each
+// cluster, down to strip-range leaves) are traversed by the ray tracer
+// (Lauterbach et al. 2009, section 5.1). Algorithm and measured numbers:
+// preprocess/README.md. No Vulkan.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "penumbra/mesh.h"
+#include "penumbra/model_format.h"
+
+namespace penumbra {
+
+struct PreprocessOptions {
+    uint32_t maxClusterVertices = 255;  // unique vertices per cluster, 3..model::kMaxClusterVertices
+    uint32_t maxClusterTriangles = 512; // triangles per cluster, 1..model::kMaxClusterTriangles
+    uint32_t maxLeafTriangles = 32;     // triangles per strip-range leaf inside a cluster (1..maxClusterTriangles)
+    uint32_t sahBins = 16;              // bins of the top-level binned SAH build, 2..256
+    unsigned threads = 0;               // worker threads including the caller; 0 = hardware concurrency
+    // Optional. Called on the calling thread only, at most every ~0.5% of a stage,
+    // with the stage name ("filter", "tree", "clusters", "layout") and its fraction done.
+    std::function<void(const char* stage, double fraction)> progress;
+};
+
+// Counters and timings of one build.
+struct PreprocessStats {
+    double filterSeconds = 0;   // index validation, degenerate removal, centroids
+    double treeSeconds = 0;     // top-level binned SAH down to clusters
+    double clusterSeconds = 0;  // per cluster: remap, quantization, local tree, strips
+    double layoutSeconds = 0;   // node array with 8-bit bounds, section concatenation
+    double totalSeconds = 0;
+    uint64_t inputTriangles = 0;
+    uint64_t droppedDegenerate = 0; // triangles with a repeated vertex index
+    uint64_t triangles = 0;         // stored
+    uint64_t clusters = 0;
+    uint64_t nodes = 0;
+    uint64_t leaves = 0;
+    uint64_t vertices = 0;
+    uint64_t indexBytes = 0;
+    uint64_t stripFallbackLeaves = 0; // leaves whose meshoptimizer strip did not reproduce the triangles (stored as 3+restart)
+    uint64_t widenedBounds = 0;       // node coordinates widened by one step after the containment check
+    uint32_t bvhDepth = 0;
+    float maxPositionError = 0;       // model units
+    double bytesPerTriangle = 0;      // (clusters + nodes + vertices + indices) / triangles
+};
+
+// Builds the compressed model. Throws Error("preprocess: <problem>") for bad
+// options, an index out of range, a non-finite position, more than 2^32-1
+// triangles, or a mesh with no non-degenerate triangle. Triangles with a
+// repeated vertex index are dropped (counted in stats); triangles whose
+// distinct vertices coincide in space are kept. The result does not depend on
+// the thread count. The header's magic, version, fileSize, sections and
+// checksums are left for writeModelFile.
+// decodedTriangleSource (tests): if not null, receives for every stored
+// triangle, in decode order (clusters in order, forEachStripTriangle over each
+// cluster's bytes), the index of the input triangle it came from.
+CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& options,
+                                     PreprocessStats* stats = nullptr,
+                                     std::vector<uint32_t>* decodedTriangleSource = nullptr);
+
+struct SimplifiedMesh {
+    Mesh mesh;                 // unused vertices removed
+    float error = 0;           // meshoptimizer's error relative to the mesh extent
+    float absoluteError = 0;   // error * meshopt_simplifyScale, model units
+    bool sloppy = false;       // meshopt_simplifySloppy was used (the topology-preserving pass stopped short)
+};
+
+// Reduces the mesh to about ratio * triangles (0 < ratio <= 1) with
+// meshopt_simplify; if that ends above 1.1x the target (it preserves topology
+// and borders), meshopt_simplifySloppy is used instead. ratio >= 1 returns a
+// copy with error 0. Throws Error for ratio <= 0 or a malformed mesh.
+SimplifiedMesh simplifyMesh(const Mesh& mesh, float ratio);
+
+} // namespace penumbra

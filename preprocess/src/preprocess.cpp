@@ -1,0 +1,316 @@
+// The preprocessor driver: mesh -> CompressedModel (Lauterbach et al. 2009,
+// section 5.1: a ReduceM-like strip representation that is rasterized directly
+// and ray traced, with one BVH for culling and traversal). Stages:
+//   filter   validate indices and positions, drop repeated-index triangles,
+//            centroids (16 bytes per triangle, the only per-triangle array)
+//   tree     top-level binned SAH down to clusters (cluster_bvh.cpp)
+//   clusters per cluster, in parallel: remap, quantize, local SAH tree, strips
+//            (cluster_tree.cpp, quantize.cpp, strips.cpp)
+//   layout   node array with 8-bit bounds (node_layout.cpp), sections
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <string>
+#include <thread>
+
+#include <glm/vec3.hpp>
+
+#include "penumbra/error.h"
+#include "preprocess_internal.h"
+
+namespace penumbra {
+
+namespace preprocess_detail {
+
+void parallelFor(unsigned threads, uint64_t count, const std::function<void(uint64_t)>& body,
+                 const std::function<void(uint64_t)>& tick)
+{
+    std::atomic<uint64_t> next{0}, done{0};
+    auto worker = [&](bool caller) {
+        for (uint64_t i = next++; i < count; i = next++) {
+            body(i);
+            uint64_t finished = ++done;
+            if (caller && tick)
+                tick(finished);
+        }
+    };
+    const uint64_t extra = std::min<uint64_t>(count, std::max(1u, threads)) - (count > 0 ? 1 : 0);
+    std::vector<std::thread> pool;
+    for (uint64_t t = 0; t < extra; ++t)
+        pool.emplace_back(worker, false);
+    worker(true);
+    for (auto& thread : pool)
+        thread.join();
+}
+
+} // namespace preprocess_detail
+
+using namespace preprocess_detail;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start)
+{
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Rate-limited progress: forwards when the fraction moved by >= 0.5% (and at 0 and 1).
+struct Progress {
+    const PreprocessOptions& options;
+    const char* stage = "";
+    double last = -1.0;
+    void begin(const char* name)
+    {
+        stage = name;
+        last = -1.0;
+        report(0.0);
+    }
+    void report(double fraction)
+    {
+        if (!options.progress || (fraction - last < 0.005 && fraction < 1.0) || fraction == last)
+            return;
+        last = fraction;
+        options.progress(stage, fraction);
+    }
+};
+
+void checkOptions(const PreprocessOptions& o)
+{
+    auto bad = [](const std::string& what) { fail("preprocess", "invalid option " + what); };
+    if (o.maxClusterVertices < 3 || o.maxClusterVertices > model::kMaxClusterVertices)
+        bad("maxClusterVertices " + std::to_string(o.maxClusterVertices) + " (3.." +
+            std::to_string(model::kMaxClusterVertices) + ")");
+    if (o.maxClusterTriangles < 1 || o.maxClusterTriangles > model::kMaxClusterTriangles)
+        bad("maxClusterTriangles " + std::to_string(o.maxClusterTriangles) + " (1.." +
+            std::to_string(model::kMaxClusterTriangles) + ")");
+    // 4 bytes per triangle is the worst case of a strip range (3 indices + restart).
+    if (o.maxLeafTriangles < 1 || o.maxLeafTriangles > o.maxClusterTriangles ||
+        uint64_t(o.maxLeafTriangles) * 4 > model::kMaxLeafIndexBytes)
+        bad("maxLeafTriangles " + std::to_string(o.maxLeafTriangles) + " (1..maxClusterTriangles)");
+    if (o.sahBins < 2 || o.sahBins > 256)
+        bad("sahBins " + std::to_string(o.sahBins) + " (2..256)");
+}
+
+} // namespace
+
+CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* statsOut,
+                                     std::vector<uint32_t>* decodedTriangleSource)
+{
+    const auto start = Clock::now();
+    checkOptions(options);
+    const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    PreprocessStats stats;
+    Progress progress{options};
+
+    // ---- filter ------------------------------------------------------------------
+    progress.begin("filter");
+    auto stageStart = Clock::now();
+    if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0)
+        fail("preprocess", "mesh arrays are not multiples of 3");
+    const uint64_t inputTriangles = mesh.triangleCount();
+    const uint64_t vertexCount = mesh.vertexCount();
+    if (inputTriangles > 0xFFFFFFFFull)
+        fail("preprocess", "more than 2^32-1 triangles");
+    stats.inputTriangles = inputTriangles;
+    const uint64_t chunkSize = 1 << 16;
+    const uint64_t chunks = (inputTriangles + chunkSize - 1) / chunkSize;
+    std::vector<uint64_t> kept(chunks + 1, 0);
+    std::atomic<bool> badIndex{false}, badPosition{false};
+    parallelFor(threads, chunks, [&](uint64_t c) {
+        uint64_t count = 0;
+        const uint32_t* idx = mesh.indices.data();
+        for (uint64_t t = c * chunkSize, e = std::min(inputTriangles, t + chunkSize); t < e; ++t) {
+            uint32_t a = idx[3 * t], b = idx[3 * t + 1], d = idx[3 * t + 2];
+            if (a >= vertexCount || b >= vertexCount || d >= vertexCount)
+                badIndex = true;
+            count += (a != b && b != d && a != d) ? 1 : 0;
+        }
+        kept[c + 1] = count;
+    });
+    if (badIndex)
+        fail("preprocess", "vertex index out of range");
+    parallelFor(threads, (vertexCount + chunkSize - 1) / chunkSize, [&](uint64_t c) {
+        for (uint64_t i = c * chunkSize * 3, e = std::min(vertexCount, (c + 1) * chunkSize) * 3; i < e; ++i)
+            if (!std::isfinite(mesh.positions[i]))
+                badPosition = true;
+    });
+    if (badPosition)
+        fail("preprocess", "non-finite vertex position");
+    for (uint64_t c = 0; c < chunks; ++c)
+        kept[c + 1] += kept[c];
+    const uint64_t triangleCount = kept[chunks];
+    stats.droppedDegenerate = inputTriangles - triangleCount;
+    if (triangleCount == 0)
+        fail("preprocess", inputTriangles == 0 ? "mesh has no triangles"
+                                               : "mesh has no non-degenerate triangles (all repeat a vertex index)");
+    std::vector<TriangleRef> refs(triangleCount);
+    std::vector<glm::dvec3> extentSums(chunks, glm::dvec3(0.0));
+    parallelFor(threads, chunks, [&](uint64_t c) {
+        glm::vec3 extentSum(0.0f);
+        uint64_t out = kept[c];
+        const uint32_t* idx = mesh.indices.data();
+        const float* p = mesh.positions.data();
+        for (uint64_t t = c * chunkSize, e = std::min(inputTriangles, t + chunkSize); t < e; ++t) {
+            uint32_t a = idx[3 * t], b = idx[3 * t + 1], d = idx[3 * t + 2];
+            if (a == b || b == d || a == d)
+                continue;
+            TriangleRef& r = refs[out++];
+            for (int k = 0; k < 3; ++k) {
+                float x = p[3 * a + k], y = p[3 * b + k], z = p[3 * d + k];
+                r.centroid[k] = x + y + z;
+                extentSum[k] += std::max({x, y, z}) - std::min({x, y, z});
+            }
+            r.triangle = uint32_t(t);
+        }
+        extentSums[c] = glm::dvec3(extentSum);
+    });
+    glm::dvec3 extentTotal(0.0);
+    for (const glm::dvec3& e : extentSums)
+        extentTotal += e;
+    const glm::vec3 meanExtent = glm::vec3(extentTotal / double(triangleCount));
+    kept = {};
+    stats.filterSeconds = secondsSince(stageStart);
+    progress.report(1.0);
+
+    // ---- tree --------------------------------------------------------------------
+    progress.begin("tree");
+    stageStart = Clock::now();
+    TopTree tree = buildTopTree(mesh, refs, meanExtent, options, threads, [&](double f) { progress.report(f); });
+    std::vector<uint32_t> triangles(triangleCount);
+    parallelFor(threads, (triangleCount + chunkSize - 1) / chunkSize, [&](uint64_t c) {
+        for (uint64_t i = c * chunkSize, e = std::min(triangleCount, (c + 1) * chunkSize); i < e; ++i)
+            triangles[i] = refs[i].triangle;
+    });
+    refs = {};
+    stats.treeSeconds = secondsSince(stageStart);
+    progress.report(1.0);
+
+    // ---- clusters ----------------------------------------------------------------
+    progress.begin("clusters");
+    stageStart = Clock::now();
+    const size_t clusterCount = tree.clusters.size();
+    std::vector<BuiltCluster> built(clusterCount);
+    const bool wantSource = decodedTriangleSource != nullptr;
+    parallelFor(
+        threads, clusterCount,
+        [&](uint64_t c) {
+            const ClusterRange& r = tree.clusters[c];
+            buildCluster(mesh, triangles.data() + r.begin, r.end - r.begin, r.depth, options, wantSource, built[c]);
+        },
+        [&](uint64_t done) { progress.report(double(done) / double(clusterCount)); });
+    triangles = {};
+    stats.clusterSeconds = secondsSince(stageStart);
+
+    // ---- layout ------------------------------------------------------------------
+    progress.begin("layout");
+    stageStart = Clock::now();
+    std::vector<Box> topBoxes(tree.nodes.size());
+    for (size_t i = tree.nodes.size(); i-- > 0;) {
+        const TopNode& node = tree.nodes[i];
+        if (node.cluster != kNone)
+            topBoxes[i] = built[node.cluster].nodes[0].box;
+        else
+            for (uint32_t c = 0; c < node.childCount; ++c)
+                topBoxes[i].grow(topBoxes[node.child[c]]);
+    }
+    // Root box: the input bounds of the used vertices, grown to hold every decoded vertex.
+    Box root = topBoxes[0];
+    float maxError = 0.0f;
+    for (const BuiltCluster& c : built) {
+        root.grow(c.inputBox);
+        maxError = std::max(maxError, c.maxError);
+    }
+    Layout layout = layoutNodes(tree, topBoxes, built, root.min, root.max);
+    tree = TopTree();
+    topBoxes = {};
+
+    auto data = std::make_shared<CompressedModelData>();
+    data->clusters.resize(clusterCount);
+    uint64_t vertexTotal = 0, byteTotal = 0;
+    std::vector<uint64_t> vertexOffset(clusterCount), byteOffset(clusterCount);
+    for (size_t i = 0; i < clusterCount; ++i) {
+        BuiltCluster& c = built[layout.clusterOrder[i]];
+        vertexOffset[i] = vertexTotal;
+        byteOffset[i] = byteTotal;
+        vertexTotal += c.vertices.size();
+        byteTotal += c.bytes.size();
+        stats.leaves += c.leaves;
+        stats.stripFallbackLeaves += c.fallbackLeaves;
+    }
+    if (vertexTotal > 0xFFFFFFFFull || byteTotal > 0xFFFFFFFFull)
+        fail("preprocess", "model too large for 32-bit vertex or index offsets");
+    data->vertices.resize(vertexTotal);
+    data->indices.resize(byteTotal);
+    std::vector<uint64_t> sourceOffset;
+    if (wantSource) {
+        sourceOffset.resize(clusterCount + 1, 0);
+        for (size_t i = 0; i < clusterCount; ++i)
+            sourceOffset[i + 1] = sourceOffset[i] + built[layout.clusterOrder[i]].source.size();
+        decodedTriangleSource->assign(sourceOffset.back(), 0);
+    }
+    parallelFor(threads, clusterCount, [&](uint64_t i) {
+        BuiltCluster& c = built[layout.clusterOrder[i]];
+        model::ClusterRecord record = c.record;
+        record.firstVertex = uint32_t(vertexOffset[i]);
+        record.firstIndex = uint32_t(byteOffset[i]);
+        record.indexBytes = uint32_t(c.bytes.size());
+        record.node = layout.clusterNode[i];
+        record.reserved = 0;
+        data->clusters[i] = record;
+        std::copy(c.vertices.begin(), c.vertices.end(), data->vertices.begin() + vertexOffset[i]);
+        std::copy(c.bytes.begin(), c.bytes.end(), data->indices.begin() + byteOffset[i]);
+        if (wantSource)
+            std::copy(c.source.begin(), c.source.end(), decodedTriangleSource->begin() + sourceOffset[i]);
+        c = BuiltCluster();
+    });
+    built = {};
+    data->nodes = std::move(layout.nodes);
+
+    model::FileHeader& h = data->header;
+    h.headerSize = sizeof(model::FileHeader);
+    h.triangleCount = triangleCount;
+    h.sourceTriangleCount = inputTriangles;
+    h.vertexCount = vertexTotal;
+    h.indexBytes = byteTotal;
+    h.clusterCount = uint32_t(clusterCount);
+    h.nodeCount = uint32_t(data->nodes.size());
+    h.bvhDepth = layout.depth;
+    for (int a = 0; a < 3; ++a) {
+        h.boundsMin[a] = root.min[a];
+        h.boundsMax[a] = root.max[a];
+    }
+    h.maxPositionError = maxError;
+    h.simplifyError = 0.0f;
+    h.build.maxClusterVertices = options.maxClusterVertices;
+    h.build.maxClusterTriangles = options.maxClusterTriangles;
+    h.build.maxLeafTriangles = options.maxLeafTriangles;
+    h.build.sahBins = options.sahBins;
+    h.build.positionBits = model::kPositionBits;
+    h.build.nodeBoundsBits = model::kNodeBoundsBits;
+    h.build.simplifyTarget = 1.0f;
+    h.build.reserved = 0;
+    stats.layoutSeconds = secondsSince(stageStart);
+    progress.report(1.0);
+
+    stats.totalSeconds = secondsSince(start);
+    stats.triangles = triangleCount;
+    stats.clusters = clusterCount;
+    stats.nodes = h.nodeCount;
+    stats.vertices = vertexTotal;
+    stats.indexBytes = byteTotal;
+    stats.widenedBounds = layout.widened;
+    stats.bvhDepth = layout.depth;
+    stats.maxPositionError = maxError;
+    stats.bytesPerTriangle = double(clusterCount * sizeof(model::ClusterRecord) + h.nodeCount * sizeof(model::Node) +
+                                    vertexTotal * sizeof(model::QuantizedVertex) + byteTotal) /
+                             double(triangleCount);
+    if (statsOut)
+        *statsOut = stats;
+    return makeCompressedModel(std::move(data));
+}
+
+} // namespace penumbra

@@ -1,0 +1,156 @@
+// Shared pieces of the preprocessor (preprocess.cpp, cluster_bvh.cpp,
+// cluster_tree.cpp, quantize.cpp, strips.cpp, node_layout.cpp). Not installed.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <vector>
+
+#include <glm/common.hpp>
+#include <glm/vec3.hpp>
+
+#include "penumbra/preprocess.h"
+
+namespace penumbra::preprocess_detail {
+
+// Axis-aligned box; empty when min > max.
+struct Box {
+    glm::vec3 min{std::numeric_limits<float>::max()};
+    glm::vec3 max{-std::numeric_limits<float>::max()};
+    void grow(const glm::vec3& p)
+    {
+        min = glm::min(min, p);
+        max = glm::max(max, p);
+    }
+    void grow(const Box& b)
+    {
+        min = glm::min(min, b.min);
+        max = glm::max(max, b.max);
+    }
+    bool empty() const { return min.x > max.x; }
+    float halfArea() const
+    {
+        if (empty())
+            return 0.0f;
+        glm::vec3 e = max - min;
+        return e.x * e.y + e.y * e.z + e.z * e.x;
+    }
+};
+
+// Runs body(i) for every i in [0, count) on `threads` threads (the caller is
+// one of them). tick(done), if set, runs on the calling thread only after each
+// item it finished, with the number of items finished so far by all threads.
+void parallelFor(unsigned threads, uint64_t count, const std::function<void(uint64_t)>& body,
+                 const std::function<void(uint64_t)>& tick = {});
+
+// ceil(log2(n)) for n >= 1.
+inline uint32_t ceilLog2(uint64_t n)
+{
+    uint32_t r = 0;
+    while ((uint64_t(1) << r) < n)
+        ++r;
+    return r;
+}
+
+// True when a node at `depth` (root = 1) holding n triangles may take an
+// unbalanced (SAH) split and still finish within kMaxBvhDepth: after it, object
+// median splits need ceil(log2(n)) more levels plus the Cluster->Leaf level.
+inline bool sahSplitAllowed(uint32_t depth, uint64_t n)
+{
+    return depth + ceilLog2(n) + 2 <= model::kMaxBvhDepth;
+}
+
+// ---- top-level tree (cluster_bvh.cpp) ------------------------------------------
+
+struct TriangleRef {
+    float centroid[3]; // sum of the three vertices (3x the centroid)
+    uint32_t triangle; // input triangle index
+};
+static_assert(sizeof(TriangleRef) == 16);
+
+struct TopNode {
+    uint32_t begin, end;   // triangle range in the reference array
+    uint32_t child[2];     // node indices (larger than this node's)
+    uint32_t childCount;   // 0 for a cluster
+    uint32_t cluster;      // cluster index, or kNone
+    uint32_t depth;        // root = 1
+};
+
+struct ClusterRange {
+    uint32_t begin, end; // triangle range in the reference array
+    uint32_t node;       // TopNode
+    uint32_t depth;      // depth of the Cluster node
+};
+
+inline constexpr uint32_t kNone = 0xFFFFFFFFu;
+
+struct TopTree {
+    std::vector<TopNode> nodes; // node 0 is the root
+    std::vector<ClusterRange> clusters;
+};
+
+// Top-down binned SAH over centroids until a node has <= maxClusterTriangles
+// triangles using <= maxClusterVertices vertices. Reorders refs.
+// meanExtent: the average triangle bounding-box extent per axis.
+TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm::vec3& meanExtent,
+                     const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress);
+
+// ---- one cluster (cluster_tree.cpp, quantize.cpp, strips.cpp) ------------------
+
+struct LocalNode {
+    Box box;             // exact bounds of the decoded vertices below
+    uint32_t first = 0;  // first child (local index) when not a leaf
+    uint32_t childCount = 0;
+    uint32_t leafStart = 0, leafBytes = 0; // leaf: strip bytes relative to the cluster
+};
+
+struct BuiltCluster {
+    model::ClusterRecord record{}; // boxMin, step, counts (firstVertex/firstIndex/node set by the driver)
+    std::vector<model::QuantizedVertex> vertices;
+    std::vector<uint8_t> bytes;
+    std::vector<LocalNode> nodes; // local tree; node 0 = the cluster's root (a leaf if it has childCount 0)
+    std::vector<uint32_t> source; // input triangle per decoded triangle (only when requested)
+    Box inputBox;                 // bounds of the input positions
+    float maxError = 0;
+    uint32_t leaves = 0, fallbackLeaves = 0;
+};
+
+// Builds one cluster from input triangles tris[0..count) whose Cluster node is
+// at `depth`.
+void buildCluster(const Mesh& mesh, const uint32_t* tris, uint32_t count, uint32_t depth,
+                  const PreprocessOptions& options, bool wantSource, BuiltCluster& out);
+
+// Quantizes vertices (input indices) to 16 bits within their bounds; fills
+// record.boxMin/step, out[count], decoded[count] (decodePosition of each),
+// the input box and the largest per-coordinate error.
+void quantizeCluster(const Mesh& mesh, const uint32_t* vertices, uint32_t count, model::ClusterRecord& record,
+                     model::QuantizedVertex* out, glm::vec3* decoded, Box& inputBox, float& maxError);
+
+// Appends the strip bytes of `count` triangles (local indices, 3 per triangle)
+// to out: meshoptimizer vertex-cache order and stripification with restarts,
+// verified to decode to exactly these triangles (else one 3-index strip per
+// triangle). No leading or trailing restart. If source is not null, appends to
+// sourceOut the entry of source[] for every decoded triangle in decode order.
+// Returns false when the fallback was used.
+bool appendLeafStrips(const uint32_t* localIndices, uint32_t count, uint32_t vertexCount, std::vector<uint8_t>& out,
+                      const uint32_t* source, std::vector<uint32_t>* sourceOut);
+
+// ---- node array (node_layout.cpp) ------------------------------------------------
+
+struct Layout {
+    std::vector<model::Node> nodes;
+    std::vector<uint32_t> clusterOrder; // final cluster index -> built cluster index
+    std::vector<uint32_t> clusterNode;  // final cluster index -> its Cluster node
+    uint32_t depth = 0;
+    uint64_t widened = 0;
+    uint64_t leaves = 0;
+};
+
+// Lays the tree out (children consecutively after their parent, depth first)
+// and encodes every box in 8 bits relative to its parent's decoded box,
+// verified to contain the exact box. topBoxes: exact box per TopNode.
+Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const std::vector<BuiltCluster>& clusters,
+                   const glm::vec3& rootMin, const glm::vec3& rootMax);
+
+} // namespace penumbra::preprocess_detail

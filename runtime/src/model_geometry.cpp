@@ -1,0 +1,157 @@
+#include "model_geometry.h"
+
+#include <algorithm>
+
+namespace penumbra {
+
+namespace {
+
+constexpr VkDeviceSize kChunkBytes = 1ull << 30; // per buffer, also capped by maxMemoryAllocationSize
+
+VkDeviceSize chunkLimit(const vk::Device& device)
+{
+    VkDeviceSize limit = std::min<VkDeviceSize>(kChunkBytes, device.maxAllocationSize);
+    return device.maxModelBufferBytes ? std::min(limit, device.maxModelBufferBytes) : limit;
+}
+
+} // namespace
+
+GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
+{
+    const auto& h = model.header;
+    if (model.clusters.empty())
+        fail("model", "has no clusters");
+    GpuGeometry geometry;
+    geometry.encoding = GeometryEncoding::Compressed;
+    geometry.triangles = h.triangleCount;
+    geometry.vertexCount = model.vertices.size();
+    geometry.bounds.min = {h.boundsMin[0], h.boundsMin[1], h.boundsMin[2]};
+    geometry.bounds.max = {h.boundsMax[0], h.boundsMax[1], h.boundsMax[2]};
+    try {
+        // Chunks of consecutive clusters whose vertices and strips each fit one allocation.
+        const VkDeviceSize limit = chunkLimit(device);
+        std::vector<VkDrawIndexedIndirectCommand> commands(model.clusters.size());
+        uint32_t first = 0;
+        while (first < model.clusters.size()) {
+            const model::ClusterRecord& start = model.clusters[first];
+            uint32_t end = first;
+            while (end < model.clusters.size()) {
+                const model::ClusterRecord& c = model.clusters[end];
+                VkDeviceSize vertexBytes = (VkDeviceSize(c.firstVertex) + c.vertexCount - start.firstVertex) * sizeof(model::QuantizedVertex);
+                VkDeviceSize indexBytes = VkDeviceSize(c.firstIndex) + c.indexBytes - start.firstIndex;
+                if (end > first && (vertexBytes > limit || indexBytes > limit))
+                    break;
+                ++end;
+            }
+            const model::ClusterRecord& last = model.clusters[end - 1];
+            uint64_t vertexCount = uint64_t(last.firstVertex) + last.vertexCount - start.firstVertex;
+            uint64_t indexBytes = uint64_t(last.firstIndex) + last.indexBytes - start.firstIndex;
+            GpuGeometry::Chunk chunk;
+            chunk.firstCluster = first;
+            chunk.clusterCount = end - first;
+            chunk.vertexBase = start.firstVertex;
+            chunk.vertices = vk::createBufferWithData(device, model.vertices.data() + start.firstVertex,
+                                                      vertexCount * sizeof(model::QuantizedVertex), VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+            geometry.chunks.push_back(chunk); // owned from here on, even if the next upload throws
+            geometry.chunks.back().indices = vk::createBufferWithData(device, model.indices.data() + start.firstIndex, indexBytes,
+                                                                      VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+            for (uint32_t i = first; i < end; ++i) {
+                const model::ClusterRecord& c = model.clusters[i];
+                commands[i] = {c.indexBytes, 1, c.firstIndex - start.firstIndex, int32_t(c.firstVertex - start.firstVertex), i};
+            }
+            first = end;
+        }
+        geometry.clusters = vk::createBufferWithData(device, model.clusters.data(), model.clusters.size_bytes(),
+                                                     VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+        geometry.indirect = vk::createBufferWithData(device, commands.data(), commands.size() * sizeof(VkDrawIndexedIndirectCommand),
+                                                     VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
+    } catch (...) {
+        destroyGeometry(device, geometry);
+        throw;
+    }
+    geometry.deviceBytes = model.vertices.size_bytes() + model.indices.size_bytes() + model.clusters.size_bytes() +
+                           model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand);
+    return geometry;
+}
+
+GpuGeometry uploadReference(vk::Device& device, const Mesh& mesh)
+{
+    if (mesh.triangleCount() == 0)
+        fail("model", "has no triangles");
+    const VkDeviceSize limit = chunkLimit(device);
+    VkDeviceSize vertexBytes = mesh.positions.size() * sizeof(float), indexBytes = mesh.indices.size() * sizeof(uint32_t);
+    if (vertexBytes > limit || indexBytes > limit)
+        fail("model", "too large for the uncompressed reference path (one buffer each, at most " + std::to_string(limit >> 20) + " MiB)");
+    GpuGeometry geometry;
+    geometry.encoding = GeometryEncoding::UncompressedReference;
+    geometry.triangles = mesh.triangleCount();
+    geometry.vertexCount = mesh.vertexCount();
+    geometry.bounds = computeBounds(mesh);
+    try {
+        GpuGeometry::Chunk chunk;
+        chunk.indexCount = mesh.indices.size();
+        chunk.vertices = vk::createBufferWithData(device, mesh.positions.data(), vertexBytes, VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+        geometry.chunks.push_back(chunk);
+        geometry.chunks.back().indices = vk::createBufferWithData(device, mesh.indices.data(), indexBytes, VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+    } catch (...) {
+        destroyGeometry(device, geometry);
+        throw;
+    }
+    geometry.deviceBytes = vertexBytes + indexBytes;
+    return geometry;
+}
+
+void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
+{
+    for (GpuGeometry::Chunk& chunk : geometry.chunks) {
+        vk::destroyBuffer(device, chunk.vertices);
+        vk::destroyBuffer(device, chunk.indices);
+    }
+    vk::destroyBuffer(device, geometry.clusters);
+    vk::destroyBuffer(device, geometry.indirect);
+    geometry = {};
+}
+
+GeometryInputState geometryInputState(GeometryEncoding encoding)
+{
+    GeometryInputState state;
+    if (encoding == GeometryEncoding::UncompressedReference) {
+        state.bindings[0] = {0, 3 * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
+        state.attributes[0] = {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0};
+        state.bindingCount = state.attributeCount = 1;
+        state.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+        state.primitiveRestart = VK_FALSE;
+        return state;
+    }
+    state.bindings[0] = {0, sizeof(model::QuantizedVertex), VK_VERTEX_INPUT_RATE_VERTEX};
+    state.bindings[1] = {1, sizeof(model::ClusterRecord), VK_VERTEX_INPUT_RATE_INSTANCE};
+    state.attributes[0] = {0, 0, VK_FORMAT_R16G16B16A16_UINT, 0};
+    state.attributes[1] = {1, 1, VK_FORMAT_R32G32B32_SFLOAT, offsetof(model::ClusterRecord, boxMin)};
+    state.attributes[2] = {2, 1, VK_FORMAT_R32G32B32_SFLOAT, offsetof(model::ClusterRecord, step)};
+    state.bindingCount = 2;
+    state.attributeCount = 3;
+    return state;
+}
+
+void drawGeometry(VkCommandBuffer cmd, const GpuGeometry& geometry, const std::function<void(uint64_t vertexBase)>& beforeChunk)
+{
+    VkDeviceSize zero = 0;
+    for (const GpuGeometry::Chunk& chunk : geometry.chunks) {
+        if (beforeChunk)
+            beforeChunk(chunk.vertexBase);
+        if (geometry.encoding == GeometryEncoding::UncompressedReference) {
+            vkCmdBindVertexBuffers(cmd, 0, 1, &chunk.vertices.buffer, &zero);
+            vkCmdBindIndexBuffer(cmd, chunk.indices.buffer, 0, VK_INDEX_TYPE_UINT32);
+            vkCmdDrawIndexed(cmd, uint32_t(chunk.indexCount), 1, 0, 0, 0);
+            continue;
+        }
+        VkBuffer buffers[2] = {chunk.vertices.buffer, geometry.clusters.buffer};
+        VkDeviceSize offsets[2] = {0, 0};
+        vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
+        vkCmdBindIndexBuffer(cmd, chunk.indices.buffer, 0, VK_INDEX_TYPE_UINT8_EXT);
+        vkCmdDrawIndexedIndirect(cmd, geometry.indirect.buffer, VkDeviceSize(chunk.firstCluster) * sizeof(VkDrawIndexedIndirectCommand),
+                                 chunk.clusterCount, sizeof(VkDrawIndexedIndirectCommand));
+    }
+}
+
+} // namespace penumbra

@@ -1,0 +1,59 @@
+// The model on the GPU, uploaded once, drawn straight from its compressed form:
+// 8-bit triangle strips with primitive restart, R16G16B16A16_UINT vertices
+// dequantized in the vertex shader with the cluster box taken per instance
+// from the ClusterRecord array, one indirect draw per cluster. Buffers are
+// split into chunks below the device's allocation limit.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "penumbra/mesh.h"
+#include "penumbra/model_format.h"
+#include "resources.h"
+
+namespace penumbra {
+
+enum class GeometryEncoding {
+    Compressed,             // the only path of the renderer
+    UncompressedReference,  // indexed float triangle list: benchmarks compare against it
+};
+
+struct GpuGeometry {
+    struct Chunk {
+        vk::Buffer vertices;      // QuantizedVertex[] (or float3[] for the reference)
+        vk::Buffer indices;       // uint8 strips (or uint32 triangle list for the reference)
+        uint32_t firstCluster = 0;
+        uint32_t clusterCount = 0;
+        uint64_t vertexBase = 0;  // global index of the chunk's first vertex
+        uint64_t indexCount = 0;  // reference path: indices to draw
+    };
+    GeometryEncoding encoding = GeometryEncoding::Compressed;
+    std::vector<Chunk> chunks;
+    vk::Buffer clusters;          // ClusterRecord[] as per-instance vertex data (reference: one identity record)
+    vk::Buffer indirect;          // VkDrawIndexedIndirectCommand per cluster
+    uint64_t triangles = 0;
+    uint64_t vertexCount = 0;
+    Bounds bounds;
+    uint64_t deviceBytes = 0;     // bytes of all model buffers
+};
+
+GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model);
+GpuGeometry uploadReference(vk::Device& device, const Mesh& mesh);
+void destroyGeometry(vk::Device& device, GpuGeometry& geometry);
+
+// Pipeline state of the encoding (vertex bindings/attributes, topology, restart).
+struct GeometryInputState {
+    VkVertexInputBindingDescription bindings[2];
+    VkVertexInputAttributeDescription attributes[3];
+    uint32_t bindingCount = 0, attributeCount = 0;
+    VkPrimitiveTopology topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_STRIP;
+    VkBool32 primitiveRestart = VK_TRUE;
+};
+GeometryInputState geometryInputState(GeometryEncoding encoding);
+
+// Records the draws of the whole model; beforeChunk (optional) runs before each
+// chunk's draws with the chunk's global vertex base (e.g. to push constants).
+void drawGeometry(VkCommandBuffer cmd, const GpuGeometry& geometry, const std::function<void(uint64_t vertexBase)>& beforeChunk = {});
+
+} // namespace penumbra

@@ -1,0 +1,491 @@
+// Tests for the preprocessor: a scalar CPU decoder of the built model compared
+// with the input (every triangle exactly once, winding kept, positions within
+// the reported error), the BVH invariants the rasterizer and ray tracer rely on,
+// degenerate and error cases, thread-count independence, and simplifyMesh.
+#include <gtest/gtest.h>
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <glm/gtc/type_ptr.hpp>
+
+#include "penumbra/error.h"
+#include "penumbra/generate.h"
+#include "penumbra/preprocess.h"
+
+using namespace penumbra;
+
+namespace {
+
+Mesh generate(const std::string& name, uint64_t triangles)
+{
+    GenerateOptions options;
+    options.triangles = triangles;
+    return generateScene(name, options).mesh;
+}
+
+bool degenerate(const Mesh& mesh, size_t t)
+{
+    uint32_t a = mesh.indices[3 * t], b = mesh.indices[3 * t + 1], c = mesh.indices[3 * t + 2];
+    return a == b || b == c || a == c;
+}
+
+// Decodes every triangle and compares it with the input triangle it came from.
+void checkRoundTrip(const Mesh& mesh, const CompressedModel& model, const std::vector<uint32_t>& source)
+{
+    const model::FileHeader& h = model.header;
+    ASSERT_EQ(source.size(), h.triangleCount);
+    const float tolerance = h.maxPositionError;
+    float maxStep = 0.0f, maxCoordinate = 0.0f;
+    std::vector<uint8_t> seen(mesh.triangleCount(), 0);
+    size_t k = 0;
+    uint64_t triangles = 0, vertices = 0, bytes = 0;
+    float measured = 0.0f;
+    for (const model::ClusterRecord& c : model.clusters) {
+        ASSERT_EQ(c.firstVertex, vertices);
+        ASSERT_EQ(c.firstIndex, bytes);
+        vertices += c.vertexCount;
+        bytes += c.indexBytes;
+        for (int a = 0; a < 3; ++a) {
+            maxStep = std::max(maxStep, c.step[a]);
+            maxCoordinate = std::max({maxCoordinate, std::fabs(c.boxMin[a]), std::fabs(c.boxMin[a] + 65535.0f * c.step[a])});
+        }
+        const model::QuantizedVertex* v = model.vertices.data() + c.firstVertex;
+        const uint8_t* s = model.indices.data() + c.firstIndex;
+        uint32_t count = 0;
+        forEachStripTriangle(s, s + c.indexBytes, [&](uint32_t a, uint32_t b, uint32_t d) {
+            ASSERT_LT(a, c.vertexCount);
+            ASSERT_LT(b, c.vertexCount);
+            ASSERT_LT(d, c.vertexCount);
+            ASSERT_LT(k, source.size());
+            uint32_t t = source[k++];
+            ASSERT_LT(t, mesh.triangleCount());
+            ASSERT_FALSE(degenerate(mesh, t));
+            ASSERT_EQ(seen[t], 0) << "triangle " << t << " stored twice";
+            seen[t] = 1;
+            count++;
+            glm::vec3 decoded[3] = {decodePosition(c, v[a]), decodePosition(c, v[b]), decodePosition(c, v[d])};
+            glm::vec3 input[3];
+            for (int i = 0; i < 3; ++i)
+                input[i] = mesh.position(mesh.indices[3 * size_t(t) + i]);
+            // Some rotation (never a reflection) must match within the reported error.
+            float best = INFINITY;
+            for (int r = 0; r < 3; ++r) {
+                float e = 0.0f;
+                for (int i = 0; i < 3; ++i) {
+                    glm::vec3 d3 = glm::abs(decoded[i] - input[(i + r) % 3]);
+                    e = std::max({e, d3.x, d3.y, d3.z});
+                }
+                best = std::min(best, e);
+            }
+            measured = std::max(measured, best);
+            ASSERT_LE(best, tolerance) << "triangle " << t;
+        });
+        ASSERT_EQ(count, c.triangleCount);
+        triangles += count;
+    }
+    EXPECT_EQ(triangles, h.triangleCount);
+    EXPECT_EQ(vertices, h.vertexCount);
+    EXPECT_EQ(bytes, h.indexBytes);
+    EXPECT_EQ(k, source.size());
+    for (size_t t = 0; t < mesh.triangleCount(); ++t)
+        if (!degenerate(mesh, t)) {
+            ASSERT_EQ(seen[t], 1) << "triangle " << t << " missing";
+        }
+    // Half a step of the largest cluster plus one float rounding of the largest coordinate.
+    EXPECT_LE(tolerance, 0.5f * maxStep + 2.0f * maxCoordinate * 1.2e-7f);
+    EXPECT_GE(tolerance, measured);
+}
+
+struct Visit {
+    uint32_t node;
+    glm::vec3 min, max;
+    uint32_t depth;
+    uint32_t cluster; // enclosing cluster or ~0
+};
+
+// Every structural invariant of the node array and the clusters.
+void checkBvh(const CompressedModel& model, const PreprocessOptions& options)
+{
+    const model::FileHeader& h = model.header;
+    ASSERT_EQ(h.nodeCount, model.nodes.size());
+    ASSERT_EQ(h.clusterCount, model.clusters.size());
+    ASSERT_GE(h.nodeCount, 1u);
+    for (int a = 0; a < 3; ++a) {
+        EXPECT_EQ(model.nodes[0].lo[a], 0);
+        EXPECT_EQ(model.nodes[0].hi[a], 255);
+    }
+    for (const model::ClusterRecord& c : model.clusters) {
+        ASSERT_GE(c.vertexCount, 3);
+        ASSERT_LE(c.vertexCount, options.maxClusterVertices);
+        ASSERT_GE(c.triangleCount, 1);
+        ASSERT_LE(c.triangleCount, options.maxClusterTriangles);
+        ASSERT_GT(c.indexBytes, 0u);
+        const uint8_t* s = model.indices.data() + c.firstIndex;
+        ASSERT_NE(s[0], model::kStripRestart);
+        ASSERT_NE(s[c.indexBytes - 1], model::kStripRestart);
+        for (uint32_t i = 1; i < c.indexBytes; ++i)
+            ASSERT_FALSE(s[i] == model::kStripRestart && s[i - 1] == model::kStripRestart);
+        for (uint32_t i = 0; i < c.vertexCount; ++i)
+            ASSERT_EQ(model.vertices[c.firstVertex + i].w, 0);
+    }
+    std::vector<uint32_t> nodeVisits(h.nodeCount, 0), clusterVisits(h.clusterCount, 0);
+    std::vector<uint8_t> byteCovered(h.indexBytes, 0);
+    uint32_t maxDepth = 0;
+    uint64_t leafTriangles = 0;
+    std::vector<Visit> stack{{0, glm::make_vec3(h.boundsMin), glm::make_vec3(h.boundsMax), 1, ~0u}};
+    while (!stack.empty()) {
+        Visit v = stack.back();
+        stack.pop_back();
+        ASSERT_LT(v.node, h.nodeCount);
+        ASSERT_EQ(nodeVisits[v.node]++, 0u) << "node " << v.node << " referenced twice";
+        maxDepth = std::max(maxDepth, v.depth);
+        const model::Node& n = model.nodes[v.node];
+        auto kind = model::NodeKind(n.kind);
+        uint32_t cluster = v.cluster;
+        if (kind == model::NodeKind::Leaf) {
+            ASSERT_NE(v.cluster, ~0u) << "leaf outside a cluster";
+            ASSERT_EQ(n.first, v.cluster);
+            ASSERT_EQ(n.childCount, 0);
+            const model::ClusterRecord& c = model.clusters[n.first];
+            uint32_t start = n.second & 0xFFFF, count = n.second >> 16;
+            ASSERT_GT(count, 0u);
+            ASSERT_LE(start + count, c.indexBytes);
+            const uint8_t* s = model.indices.data() + c.firstIndex;
+            ASSERT_TRUE(start == 0 || s[start - 1] == model::kStripRestart);
+            ASSERT_TRUE(start + count == c.indexBytes || s[start + count] == model::kStripRestart);
+            for (uint32_t i = start; i < start + count; ++i)
+                ASSERT_EQ(byteCovered[c.firstIndex + i]++, 0) << "byte in two leaves";
+            uint32_t leafCount = 0;
+            forEachStripTriangle(s + start, s + start + count, [&](uint32_t a, uint32_t b, uint32_t d) {
+                leafCount++;
+                for (uint32_t i : {a, b, d}) {
+                    glm::vec3 p = decodePosition(c, model.vertices[c.firstVertex + i]);
+                    for (int ax = 0; ax < 3; ++ax) {
+                        ASSERT_GE(p[ax], v.min[ax]) << "vertex outside its leaf box";
+                        ASSERT_LE(p[ax], v.max[ax]) << "vertex outside its leaf box";
+                    }
+                }
+            });
+            ASSERT_LE(leafCount, options.maxLeafTriangles);
+            leafTriangles += leafCount;
+            continue;
+        }
+        if (kind == model::NodeKind::Cluster) {
+            ASSERT_EQ(v.cluster, ~0u) << "cluster inside a cluster";
+            ASSERT_LT(n.second, h.clusterCount);
+            ASSERT_EQ(clusterVisits[n.second]++, 0u);
+            ASSERT_EQ(model.clusters[n.second].node, v.node);
+            cluster = n.second;
+        } else {
+            ASSERT_EQ(kind, model::NodeKind::Interior);
+        }
+        ASSERT_GE(n.childCount, 1);
+        ASSERT_LE(n.childCount, 2);
+        ASSERT_GT(n.first, v.node) << "children must follow their parent";
+        for (uint32_t c = 0; c < n.childCount; ++c) {
+            const model::Node& child = model.nodes[n.first + c];
+            glm::vec3 cmin, cmax;
+            decodeChildBounds(child, v.min, v.max, cmin, cmax);
+            for (int ax = 0; ax < 3; ++ax) {
+                ASSERT_GE(cmin[ax], v.min[ax]);
+                ASSERT_LE(cmax[ax], v.max[ax]);
+                ASSERT_LE(cmin[ax], cmax[ax]);
+            }
+            stack.push_back({n.first + c, cmin, cmax, v.depth + 1, cluster});
+        }
+    }
+    for (uint32_t i = 0; i < h.nodeCount; ++i)
+        ASSERT_EQ(nodeVisits[i], 1u) << "node " << i << " unreachable";
+    for (uint32_t i = 0; i < h.clusterCount; ++i)
+        ASSERT_EQ(clusterVisits[i], 1u) << "cluster " << i << " unreachable";
+    for (uint64_t i = 0; i < h.indexBytes; ++i)
+        if (model.indices[i] != model::kStripRestart) {
+            ASSERT_EQ(byteCovered[i], 1) << "index byte " << i << " in no leaf";
+        }
+    EXPECT_EQ(leafTriangles, h.triangleCount);
+    EXPECT_EQ(maxDepth, h.bvhDepth);
+    EXPECT_LE(h.bvhDepth, model::kMaxBvhDepth);
+}
+
+void checkHeader(const CompressedModel& model, const Mesh& mesh, const PreprocessOptions& options)
+{
+    const model::FileHeader& h = model.header;
+    EXPECT_EQ(h.sourceTriangleCount, mesh.triangleCount());
+    EXPECT_EQ(h.build.maxClusterVertices, options.maxClusterVertices);
+    EXPECT_EQ(h.build.maxClusterTriangles, options.maxClusterTriangles);
+    EXPECT_EQ(h.build.maxLeafTriangles, options.maxLeafTriangles);
+    EXPECT_EQ(h.build.sahBins, options.sahBins);
+    EXPECT_EQ(h.build.positionBits, model::kPositionBits);
+    EXPECT_EQ(h.build.nodeBoundsBits, model::kNodeBoundsBits);
+    EXPECT_EQ(h.build.simplifyTarget, 1.0f);
+    EXPECT_EQ(h.simplifyError, 0.0f);
+    EXPECT_EQ(h.vertexCount, model.vertices.size());
+    EXPECT_EQ(h.indexBytes, model.indices.size());
+}
+
+void checkAll(const Mesh& mesh, const PreprocessOptions& options = {})
+{
+    std::vector<uint32_t> source;
+    PreprocessStats stats;
+    CompressedModel model = buildCompressedModel(mesh, options, &stats, &source);
+    checkHeader(model, mesh, options);
+    checkRoundTrip(mesh, model, source);
+    checkBvh(model, options);
+    try {
+        validateModel(model, "built model"); // the reader's validation (formats/)
+    } catch (const Error& e) {
+        ADD_FAILURE() << e.what();
+    }
+    EXPECT_EQ(stats.triangles, model.header.triangleCount);
+    EXPECT_EQ(stats.maxPositionError, model.header.maxPositionError);
+}
+
+} // namespace
+
+TEST(Preprocess, RoundTripScan) { checkAll(generate("scan", 150'000)); }
+TEST(Preprocess, RoundTripPlant) { checkAll(generate("plant", 150'000)); }
+TEST(Preprocess, RoundTripCity) { checkAll(generate("city", 60'000)); }
+TEST(Preprocess, RoundTripInterior) { checkAll(generate("interior", 40'000)); }
+
+TEST(Preprocess, SmallLimits)
+{
+    PreprocessOptions options;
+    options.maxClusterVertices = 16;
+    options.maxClusterTriangles = 20;
+    options.maxLeafTriangles = 3;
+    options.sahBins = 4;
+    checkAll(generate("plant", 20'000), options);
+    options.maxLeafTriangles = 1;
+    checkAll(generate("scan", 10'000), options);
+}
+
+TEST(Preprocess, LargeLimits)
+{
+    PreprocessOptions options;
+    options.maxClusterTriangles = model::kMaxClusterTriangles;
+    options.maxLeafTriangles = model::kMaxClusterTriangles;
+    options.sahBins = 256;
+    checkAll(generate("city", 30'000), options);
+}
+
+TEST(Preprocess, SingleTriangle)
+{
+    Mesh mesh;
+    mesh.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    mesh.indices = {0, 1, 2};
+    checkAll(mesh);
+}
+
+TEST(Preprocess, ThreadCountIndependent)
+{
+    Mesh mesh = generate("plant", 100'000);
+    PreprocessOptions one, two;
+    one.threads = 1;
+    two.threads = 3;
+    CompressedModel a = buildCompressedModel(mesh, one), b = buildCompressedModel(mesh, two);
+    ASSERT_EQ(a.nodes.size(), b.nodes.size());
+    ASSERT_EQ(a.clusters.size(), b.clusters.size());
+    ASSERT_EQ(a.vertices.size(), b.vertices.size());
+    ASSERT_EQ(a.indices.size(), b.indices.size());
+    EXPECT_EQ(0, std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size_bytes()));
+    EXPECT_EQ(0, std::memcmp(a.clusters.data(), b.clusters.data(), a.clusters.size_bytes()));
+    EXPECT_EQ(0, std::memcmp(a.vertices.data(), b.vertices.data(), a.vertices.size_bytes()));
+    EXPECT_EQ(0, std::memcmp(a.indices.data(), b.indices.data(), a.indices.size_bytes()));
+}
+
+// Degenerate triangles are dropped and counted; coincident but distinct vertices are kept.
+TEST(Preprocess, DegenerateTriangles)
+{
+    Mesh mesh = generate("scan", 5'000);
+    const uint64_t original = mesh.triangleCount();
+    const uint32_t v = uint32_t(mesh.vertexCount());
+    mesh.indices.insert(mesh.indices.end(), {0, 0, 1, 2, 3, 3, 4, 5, 4, 7, 7, 7});
+    // Three new vertices at one point: a zero-area triangle that is NOT index-degenerate.
+    mesh.positions.insert(mesh.positions.end(), {1, 2, 3, 1, 2, 3, 1, 2, 3});
+    mesh.indices.insert(mesh.indices.end(), {v, v + 1, v + 2});
+    PreprocessStats stats;
+    std::vector<uint32_t> source;
+    CompressedModel model = buildCompressedModel(mesh, {}, &stats, &source);
+    EXPECT_EQ(stats.droppedDegenerate, 4u);
+    EXPECT_EQ(model.header.triangleCount, original + 1);
+    EXPECT_EQ(model.header.sourceTriangleCount, original + 5);
+    checkRoundTrip(mesh, model, source);
+    checkBvh(model, {});
+}
+
+// Many triangles with one centroid: SAH cannot split, the median fallback must.
+TEST(Preprocess, IdenticalCentroids)
+{
+    Mesh mesh;
+    for (uint32_t i = 0; i < 3000; ++i) {
+        uint32_t base = uint32_t(mesh.vertexCount());
+        float s = 1.0f + float(i % 7);
+        mesh.positions.insert(mesh.positions.end(), {-s, -s, 0, s, -s, 0, 0, 2 * s, 0});
+        mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
+    }
+    checkAll(mesh);
+}
+
+// Exponentially spaced triangles make SAH peel one at a time; the depth budget must hold.
+TEST(Preprocess, DepthLimit)
+{
+    Mesh mesh;
+    float x = 1.0f;
+    for (uint32_t i = 0; i < 20000; ++i) {
+        uint32_t base = uint32_t(mesh.vertexCount());
+        mesh.positions.insert(mesh.positions.end(), {x, 0, 0, x + 1e-3f, 0, 0, x, 1e-3f, 0});
+        mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
+        x *= 1.003f;
+    }
+    PreprocessOptions options;
+    options.maxClusterTriangles = 4;
+    options.maxLeafTriangles = 1;
+    checkAll(mesh, options);
+}
+
+TEST(Preprocess, Errors)
+{
+    EXPECT_THROW(buildCompressedModel(Mesh{}, {}), Error);
+    Mesh allDegenerate;
+    allDegenerate.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    allDegenerate.indices = {0, 0, 1, 2, 2, 2};
+    EXPECT_THROW(buildCompressedModel(allDegenerate, {}), Error);
+    Mesh outOfRange;
+    outOfRange.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    outOfRange.indices = {0, 1, 3};
+    EXPECT_THROW(buildCompressedModel(outOfRange, {}), Error);
+    Mesh nonFinite = allDegenerate;
+    nonFinite.indices = {0, 1, 2};
+    nonFinite.positions[4] = NAN;
+    EXPECT_THROW(buildCompressedModel(nonFinite, {}), Error);
+    Mesh ok = nonFinite;
+    ok.positions[4] = 0.0f;
+    EXPECT_NO_THROW(buildCompressedModel(ok, {}));
+    PreprocessOptions bad;
+    bad.maxClusterVertices = 256;
+    EXPECT_THROW(buildCompressedModel(ok, bad), Error);
+    bad = {};
+    bad.maxClusterTriangles = model::kMaxClusterTriangles + 1;
+    EXPECT_THROW(buildCompressedModel(ok, bad), Error);
+    bad = {};
+    bad.maxLeafTriangles = 0;
+    EXPECT_THROW(buildCompressedModel(ok, bad), Error);
+    bad = {};
+    bad.sahBins = 1;
+    EXPECT_THROW(buildCompressedModel(ok, bad), Error);
+}
+
+TEST(Preprocess, ProgressIsReported)
+{
+    Mesh mesh = generate("city", 20'000);
+    PreprocessOptions options;
+    std::vector<std::string> stages;
+    double lastFraction = 0.0;
+    options.progress = [&](const char* stage, double fraction) {
+        if (stages.empty() || stages.back() != stage)
+            stages.push_back(stage);
+        EXPECT_GE(fraction, 0.0);
+        EXPECT_LE(fraction, 1.0);
+        lastFraction = fraction;
+    };
+    buildCompressedModel(mesh, options);
+    EXPECT_EQ(stages, (std::vector<std::string>{"filter", "tree", "clusters", "layout"}));
+    EXPECT_EQ(lastFraction, 1.0);
+}
+
+TEST(Simplify, ReachesTarget)
+{
+    Mesh mesh = generate("scan", 100'000);
+    for (float ratio : {0.5f, 0.25f, 0.01f}) {
+        SimplifiedMesh s = simplifyMesh(mesh, ratio);
+        double target = double(mesh.triangleCount()) * ratio;
+        double got = double(s.mesh.triangleCount());
+        EXPECT_TRUE(s.sloppy || std::fabs(got - target) <= 0.1 * target)
+            << "ratio " << ratio << ": " << got << " triangles for a target of " << target;
+        EXPECT_LE(got, 1.1 * target) << "ratio " << ratio;
+        EXPECT_GT(got, 0.0);
+        EXPECT_TRUE(std::isfinite(s.error));
+        EXPECT_TRUE(std::isfinite(s.absoluteError));
+        EXPECT_GE(s.absoluteError, 0.0f);
+        for (uint32_t i : s.mesh.indices)
+            ASSERT_LT(i, s.mesh.vertexCount());
+        // No unused vertices.
+        std::vector<uint8_t> used(s.mesh.vertexCount(), 0);
+        for (uint32_t i : s.mesh.indices)
+            used[i] = 1;
+        EXPECT_EQ(std::count(used.begin(), used.end(), 1), int64_t(s.mesh.vertexCount()));
+        // The simplified mesh preprocesses like any other.
+        if (ratio == 0.25f)
+            checkAll(s.mesh);
+    }
+    SimplifiedMesh same = simplifyMesh(mesh, 1.0f);
+    EXPECT_EQ(same.mesh.indices, mesh.indices);
+    EXPECT_EQ(same.error, 0.0f);
+    EXPECT_THROW(simplifyMesh(mesh, 0.0f), Error);
+}
+
+// Size and speed measurement (not run by default):
+//   PENUMBRA_MEASURE="scan:1000000 plant:12000000" ./preprocess_tests
+//       --gtest_also_run_disabled_tests --gtest_filter=*DISABLED_Measure
+TEST(Preprocess, DISABLED_Measure)
+{
+    const char* spec = std::getenv("PENUMBRA_MEASURE");
+    std::string list = spec ? spec : "scan:1000000 plant:1000000";
+    PreprocessOptions options;
+    if (const char* t = std::getenv("PENUMBRA_THREADS"))
+        options.threads = unsigned(std::atoi(t));
+    if (const char* l = std::getenv("PENUMBRA_LEAF"))
+        options.maxLeafTriangles = uint32_t(std::atoi(l));
+    if (const char* c = std::getenv("PENUMBRA_CLUSTER_TRIANGLES"))
+        options.maxClusterTriangles = uint32_t(std::atoi(c));
+    size_t pos = 0;
+    while (pos < list.size()) {
+        size_t end = list.find(' ', pos);
+        if (end == std::string::npos)
+            end = list.size();
+        std::string item = list.substr(pos, end - pos);
+        pos = end + 1;
+        if (item.empty())
+            continue;
+        std::string name = item.substr(0, item.find(':'));
+        uint64_t count = std::stoull(item.substr(item.find(':') + 1));
+        auto t0 = std::chrono::steady_clock::now();
+        Mesh mesh = generate(name, count);
+        auto t1 = std::chrono::steady_clock::now();
+        PreprocessStats s;
+        CompressedModel model = buildCompressedModel(mesh, options, &s);
+        auto t2 = std::chrono::steady_clock::now();
+        double gen = std::chrono::duration<double>(t1 - t0).count();
+        double build = std::chrono::duration<double>(t2 - t1).count();
+        double tri = double(s.triangles);
+        rusage usage{};
+        getrusage(RUSAGE_SELF, &usage);
+        double meshBytes = double(mesh.positions.size() * 4 + mesh.indices.size() * 4);
+        std::printf("%s %llu tris (%.2f MB mesh, %.2f verts/tri): generate %.2fs, build %.2fs = %.2f Mtri/s build, "
+                    "%.2f Mtri/s end to end; stages filter %.2f tree %.2f clusters %.2f layout %.2f\n",
+                    name.c_str(), (unsigned long long)s.triangles, meshBytes / 1e6,
+                    double(mesh.vertexCount()) / double(mesh.triangleCount()), gen, build, tri / build / 1e6,
+                    tri / (gen + build) / 1e6, s.filterSeconds, s.treeSeconds, s.clusterSeconds, s.layoutSeconds);
+        std::printf("  bytes/tri: clusters %.3f nodes %.3f vertices %.3f indices %.3f total %.3f | clusters %llu "
+                    "(%.1f tri, %.1f verts avg) leaves %llu (%.1f tri avg) nodes %llu depth %u fallback leaves %llu "
+                    "widened %llu maxError %g\n",
+                    48.0 * double(s.clusters) / tri, 16.0 * double(s.nodes) / tri, 8.0 * double(s.vertices) / tri,
+                    double(s.indexBytes) / tri, s.bytesPerTriangle, (unsigned long long)s.clusters,
+                    tri / double(s.clusters), double(s.vertices) / double(s.clusters), (unsigned long long)s.leaves,
+                    tri / double(s.leaves), (unsigned long long)s.nodes, s.bvhDepth,
+                    (unsigned long long)s.stripFallbackLeaves, (unsigned long long)s.widenedBounds,
+                    double(s.maxPositionError));
+        std::printf("  peak RSS so far %.1f MB (%.2fx the mesh)\n", double(usage.ru_maxrss) / 1024.0,
+                    double(usage.ru_maxrss) * 1024.0 / meshBytes);
+        std::fflush(stdout);
+    }
+}
