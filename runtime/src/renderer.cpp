@@ -537,15 +537,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         vkCmdDispatch(cmd, (width + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE,
                       (height + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE, 1);
         // Next light's shade reads the accumulated colour.
-        VkMemoryBarrier2 barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
-        barrier.srcStageMask = kCompute;
-        barrier.srcAccessMask = VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
-        barrier.dstStageMask = kCompute | kCopy;
-        barrier.dstAccessMask = VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_TRANSFER_READ_BIT;
-        VkDependencyInfo dependency{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
-        dependency.memoryBarrierCount = 1;
-        dependency.pMemoryBarriers = &barrier;
-        vkCmdPipelineBarrier2(cmd, &dependency);
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute | kCopy,
+                          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_TRANSFER_READ_BIT);
         timestamp(PassShade);
     }
 
@@ -563,15 +556,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         copyImage(position, readbackPosition);
         copyImage(visibility, readbackVisibility);
     }
-    VkMemoryBarrier2 hostBarrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
-    hostBarrier.srcStageMask = kCopy;
-    hostBarrier.srcAccessMask = VK_ACCESS_2_TRANSFER_WRITE_BIT;
-    hostBarrier.dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT;
-    hostBarrier.dstAccessMask = VK_ACCESS_2_HOST_READ_BIT;
-    VkDependencyInfo hostDependency{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
-    hostDependency.memoryBarrierCount = 1;
-    hostDependency.pMemoryBarriers = &hostBarrier;
-    vkCmdPipelineBarrier2(cmd, &hostDependency);
+    vk::memoryBarrier(cmd, kCopy, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
     timestamp(PassReadback);
     VK_CHECK(vkEndCommandBuffer(cmd));
 
@@ -687,15 +672,8 @@ std::vector<float> Renderer::Impl::decodeVerticesOnGpu()
                 vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(base), &base);
             });
             vkCmdEndRendering(cmd);
-            VkMemoryBarrier2 barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
-            barrier.srcStageMask = VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT;
-            barrier.srcAccessMask = VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
-            barrier.dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT;
-            barrier.dstAccessMask = VK_ACCESS_2_HOST_READ_BIT;
-            VkDependencyInfo dependency{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
-            dependency.memoryBarrierCount = 1;
-            dependency.pMemoryBarriers = &barrier;
-            vkCmdPipelineBarrier2(cmd, &dependency);
+            vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                              VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
         });
         const float* decoded = static_cast<const float*>(output.mapped);
         std::vector<float> result(decoded, decoded + geometry.vertexCount * 3);

@@ -54,6 +54,10 @@ void immediateSubmit(Device& device, Fn&& fn)
     endOneTime(device, cmd);
 }
 
+// Global memory barrier (sync2).
+void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 srcStage, VkAccessFlags2 srcAccess, VkPipelineStageFlags2 dstStage,
+                   VkAccessFlags2 dstAccess);
+
 // Full image layout transition with a sync2 barrier.
 void transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to,
                 VkPipelineStageFlags2 srcStage, VkAccessFlags2 srcAccess, VkPipelineStageFlags2 dstStage,
