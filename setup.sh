@@ -13,7 +13,7 @@ packages=(
   build-essential cmake pkg-config
   libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers glslang-tools
   libmeshoptimizer-dev libdraco-dev libeigen3-dev libtinygltf-dev
-  libglm-dev libopenimageio-dev nlohmann-json3-dev libcli11-dev libxxhash-dev
+  libglm-dev libopenimageio-dev nlohmann-json3-dev libcli11-dev libxxhash-dev libembree-dev
   libgtest-dev clang libclang-rt-14-dev
 )
 

@@ -204,7 +204,7 @@ struct Renderer::Impl {
     // Targets, recreated when the size changes
     uint32_t width = 0, height = 0, shadowSize = 0, shadowLayers = 0;
     vk::Image position, normal, depth, color, visibility, shadowMap;
-    vk::Buffer frameUniforms, readbackColor, readbackPosition, readbackVisibility;
+    vk::Buffer frameUniforms, readbackColor, readbackPosition, readbackNormal, readbackVisibility;
 
     explicit Impl(const RendererOptions& options)
     {
@@ -304,7 +304,7 @@ struct Renderer::Impl {
     {
         for (vk::Image* image : {&position, &normal, &depth, &color, &visibility})
             vk::destroyImage(device, *image);
-        for (vk::Buffer* buffer : {&readbackColor, &readbackPosition, &readbackVisibility})
+        for (vk::Buffer* buffer : {&readbackColor, &readbackPosition, &readbackNormal, &readbackVisibility})
             vk::destroyBuffer(device, *buffer);
         width = height = 0;
     }
@@ -351,6 +351,7 @@ struct Renderer::Impl {
             VkBufferUsageFlags dst = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
             readbackColor = vk::createBuffer(device, VkDeviceSize(w) * h * 16, dst, vk::MemoryUse::Readback);
             readbackPosition = vk::createBuffer(device, VkDeviceSize(w) * h * 16, dst, vk::MemoryUse::Readback);
+            readbackNormal = vk::createBuffer(device, VkDeviceSize(w) * h * 16, dst, vk::MemoryUse::Readback);
             readbackVisibility = vk::createBuffer(device, VkDeviceSize(w) * h * 4, dst, vk::MemoryUse::Readback);
             width = w;
             height = h;
@@ -554,6 +555,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     copyImage(color, readbackColor);
     if (settings.readbackGBuffer) {
         copyImage(position, readbackPosition);
+        copyImage(normal, readbackNormal);
         copyImage(visibility, readbackVisibility);
     }
     vk::memoryBarrier(cmd, kCopy, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
@@ -575,6 +577,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     if (settings.readbackGBuffer) {
         frame.positions.assign(static_cast<const float*>(readbackPosition.mapped),
                                static_cast<const float*>(readbackPosition.mapped) + pixels * 4);
+        frame.normals.assign(static_cast<const float*>(readbackNormal.mapped),
+                             static_cast<const float*>(readbackNormal.mapped) + pixels * 4);
         frame.visibility.assign(static_cast<const float*>(readbackVisibility.mapped),
                                 static_cast<const float*>(readbackVisibility.mapped) + pixels);
     }

@@ -82,9 +82,11 @@ struct FrameStats {
 struct Frame {
     Image color;
     // With RenderSettings::readbackGBuffer: per pixel world position (xyz, w = 1
-    // when covered, 0 for background) and visibility of light 0 (1 lit,
-    // 0 shadowed, -1 background).
+    // when covered, 0 for background), the face normal turned toward the
+    // camera (xyz, w = 0) and visibility of light 0 (1 lit, 0 shadowed,
+    // -1 background).
     std::vector<float> positions;
+    std::vector<float> normals;
     std::vector<float> visibility;
     FrameStats stats;
 };

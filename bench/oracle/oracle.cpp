@@ -1,0 +1,119 @@
+// Embree CPU oracle: rtcOccluded1 per pixel over the uncompressed mesh.
+#include "penumbra/oracle.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <thread>
+
+#include <embree3/rtcore.h>
+#include <glm/geometric.hpp>
+
+#include "penumbra/error.h"
+
+namespace penumbra {
+
+struct EmbreeOracle::Impl {
+    RTCDevice device = nullptr;
+    RTCScene scene = nullptr;
+    ~Impl()
+    {
+        if (scene) rtcReleaseScene(scene);
+        if (device) rtcReleaseDevice(device);
+    }
+};
+
+EmbreeOracle::EmbreeOracle(const Mesh& mesh) : impl(std::make_unique<Impl>())
+{
+    impl->device = rtcNewDevice(nullptr);
+    if (!impl->device)
+        fail("embree", "cannot create a device");
+    impl->scene = rtcNewScene(impl->device);
+    rtcSetSceneBuildQuality(impl->scene, RTC_BUILD_QUALITY_HIGH);
+    RTCGeometry geometry = rtcNewGeometry(impl->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vertices = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.vertexCount()));
+    auto* indices = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), mesh.triangleCount()));
+    if (!vertices || !indices) {
+        rtcReleaseGeometry(geometry);
+        fail("embree", "out of memory for the geometry buffers");
+    }
+    std::memcpy(vertices, mesh.positions.data(), mesh.positions.size() * sizeof(float));
+    std::memcpy(indices, mesh.indices.data(), mesh.indices.size() * sizeof(uint32_t));
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometry(impl->scene, geometry);
+    rtcReleaseGeometry(geometry);
+    rtcCommitScene(impl->scene);
+    if (rtcGetDeviceError(impl->device) != RTC_ERROR_NONE)
+        fail("embree", "scene build failed");
+}
+
+EmbreeOracle::~EmbreeOracle() = default;
+
+std::vector<float> EmbreeOracle::hardShadowVisibility(const std::vector<float>& positions, const std::vector<float>& normals,
+                                                      const Light& light, const OracleOptions& options) const
+{
+    if (normals.size() != positions.size())
+        fail("oracle", "positions and normals differ in size");
+    size_t pixels = positions.size() / 4;
+    std::vector<float> visibility(pixels, kVisibilityBackground);
+    bool directional = light.type == LightType::Directional;
+    glm::vec3 towardLight = directional ? -glm::normalize(light.direction) : glm::vec3(0.0f);
+
+    std::atomic<size_t> next{0};
+    std::atomic<uint64_t> traced{0};
+    auto worker = [&] {
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        uint64_t local = 0;
+        const size_t block = 4096;
+        for (size_t begin = next.fetch_add(block); begin < pixels; begin = next.fetch_add(block)) {
+            for (size_t i = begin; i < std::min(pixels, begin + block); ++i) {
+                const float* p = &positions[i * 4];
+                if (p[3] == 0.0f)
+                    continue;
+                glm::vec3 position(p[0], p[1], p[2]);
+                glm::vec3 n(normals[i * 4], normals[i * 4 + 1], normals[i * 4 + 2]);
+                glm::vec3 dir = directional ? towardLight : light.position - position;
+                float distance = directional ? std::numeric_limits<float>::infinity() : glm::length(dir);
+                if (!directional)
+                    dir /= std::max(distance, 1e-30f);
+                if (glm::dot(n, dir) <= 0.0f) {
+                    visibility[i] = kVisibilityBackFacing;
+                    continue;
+                }
+                glm::vec3 origin = position + n * options.originOffset;
+                RTCRay ray{};
+                ray.org_x = origin.x;
+                ray.org_y = origin.y;
+                ray.org_z = origin.z;
+                ray.dir_x = dir.x;
+                ray.dir_y = dir.y;
+                ray.dir_z = dir.z;
+                ray.tnear = 0.0f;
+                ray.tfar = directional ? std::numeric_limits<float>::infinity() : distance - options.originOffset;
+                ray.mask = 0xFFFFFFFFu;
+                ray.flags = 0;
+                rtcOccluded1(impl->scene, &context, &ray);
+                ++local;
+                // Embree sets tfar to -inf when the ray is occluded.
+                visibility[i] = ray.tfar == -std::numeric_limits<float>::infinity() ? 0.0f : 1.0f;
+            }
+        }
+        traced += local;
+    };
+    unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t)
+        pool.emplace_back(worker);
+    worker();
+    for (std::thread& thread : pool)
+        thread.join();
+    rays = traced.load();
+    return visibility;
+}
+
+} // namespace penumbra
