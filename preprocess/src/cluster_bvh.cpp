@@ -8,12 +8,16 @@
 // Large nodes near the root are split on the calling thread with parallel
 // binning; the subtrees below are built in parallel, each into its own arrays,
 // and merged in a fixed order (the result does not depend on the thread count).
-// When the depth budget requires it (sahSplitAllowed) or SAH finds no split
-// (identical centroids), the split is an object median along the widest axis.
+// Nodes of up to 4 clusters' worth are split by "filling" (fillNode), sorting
+// the centroids once per such region. When the depth budget requires it
+// (sahSplitAllowed) or SAH finds no split (identical centroids), the split is
+// an object median along the widest axis. Needs SSE (x86-64 baseline).
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
+
+#include <immintrin.h>
 
 #include "preprocess_internal.h"
 
@@ -51,9 +55,24 @@ struct CentroidBox {
 
 constexpr uint32_t kMaxBins = 256;
 
+// Bin boxes as 4-lane min/max (the 4th lane holds the triangle index bits of a
+// TriangleRef and is ignored), so growing a bin is two SIMD instructions.
 struct Bins {
     uint32_t count[3][kMaxBins];
-    CentroidBox box[3][kMaxBins];
+    __m128 min[3][kMaxBins];
+    __m128 max[3][kMaxBins];
+    CentroidBox box(int axis, uint32_t k) const
+    {
+        CentroidBox b;
+        alignas(16) float lo[4], hi[4];
+        _mm_store_ps(lo, min[axis][k]);
+        _mm_store_ps(hi, max[axis][k]);
+        for (int a = 0; a < 3; ++a) {
+            b.min[a] = lo[a];
+            b.max[a] = hi[a];
+        }
+        return b;
+    }
 };
 
 struct Binner {
@@ -89,17 +108,21 @@ CentroidBox centroidBounds(const TriangleRef* refs, uint32_t n, unsigned threads
 
 void binRange(const TriangleRef* refs, uint64_t b, uint64_t e, const Binner& binner, Bins& bins)
 {
+    const __m128 empty = _mm_set1_ps(INFINITY), emptyMax = _mm_set1_ps(-INFINITY);
     for (int a = 0; a < 3; ++a)
         for (uint32_t k = 0; k < binner.bins; ++k) {
             bins.count[a][k] = 0;
-            bins.box[a][k] = CentroidBox();
+            bins.min[a][k] = empty;
+            bins.max[a][k] = emptyMax;
         }
     for (uint64_t i = b; i < e; ++i) {
         const float* c = refs[i].centroid;
+        const __m128 v = _mm_loadu_ps(c);
         for (int a = 0; a < 3; ++a) {
             uint32_t k = binner.bin(c, a);
             bins.count[a][k]++;
-            bins.box[a][k].grow(c);
+            bins.min[a][k] = _mm_min_ps(bins.min[a][k], v);
+            bins.max[a][k] = _mm_max_ps(bins.max[a][k], v);
         }
     }
 }
@@ -134,7 +157,8 @@ uint32_t splitRange(TriangleRef* refs, uint32_t n, uint32_t depth, uint32_t sahB
                     for (int a = 0; a < 3; ++a)
                         for (uint32_t k = 0; k < sahBins; ++k) {
                             total.count[a][k] += parts[t].count[a][k];
-                            total.box[a][k].grow(parts[t].box[a][k]);
+                            total.min[a][k] = _mm_min_ps(total.min[a][k], parts[t].min[a][k]);
+                            total.max[a][k] = _mm_max_ps(total.max[a][k], parts[t].max[a][k]);
                         }
             }
             float bestCost = INFINITY;
@@ -148,7 +172,7 @@ uint32_t splitRange(TriangleRef* refs, uint32_t n, uint32_t depth, uint32_t sahB
                 CentroidBox acc;
                 uint32_t cnt = 0;
                 for (uint32_t k = sahBins; k-- > 1;) {
-                    acc.grow(total.box[a][k]);
+                    acc.grow(total.box(a, k));
                     cnt += total.count[a][k];
                     rightArea[k] = acc.halfArea(inflate);
                     rightCount[k] = cnt;
@@ -156,7 +180,7 @@ uint32_t splitRange(TriangleRef* refs, uint32_t n, uint32_t depth, uint32_t sahB
                 acc = CentroidBox();
                 cnt = 0;
                 for (uint32_t k = 0; k + 1 < sahBins; ++k) {
-                    acc.grow(total.box[a][k]);
+                    acc.grow(total.box(a, k));
                     cnt += total.count[a][k];
                     if (cnt == 0 || rightCount[k + 1] == 0)
                         continue;
@@ -209,8 +233,6 @@ struct Builder {
         thread_local uint32_t e = 0;
         return e;
     }
-    std::vector<uint64_t> axisOrder[3];
-    std::vector<TriangleRef> scratch;
 
     void newEpoch()
     {
@@ -224,15 +246,18 @@ struct Builder {
         }
     }
 
-    // Number of triangles, walking order[] from either end, that fit a cluster.
-    // order[] holds positions relative to base.
-    uint32_t fittingRun(const TriangleRef* base, const uint64_t* order, uint32_t n, bool fromEnd)
+    // Number of triangles, walking base[order[i]] (or base[i] without an order)
+    // from either end, that fit a cluster; *vertexCount receives their unique vertices.
+    uint32_t fittingRun(const TriangleRef* base, const uint32_t* order, uint32_t n, bool fromEnd,
+                        uint32_t* vertexCount = nullptr)
     {
         newEpoch();
         const uint32_t* indices = mesh.indices.data();
         uint32_t vertices = 0, run = 0;
         for (; run < n && run < options.maxClusterTriangles; ++run) {
-            uint32_t position = order ? uint32_t(order[fromEnd ? n - 1 - run : run]) : (fromEnd ? n - 1 - run : run);
+            uint32_t position = fromEnd ? n - 1 - run : run;
+            if (order)
+                position = order[position];
             const uint32_t* tri = indices + 3 * uint64_t(base[position].triangle);
             uint32_t added = (stamp[tri[0]] != epoch) + (stamp[tri[1]] != epoch) + (stamp[tri[2]] != epoch);
             if (vertices + added > options.maxClusterVertices)
@@ -240,86 +265,153 @@ struct Builder {
             vertices += added;
             stamp[tri[0]] = stamp[tri[1]] = stamp[tri[2]] = epoch;
         }
+        if (vertexCount)
+            *vertexCount = vertices;
         return run;
     }
 
-    bool fitsCluster(uint32_t begin, uint32_t end)
+    // True when refs[begin, end) fits one cluster; then *vertexCount is its number of unique vertices.
+    bool fitsCluster(uint32_t begin, uint32_t end, uint32_t* vertexCount)
     {
         uint32_t n = end - begin;
         if (n > options.maxClusterTriangles)
             return false;
-        if (3 * n <= options.maxClusterVertices)
-            return true;
-        return fittingRun(refs + begin, nullptr, n, false) == n;
+        return fittingRun(refs + begin, nullptr, n, false, vertexCount) == n;
     }
+
+    // Makes nodes[index] a cluster if it fits one; returns whether it did.
+    bool tryCluster(TopTree& tree, uint32_t index)
+    {
+        const TopNode node = tree.nodes[index];
+        uint32_t vertices = 0;
+        if (!fitsCluster(node.begin, node.end, &vertices))
+            return false;
+        tree.nodes[index].cluster = uint32_t(tree.clusters.size());
+        tree.clusters.push_back({node.begin, node.end, index, node.depth, vertices});
+        return true;
+    }
+
+    // Appends the two children [begin, mid) and [mid, end) of nodes[index]; returns the first.
+    static uint32_t addChildren(TopTree& tree, uint32_t index, uint32_t mid)
+    {
+        const TopNode node = tree.nodes[index];
+        uint32_t first = uint32_t(tree.nodes.size());
+        tree.nodes[index].child[0] = first;
+        tree.nodes[index].child[1] = first + 1;
+        tree.nodes[index].childCount = 2;
+        tree.nodes.push_back({node.begin, mid, {0, 0}, 0, kNone, node.depth + 1});
+        tree.nodes.push_back({mid, node.end, {0, 0}, 0, kNone, node.depth + 1});
+        return first;
+    }
+
+    // State of one fill region (a node of <= 4 clusters' worth): the region's
+    // triangles copied once (ids index `region`) and their ids sorted by centroid
+    // along each axis. A split keeps every axis order sorted by a stable
+    // partition, so each region is sorted once instead of once per split.
+    struct FillRegion {
+        std::vector<TriangleRef> region;
+        std::vector<uint32_t> order[3];
+        std::vector<uint8_t> left; // per id: in the left child of the current split
+        std::vector<uint32_t> buffer;
+    };
 
     // Splits a node a few clusters big so that one side is as full a cluster as
     // possible (halving would leave two half-empty clusters and duplicate the
     // vertices along the cut): along each axis in centroid order, the longest
-    // fitting run from either end; the longest wins. Returns the split position,
-    // 0 if none.
-    uint32_t fillSplit(uint32_t begin, uint32_t end)
+    // fitting run from either end; the longest wins. Then builds both children
+    // the same way. offset: the node's first entry in the region's orders.
+    // refs[begin, end) always equals the region's triangles in the order of the
+    // last split axis, so ranges stay contiguous.
+    void fillNode(TopTree& tree, uint32_t index, FillRegion& fill, uint32_t offset)
     {
-        const uint32_t n = end - begin;
-        const TriangleRef* base = refs + begin;
+        if (tryCluster(tree, index))
+            return;
+        const TopNode node = tree.nodes[index];
+        const uint32_t n = node.end - node.begin;
         uint32_t best = 0;
         int bestAxis = -1;
         bool bestFromEnd = false;
-        for (int a = 0; a < 3; ++a) {
-            // Sort keys: the centroid coordinate as an order-preserving integer, then the position.
-            std::vector<uint64_t>& order = axisOrder[a];
-            order.resize(n);
-            for (uint32_t i = 0; i < n; ++i) {
-                uint32_t bits;
-                std::memcpy(&bits, &base[i].centroid[a], 4);
-                bits ^= (bits & 0x80000000u) ? 0xFFFFFFFFu : 0x80000000u;
-                order[i] = uint64_t(bits) << 32 | i;
-            }
-            std::sort(order.begin(), order.end());
-            for (bool fromEnd : {false, true}) {
-                uint32_t run = fittingRun(base, order.data(), n, fromEnd);
-                if (run > best && run < n) {
-                    best = run;
-                    bestAxis = a;
-                    bestFromEnd = fromEnd;
+        if (sahSplitAllowed(node.depth, n))
+            for (int a = 0; a < 3; ++a)
+                for (bool fromEnd : {false, true}) {
+                    uint32_t run = fittingRun(fill.region.data(), fill.order[a].data() + offset, n, fromEnd);
+                    if (run > best && run < n) {
+                        best = run;
+                        bestAxis = a;
+                        bestFromEnd = fromEnd;
+                    }
                 }
-            }
+        if (bestAxis < 0) {
+            // No fill split (or no depth budget for one): SAH / median on refs, then the generic build.
+            const uint32_t mid = node.begin + splitRange(refs + node.begin, n, node.depth, options.sahBins, inflate, 1);
+            const uint32_t first = addChildren(tree, index, mid);
+            build(tree, first);
+            build(tree, first + 1);
+            return;
         }
-        if (bestAxis < 0)
-            return 0;
-        scratch.resize(n);
+        const uint32_t split = bestFromEnd ? n - best : best;
+        const uint32_t* axisOrder = fill.order[bestAxis].data() + offset;
         for (uint32_t i = 0; i < n; ++i)
-            scratch[i] = base[uint32_t(axisOrder[bestAxis][i])];
-        std::copy(scratch.begin(), scratch.end(), refs + begin);
-        return bestFromEnd ? n - best : best;
+            fill.left[axisOrder[i]] = i < split;
+        for (int a = 0; a < 3; ++a) {
+            if (a == bestAxis)
+                continue;
+            uint32_t* order = fill.order[a].data() + offset;
+            uint32_t l = 0, r = split;
+            for (uint32_t i = 0; i < n; ++i)
+                fill.buffer[fill.left[order[i]] ? l++ : r++] = order[i];
+            std::copy(fill.buffer.begin(), fill.buffer.begin() + n, order);
+        }
+        for (uint32_t i = 0; i < n; ++i)
+            refs[node.begin + i] = fill.region[axisOrder[i]];
+        const uint32_t first = addChildren(tree, index, node.begin + split);
+        fillNode(tree, first, fill, offset);
+        fillNode(tree, first + 1, fill, offset + split);
     }
 
-    // Builds below nodes[root] (already holding begin/end/depth) into tree.
+    void buildFillRegion(TopTree& tree, uint32_t index)
+    {
+        const TopNode node = tree.nodes[index];
+        const uint32_t n = node.end - node.begin;
+        FillRegion fill;
+        fill.region.assign(refs + node.begin, refs + node.end);
+        fill.left.resize(n);
+        fill.buffer.resize(n);
+        std::vector<uint64_t> keys(n);
+        for (int a = 0; a < 3; ++a) {
+            // Sort keys: the centroid coordinate as an order-preserving integer, then the id.
+            for (uint32_t i = 0; i < n; ++i) {
+                uint32_t bits;
+                std::memcpy(&bits, &fill.region[i].centroid[a], 4);
+                bits ^= (bits & 0x80000000u) ? 0xFFFFFFFFu : 0x80000000u;
+                keys[i] = uint64_t(bits) << 32 | i;
+            }
+            std::sort(keys.begin(), keys.end());
+            fill.order[a].resize(n);
+            for (uint32_t i = 0; i < n; ++i)
+                fill.order[a][i] = uint32_t(keys[i]);
+        }
+        fillNode(tree, index, fill, 0);
+    }
+
+    // Builds below nodes[root] (already holding begin/end/depth) into tree,
+    // depth first (clusters are appended in depth-first, first-child-first order).
     void build(TopTree& tree, uint32_t root)
     {
         std::vector<uint32_t> stack{root};
         while (!stack.empty()) {
             uint32_t index = stack.back();
             stack.pop_back();
-            TopNode node = tree.nodes[index];
-            if (fitsCluster(node.begin, node.end)) {
-                tree.nodes[index].cluster = uint32_t(tree.clusters.size());
-                tree.clusters.push_back({node.begin, node.end, index, node.depth});
+            const TopNode node = tree.nodes[index];
+            const uint32_t n = node.end - node.begin;
+            if (n <= 4 * options.maxClusterTriangles && sahSplitAllowed(node.depth, n)) {
+                buildFillRegion(tree, index);
                 continue;
             }
-            const uint32_t n = node.end - node.begin;
-            uint32_t split = 0;
-            if (n <= 4 * options.maxClusterTriangles && sahSplitAllowed(node.depth, n))
-                split = fillSplit(node.begin, node.end);
-            if (split == 0)
-                split = splitRange(refs + node.begin, n, node.depth, options.sahBins, inflate, 1);
-            const uint32_t mid = node.begin + split;
-            uint32_t first = uint32_t(tree.nodes.size());
-            tree.nodes[index].child[0] = first;
-            tree.nodes[index].child[1] = first + 1;
-            tree.nodes[index].childCount = 2;
-            tree.nodes.push_back({node.begin, mid, {0, 0}, 0, kNone, node.depth + 1});
-            tree.nodes.push_back({mid, node.end, {0, 0}, 0, kNone, node.depth + 1});
+            if (tryCluster(tree, index))
+                continue;
+            const uint32_t mid = node.begin + splitRange(refs + node.begin, n, node.depth, options.sahBins, inflate, 1);
+            const uint32_t first = addChildren(tree, index, mid);
             stack.push_back(first + 1);
             stack.push_back(first);
         }

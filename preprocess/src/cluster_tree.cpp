@@ -10,6 +10,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "penumbra/error.h"
 #include "preprocess_internal.h"
 
 namespace penumbra::preprocess_detail {
@@ -152,28 +153,42 @@ struct ClusterTreeBuilder {
 
 } // namespace
 
-void buildCluster(const Mesh& mesh, const uint32_t* tris, uint32_t count, uint32_t depth,
-                  const PreprocessOptions& options, bool wantSource, BuiltCluster& out)
+void buildCluster(const Mesh& mesh, const uint32_t* tris, uint32_t count, uint32_t expectedVertices, uint32_t depth,
+                  const PreprocessOptions& options, bool wantSource, model::QuantizedVertex* vertexOut,
+                  BuiltCluster& out)
 {
-    // Local vertex remap: the sorted unique input indices.
-    thread_local std::vector<uint32_t> global, vertices, local;
-    global.resize(size_t(count) * 3);
+    // Local vertex remap in order of first use (good for the vertex cache of the
+    // strips): an open-addressing table of input index -> local index, at most
+    // a quarter full (kMaxClusterVertices = 255).
+    constexpr uint32_t kSlotBits = 10, kSlots = 1u << kSlotBits;
+    static_assert(kSlots >= 4 * model::kMaxClusterVertices);
+    thread_local std::vector<uint32_t> vertices, local, slotKey(kSlots), slotValue(kSlots);
+    std::fill(slotKey.begin(), slotKey.end(), kNone); // input indices are < vertexCount <= 2^32-1
+    vertices.clear();
+    local.resize(size_t(count) * 3);
     for (uint32_t t = 0; t < count; ++t)
-        for (int k = 0; k < 3; ++k)
-            global[3 * t + k] = mesh.indices[3 * uint64_t(tris[t]) + k];
-    vertices.assign(global.begin(), global.end());
-    std::sort(vertices.begin(), vertices.end());
-    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
-    local.resize(global.size());
-    for (size_t i = 0; i < global.size(); ++i)
-        local[i] = uint32_t(std::lower_bound(vertices.begin(), vertices.end(), global[i]) - vertices.begin());
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = mesh.indices[3 * uint64_t(tris[t]) + k];
+            uint32_t slot = (v * 2654435761u) >> (32 - kSlotBits);
+            while (slotKey[slot] != v && slotKey[slot] != kNone)
+                slot = (slot + 1) & (kSlots - 1);
+            if (slotKey[slot] == kNone) {
+                if (vertices.size() >= expectedVertices)
+                    fail("preprocess", "internal error: cluster has more vertices than the tree stage counted");
+                slotKey[slot] = v;
+                slotValue[slot] = uint32_t(vertices.size());
+                vertices.push_back(v);
+            }
+            local[3 * t + k] = slotValue[slot];
+        }
     const uint32_t vertexCount = uint32_t(vertices.size());
+    if (vertexCount != expectedVertices)
+        fail("preprocess", "internal error: cluster vertex count differs from the tree stage's count");
 
     // Quantization.
-    out.vertices.resize(vertexCount);
     thread_local std::vector<glm::vec3> decoded;
     decoded.resize(vertexCount);
-    quantizeCluster(mesh, vertices.data(), vertexCount, out.record, out.vertices.data(), decoded.data(),
+    quantizeCluster(mesh, vertices.data(), vertexCount, out.record, vertexOut, decoded.data(),
                     out.inputBox, out.maxError);
     out.record.vertexCount = uint16_t(vertexCount);
     out.record.triangleCount = uint16_t(count);

@@ -190,16 +190,27 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     progress.report(1.0);
 
     // ---- clusters ----------------------------------------------------------------
+    // Vertex counts are known from the tree stage and clusters are already in
+    // file order, so every worker quantizes straight into the final vertex section.
     progress.begin("clusters");
     stageStart = Clock::now();
     const size_t clusterCount = tree.clusters.size();
+    std::vector<uint64_t> vertexOffset(clusterCount + 1, 0);
+    for (size_t i = 0; i < clusterCount; ++i)
+        vertexOffset[i + 1] = vertexOffset[i] + tree.clusters[i].vertices;
+    const uint64_t vertexTotal = vertexOffset[clusterCount];
+    if (vertexTotal > 0xFFFFFFFFull)
+        fail("preprocess", "model too large for 32-bit vertex offsets");
+    auto data = std::make_shared<CompressedModelData>();
+    data->vertices.resize(vertexTotal);
     std::vector<BuiltCluster> built(clusterCount);
     const bool wantSource = decodedTriangleSource != nullptr;
     parallelFor(
         threads, clusterCount,
         [&](uint64_t c) {
             const ClusterRange& r = tree.clusters[c];
-            buildCluster(mesh, triangles.data() + r.begin, r.end - r.begin, r.depth, options, wantSource, built[c]);
+            buildCluster(mesh, triangles.data() + r.begin, r.end - r.begin, r.vertices, r.depth, options, wantSource,
+                         data->vertices.data() + vertexOffset[c], built[c]);
         },
         [&](uint64_t done) { progress.report(double(done) / double(clusterCount)); });
     triangles = {};
@@ -227,33 +238,32 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     Layout layout = layoutNodes(tree, topBoxes, built, root.min, root.max);
     tree = TopTree();
     topBoxes = {};
+    for (size_t i = 0; i < clusterCount; ++i)
+        if (layout.clusterOrder[i] != i)
+            fail("preprocess", "internal error: cluster order of the tree and the node layout differ");
 
-    auto data = std::make_shared<CompressedModelData>();
     data->clusters.resize(clusterCount);
-    uint64_t vertexTotal = 0, byteTotal = 0;
-    std::vector<uint64_t> vertexOffset(clusterCount), byteOffset(clusterCount);
+    uint64_t byteTotal = 0;
+    std::vector<uint64_t> byteOffset(clusterCount);
     for (size_t i = 0; i < clusterCount; ++i) {
-        BuiltCluster& c = built[layout.clusterOrder[i]];
-        vertexOffset[i] = vertexTotal;
+        const BuiltCluster& c = built[i];
         byteOffset[i] = byteTotal;
-        vertexTotal += c.vertices.size();
         byteTotal += c.bytes.size();
         stats.leaves += c.leaves;
         stats.stripFallbackLeaves += c.fallbackLeaves;
     }
-    if (vertexTotal > 0xFFFFFFFFull || byteTotal > 0xFFFFFFFFull)
-        fail("preprocess", "model too large for 32-bit vertex or index offsets");
-    data->vertices.resize(vertexTotal);
+    if (byteTotal > 0xFFFFFFFFull)
+        fail("preprocess", "model too large for 32-bit index offsets");
     data->indices.resize(byteTotal);
     std::vector<uint64_t> sourceOffset;
     if (wantSource) {
         sourceOffset.resize(clusterCount + 1, 0);
         for (size_t i = 0; i < clusterCount; ++i)
-            sourceOffset[i + 1] = sourceOffset[i] + built[layout.clusterOrder[i]].source.size();
+            sourceOffset[i + 1] = sourceOffset[i] + built[i].source.size();
         decodedTriangleSource->assign(sourceOffset.back(), 0);
     }
     parallelFor(threads, clusterCount, [&](uint64_t i) {
-        BuiltCluster& c = built[layout.clusterOrder[i]];
+        BuiltCluster& c = built[i];
         model::ClusterRecord record = c.record;
         record.firstVertex = uint32_t(vertexOffset[i]);
         record.firstIndex = uint32_t(byteOffset[i]);
@@ -261,7 +271,6 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         record.node = layout.clusterNode[i];
         record.reserved = 0;
         data->clusters[i] = record;
-        std::copy(c.vertices.begin(), c.vertices.end(), data->vertices.begin() + vertexOffset[i]);
         std::copy(c.bytes.begin(), c.bytes.end(), data->indices.begin() + byteOffset[i]);
         if (wantSource)
             std::copy(c.source.begin(), c.source.end(), decodedTriangleSource->begin() + sourceOffset[i]);

@@ -81,17 +81,19 @@ struct ClusterRange {
     uint32_t begin, end; // triangle range in the reference array
     uint32_t node;       // TopNode
     uint32_t depth;      // depth of the Cluster node
+    uint32_t vertices;   // unique vertices of its triangles
 };
 
 inline constexpr uint32_t kNone = 0xFFFFFFFFu;
 
 struct TopTree {
     std::vector<TopNode> nodes; // node 0 is the root
-    std::vector<ClusterRange> clusters;
+    std::vector<ClusterRange> clusters; // in depth-first, first-child-first order (the order of the file)
 };
 
 // Top-down binned SAH over centroids until a node has <= maxClusterTriangles
-// triangles using <= maxClusterVertices vertices. Reorders refs.
+// triangles using <= maxClusterVertices vertices. Reorders refs. Clusters come
+// out in the depth-first order in which layoutNodes numbers them.
 // meanExtent: the average triangle bounding-box extent per axis.
 TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm::vec3& meanExtent,
                      const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress);
@@ -107,7 +109,6 @@ struct LocalNode {
 
 struct BuiltCluster {
     model::ClusterRecord record{}; // boxMin, step, counts (firstVertex/firstIndex/node set by the driver)
-    std::vector<model::QuantizedVertex> vertices;
     std::vector<uint8_t> bytes;
     std::vector<LocalNode> nodes; // local tree; node 0 = the cluster's root (a leaf if it has childCount 0)
     std::vector<uint32_t> source; // input triangle per decoded triangle (only when requested)
@@ -117,9 +118,12 @@ struct BuiltCluster {
 };
 
 // Builds one cluster from input triangles tris[0..count) whose Cluster node is
-// at `depth`.
-void buildCluster(const Mesh& mesh, const uint32_t* tris, uint32_t count, uint32_t depth,
-                  const PreprocessOptions& options, bool wantSource, BuiltCluster& out);
+// at `depth`, using exactly vertexCount unique vertices (ClusterRange::vertices):
+// its quantized vertices go to vertexOut[0..vertexCount), straight into the
+// model's vertex section.
+void buildCluster(const Mesh& mesh, const uint32_t* tris, uint32_t count, uint32_t vertexCount, uint32_t depth,
+                  const PreprocessOptions& options, bool wantSource, model::QuantizedVertex* vertexOut,
+                  BuiltCluster& out);
 
 // Quantizes vertices (input indices) to 16 bits within their bounds; fills
 // record.boxMin/step, out[count], decoded[count] (decodePosition of each),

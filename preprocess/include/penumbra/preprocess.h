@@ -18,7 +18,7 @@ namespace penumbra {
 struct PreprocessOptions {
     uint32_t maxClusterVertices = 255;  // unique vertices per cluster, 3..model::kMaxClusterVertices
     uint32_t maxClusterTriangles = 512; // triangles per cluster, 1..model::kMaxClusterTriangles
-    uint32_t maxLeafTriangles = 32;     // triangles per strip-range leaf inside a cluster (1..maxClusterTriangles)
+    uint32_t maxLeafTriangles = 48;     // triangles per strip-range leaf inside a cluster (1..maxClusterTriangles)
     uint32_t sahBins = 16;              // bins of the top-level binned SAH build, 2..256
     unsigned threads = 0;               // worker threads including the caller; 0 = hardware concurrency
     // Optional. Called on the calling thread only, at most every ~0.5% of a stage,
