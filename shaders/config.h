@@ -6,6 +6,26 @@
 #define PENUMBRA_MAX_LIGHTS 8            // lights shaded per frame
 #define PENUMBRA_SHADE_GROUP_SIZE 8      // shade.comp workgroup is 8x8 pixels
 
+#define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: rays per workgroup
+#define PENUMBRA_TRACE_STACK_SIZE 64     // BVH traversal stack entries (>= model::kMaxBvhDepth)
+#define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
+#define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range
+#define PENUMBRA_THIN_TEXELS 1.5         // thin-triangle pass: triangles narrower than this (texels) are rasterized conservatively
+
+// Ray list written by compaction and read by the tracer (std430):
+// uint count; uint dispatch[3] (indirect dispatch of trace.comp); uint pixels[count]
+// where pixels[i] = y * width + x of a pixel to trace.
+#define PENUMBRA_RAY_LIST_HEADER_UINTS 4
+
+// Counters of one frame (std430 uint array, atomically accumulated).
+#define PENUMBRA_STAT_RAYS 0             // rays traced
+#define PENUMBRA_STAT_NODES 1            // BVH nodes visited (children tested)
+#define PENUMBRA_STAT_LEAVES 2           // strip-range leaves tested
+#define PENUMBRA_STAT_TRIANGLES 3        // ray/triangle tests
+#define PENUMBRA_STAT_PIP 4              // pixels marked potentially incorrect (srt) or light-facing (frt)
+#define PENUMBRA_STAT_COVERED 5          // covered pixels (counted once per light)
+#define PENUMBRA_STAT_COUNT 8
+
 #define PENUMBRA_LIGHT_POINT 0
 #define PENUMBRA_LIGHT_SPOT 1
 #define PENUMBRA_LIGHT_DIRECTIONAL 2
@@ -34,6 +54,8 @@ PENUMBRA_STRUCT(LightData)
     vec4 directionRange;     // xyz direction light travels, w = range (0 = infinite)
     vec4 colorIntensity;     // rgb colour, w = intensity
     vec4 spotCosLayers;      // x = cos(inner), y = cos(outer), z = shadow-map layers, w = unused
+    vec4 shadowParams;       // x = near, y = far (light-view depth), z = 1 perspective / 0 orthographic,
+                             // w = footprint: perspective 2 tan(fov/2) (map width at depth 1), orthographic map width in model units
 };
 
 // Per-frame constants of the shade pass (std140).
@@ -42,12 +64,13 @@ PENUMBRA_STRUCT(FrameData)
     vec4 cameraPosition;     // xyz camera position, w unused
     vec4 shading;            // x = ambient, y = albedo, zw unused
     vec4 background;         // rgb background colour, a = 1
+    vec4 pip;                // x = depth-discontinuity threshold (fraction of the light's depth range), yzw unused
     LightData lights[PENUMBRA_MAX_LIGHTS];
 };
 
 #ifdef __cplusplus
-static_assert(sizeof(LightData) == 6 * 64 + 4 * 16, "LightData layout must match std140");
-static_assert(sizeof(FrameData) == 3 * 16 + PENUMBRA_MAX_LIGHTS * sizeof(LightData), "FrameData layout must match std140");
+static_assert(sizeof(LightData) == 6 * 64 + 5 * 16, "LightData layout must match std140");
+static_assert(sizeof(FrameData) == 4 * 16 + PENUMBRA_MAX_LIGHTS * sizeof(LightData), "FrameData layout must match std140");
 } // namespace penumbra::gpu
 #endif
 

@@ -38,6 +38,7 @@ struct RenderArgs {
     bool validation = false;
     std::string statsPath;
     uint32_t frames = 1;
+    std::string debugImage;
 };
 
 struct PreprocessArgs {
@@ -97,6 +98,7 @@ int runRender(const RenderArgs& args)
     settings.shadowMapSize = args.shadowMapSize;
     settings.depthBiasConstant = args.biasConstant;
     settings.depthBiasSlope = args.biasSlope;
+    settings.debugPip = args.debugImage == "pip";
     checkImagePath(args.output);
     std::vector<Light> commandLineLights;
     for (const std::string& spec : args.lights)
@@ -177,8 +179,7 @@ int runRender(const RenderArgs& args)
     for (uint32_t i = 0; i < std::max(args.frames, 1u); ++i)
         frame = renderer.render(settings);
     writeImage(frame.color, args.output);
-    std::printf("%s | load %.0f ms | shadows %s | -> %s\n", summaryLine(frame.stats).c_str(), loadMs, shadowMethodName(settings.shadows),
-                args.output.c_str());
+    std::printf("%s | load %.0f ms | -> %s\n", summaryLine(frame.stats).c_str(), loadMs, args.output.c_str());
     if (!args.statsPath.empty())
         writeTextFile(args.statsPath, statsJson(frame.stats));
     if (renderer.validationMessageCount() > 0) {
@@ -394,7 +395,8 @@ int main(int argc, char** argv)
                               "Light, repeatable: 'TYPE key=value ...', TYPE one of point spot directional rectangle disk sphere; "
                               "keys position direction up color intensity range inner_cone outer_cone width height radius; "
                               "e.g. --light 'directional direction=-1,-2,-1 intensity=3'");
-    renderCommand->add_option("--shadows", render.shadows, "Shadow method: sm (shadow map)")->capture_default_str();
+    renderCommand->add_option("--shadows", render.shadows, "Shadow method: sm (shadow map), srt (selective ray tracing), frt (full ray tracing)")->capture_default_str();
+    renderCommand->add_option("--debug-image", render.debugImage, "pip: tint the pixels given rays red")->check(CLI::IsMember({"pip"}));
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
     renderCommand->add_option("--bias-constant", render.biasConstant, "Shadow-map depth bias, constant factor")->capture_default_str();
     renderCommand->add_option("--bias-slope", render.biasSlope, "Shadow-map depth bias, slope factor")->capture_default_str();

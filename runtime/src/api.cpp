@@ -1,4 +1,5 @@
 // Small public helpers: names, defaults, image output, stats formatting.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <unistd.h>
@@ -15,6 +16,8 @@ const char* shadowMethodName(ShadowMethod method)
 {
     switch (method) {
     case ShadowMethod::ShadowMap: return "sm";
+    case ShadowMethod::Selective: return "srt";
+    case ShadowMethod::FullRayTrace: return "frt";
     }
     return "unknown";
 }
@@ -23,9 +26,16 @@ ShadowMethod parseShadowMethod(const std::string& name)
 {
     if (name == "sm")
         return ShadowMethod::ShadowMap;
-    if (name == "srt" || name == "frt")
-        fail("--shadows " + name, "not available yet (needs the ray tracer); use sm");
-    fail("--shadows " + name, "unknown method (expected sm)");
+    if (name == "srt")
+        return ShadowMethod::Selective;
+    if (name == "frt")
+        return ShadowMethod::FullRayTrace;
+    fail("--shadows " + name, "unknown method (expected sm, srt or frt)");
+}
+
+float shadowRayOffset(const Bounds& bounds, float maxPositionError)
+{
+    return std::max(1e-5f * glm::length(bounds.extent()), 4.0f * maxPositionError);
 }
 
 Camera defaultCamera(const Bounds& bounds)
@@ -118,7 +128,13 @@ std::string summaryLine(const FrameStats& stats)
 {
     char buffer[256];
     std::string line = "triangles " + std::to_string(stats.triangles) + " | " + std::to_string(stats.width) + "x" +
-                       std::to_string(stats.height) + " | " + stats.device.name + " | lights " + std::to_string(stats.lights);
+                       std::to_string(stats.height) + " | " + stats.device.name + " | lights " + std::to_string(stats.lights) +
+                       " | shadows " + shadowMethodName(stats.shadows);
+    if (stats.shadows != ShadowMethod::ShadowMap) {
+        std::snprintf(buffer, sizeof(buffer), " | PIP %.2f%% | rays %llu | nodes %llu", stats.pipFraction * 100.0,
+                      (unsigned long long)stats.rays, (unsigned long long)stats.nodesVisited);
+        line += buffer;
+    }
     for (const PassTiming& pass : stats.passes) {
         std::snprintf(buffer, sizeof(buffer), " | %s %.2f ms", pass.name.c_str(), pass.gpuMs);
         line += buffer;
@@ -136,6 +152,15 @@ std::string statsJson(const FrameStats& stats)
     json["width"] = stats.width;
     json["height"] = stats.height;
     json["lights"] = stats.lights;
+    json["shadows"] = shadowMethodName(stats.shadows);
+    json["covered_pixels"] = stats.coveredPixels;
+    json["pip_pixels"] = stats.pipPixels;
+    json["pip_fraction"] = stats.pipFraction;
+    json["rays"] = stats.rays;
+    json["bvh_nodes_visited"] = stats.nodesVisited;
+    json["leaves_visited"] = stats.leavesVisited;
+    json["triangle_tests"] = stats.triangleTests;
+    json["ray_offset"] = stats.rayOffset;
     nlohmann::ordered_json passes = nlohmann::ordered_json::object();
     for (const PassTiming& pass : stats.passes)
         passes[pass.name + "_ms"] = pass.gpuMs;

@@ -267,14 +267,19 @@ void createDevice(Device& device, const RendererOptions& options)
     if (!hasDeviceExtension(device.physical, VK_EXT_INDEX_TYPE_UINT8_EXTENSION_NAME))
         fail("vulkan", device.info.name + " lacks VK_EXT_index_type_uint8 (8-bit strip indices)");
     VkPhysicalDeviceIndexTypeUint8FeaturesEXT uint8Features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_INDEX_TYPE_UINT8_FEATURES_EXT};
-    VkPhysicalDeviceVulkan13Features features13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &uint8Features};
+    VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES, &uint8Features};
+    VkPhysicalDeviceVulkan13Features features13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &features12};
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &features13};
     vkGetPhysicalDeviceFeatures2(device.physical, &supported);
     if (!features13.dynamicRendering || !features13.synchronization2 || !features13.maintenance4 || !uint8Features.indexTypeUint8 ||
-        !supported.features.multiDrawIndirect || !supported.features.drawIndirectFirstInstance)
+        !supported.features.multiDrawIndirect || !supported.features.drawIndirectFirstInstance || !supported.features.geometryShader)
         fail("vulkan", device.info.name +
                            " lacks a required feature (dynamicRendering, synchronization2, maintenance4, indexTypeUint8, "
-                           "multiDrawIndirect, drawIndirectFirstInstance)");
+                           "multiDrawIndirect, drawIndirectFirstInstance, geometryShader)");
+    // The ray tracer reads the model through buffer device addresses (64-bit
+    // pointers, 8-bit strip loads).
+    if (!features12.bufferDeviceAddress || !supported.features.shaderInt64 || !features12.storageBuffer8BitAccess)
+        fail("vulkan", device.info.name + " lacks a feature the ray tracer needs (bufferDeviceAddress, shaderInt64, storageBuffer8BitAccess)");
     device.vertexStores = supported.features.vertexPipelineStoresAndAtomics;
     VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
     VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &maintenance3};
@@ -283,13 +288,18 @@ void createDevice(Device& device, const RendererOptions& options)
 
     VkPhysicalDeviceIndexTypeUint8FeaturesEXT enableUint8{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_INDEX_TYPE_UINT8_FEATURES_EXT};
     enableUint8.indexTypeUint8 = VK_TRUE;
-    VkPhysicalDeviceVulkan13Features enable13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &enableUint8};
+    VkPhysicalDeviceVulkan12Features enable12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES, &enableUint8};
+    enable12.bufferDeviceAddress = VK_TRUE;
+    enable12.storageBuffer8BitAccess = VK_TRUE;
+    VkPhysicalDeviceVulkan13Features enable13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &enable12};
     enable13.dynamicRendering = VK_TRUE;
     enable13.synchronization2 = VK_TRUE;
     enable13.maintenance4 = VK_TRUE; // glslang emits LocalSizeId for Vulkan 1.3 targets
     VkPhysicalDeviceFeatures2 enable{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &enable13};
     enable.features.fullDrawIndexUint32 = supported.features.fullDrawIndexUint32;
     enable.features.multiDrawIndirect = VK_TRUE;
+    enable.features.geometryShader = VK_TRUE; // conservative rasterization of thin triangles
+    enable.features.shaderInt64 = VK_TRUE;
     enable.features.drawIndirectFirstInstance = VK_TRUE;
     enable.features.vertexPipelineStoresAndAtomics = supported.features.vertexPipelineStoresAndAtomics;
     const char* extensions[] = {VK_EXT_INDEX_TYPE_UINT8_EXTENSION_NAME};

@@ -83,8 +83,9 @@ ViewProjection cameraViewProjection(const Camera& camera, const Bounds& bounds, 
     return result;
 }
 
-uint32_t lightViewProjections(const Light& light, const Bounds& bounds, glm::mat4 out[6])
+LightProjection lightProjection(const Light& light, const Bounds& bounds)
 {
+    LightProjection result;
     if (light.type == LightType::Directional) {
         glm::vec3 dir = glm::normalize(light.direction);
         float radius = std::max(glm::length(bounds.extent()) * 0.5f, 1e-3f);
@@ -97,30 +98,44 @@ uint32_t lightViewProjections(const Light& light, const Bounds& bounds, glm::mat
             hi = glm::max(hi, p);
         }
         float margin = radius * 1e-3f;
-        glm::mat4 projection = glm::orthoRH_ZO(lo.x - margin, hi.x + margin, lo.y - margin, hi.y + margin, -hi.z - margin, -lo.z + margin);
-        out[0] = vulkanClip(projection) * view;
-        return 1;
+        result.nearPlane = -hi.z - margin;
+        result.farPlane = -lo.z + margin;
+        glm::mat4 projection = glm::orthoRH_ZO(lo.x - margin, hi.x + margin, lo.y - margin, hi.y + margin, result.nearPlane, result.farPlane);
+        result.viewProj[0] = vulkanClip(projection) * view;
+        result.footprint = std::max(hi.x - lo.x, hi.y - lo.y) + 2.0f * margin;
+        return result;
     }
+    result.perspective = true;
     if (light.type == LightType::Spot) {
-        out[0] = perspectiveFitted(light.position, glm::normalize(light.direction), light.up,
-                                   glm::radians(2.0f * light.outerConeDegrees), 1.0f, bounds);
-        return 1;
+        glm::vec3 forward = glm::normalize(light.direction);
+        glm::mat4 view = glm::lookAtRH(light.position, light.position + forward, stableUp(forward, light.up));
+        depthRange(view, bounds, result.nearPlane, result.farPlane);
+        if (!(result.farPlane > result.nearPlane))
+            result.farPlane = result.nearPlane * 2.0f;
+        float fov = glm::radians(2.0f * light.outerConeDegrees);
+        result.viewProj[0] = vulkanClip(glm::perspectiveRH_ZO(fov, 1.0f, result.nearPlane, result.farPlane)) * view;
+        result.footprint = 2.0f * std::tan(fov * 0.5f);
+        return result;
     }
     static const glm::vec3 axes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
     static const glm::vec3 ups[6] = {{0, -1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}, {0, -1, 0}, {0, -1, 0}};
+    // Every face shares one depth range: near small enough for the nearest geometry in any direction.
+    glm::vec3 nearest = glm::clamp(light.position, bounds.min, bounds.max);
+    float farthest = 0.0f;
+    for (int i = 0; i < 8; ++i)
+        farthest = std::max(farthest, glm::length(corner(bounds, i) - light.position));
+    result.farPlane = std::max(farthest * 1.01f, 1e-3f);
+    result.nearPlane = std::max(glm::length(nearest - light.position) * 0.5f, result.farPlane * 1e-4f);
+    if (!(result.farPlane > result.nearPlane))
+        result.farPlane = result.nearPlane * 2.0f;
+    result.layers = 6;
+    result.footprint = 2.0f; // 90 degrees
     for (int face = 0; face < 6; ++face) {
         glm::mat4 view = glm::lookAtRH(light.position, light.position + axes[face], ups[face]);
-        float n, f;
-        depthRange(view, bounds, n, f);
-        // Every face shares one near plane small enough for the nearest geometry in any direction.
-        glm::vec3 nearest = glm::clamp(light.position, bounds.min, bounds.max);
-        float distance = glm::length(nearest - light.position);
-        n = std::max(distance * 0.5f, f * 1e-4f);
-        if (!(f > n))
-            f = n * 2.0f;
-        out[face] = vulkanClip(glm::perspectiveRH_ZO(glm::radians(90.0f), 1.0f, n, f)) * view;
+        result.viewProj[face] =
+            vulkanClip(glm::perspectiveRH_ZO(glm::radians(90.0f), 1.0f, result.nearPlane, result.farPlane)) * view;
     }
-    return 6;
+    return result;
 }
 
 } // namespace penumbra

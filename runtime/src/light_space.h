@@ -17,9 +17,16 @@ struct ViewProjection {
 // are derived from the bounds.
 ViewProjection cameraViewProjection(const Camera& camera, const Bounds& bounds, float aspect);
 
-// Shadow-map matrices: 1 for directional and spot lights, 6 (+X,-X,+Y,-Y,+Z,-Z)
-// for point and area lights (area lights are shadowed from their centre).
-// Returns the number of layers written to out.
-uint32_t lightViewProjections(const Light& light, const Bounds& bounds, glm::mat4 out[6]);
+// Shadow-map projection of a light: 1 layer for directional and spot lights,
+// 6 (+X,-X,+Y,-Y,+Z,-Z) for point and area lights (area lights are shadowed
+// from their centre for now).
+struct LightProjection {
+    glm::mat4 viewProj[6];
+    uint32_t layers = 1;
+    float nearPlane = 0, farPlane = 1; // light-view depth range of every layer
+    bool perspective = false;
+    float footprint = 1;               // perspective: 2 tan(fov/2); orthographic: map width in model units
+};
+LightProjection lightProjection(const Light& light, const Bounds& bounds);
 
 } // namespace penumbra

@@ -27,6 +27,8 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
     geometry.vertexCount = model.vertices.size();
     geometry.bounds.min = {h.boundsMin[0], h.boundsMin[1], h.boundsMin[2]};
     geometry.bounds.max = {h.boundsMax[0], h.boundsMax[1], h.boundsMax[2]};
+    geometry.maxPositionError = h.maxPositionError;
+    geometry.nodeCount = uint32_t(model.nodes.size());
     try {
         // Chunks of consecutive clusters whose vertices and strips each fit one allocation.
         const VkDeviceSize limit = chunkLimit(device);
@@ -50,11 +52,13 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
             chunk.firstCluster = first;
             chunk.clusterCount = end - first;
             chunk.vertexBase = start.firstVertex;
+            chunk.indexBase = start.firstIndex;
             chunk.vertices = vk::createBufferWithData(device, model.vertices.data() + start.firstVertex,
-                                                      vertexCount * sizeof(model::QuantizedVertex), VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+                                                      vertexCount * sizeof(model::QuantizedVertex), VK_BUFFER_USAGE_VERTEX_BUFFER_BIT,
+                                                      vk::Addressable::Yes);
             geometry.chunks.push_back(chunk); // owned from here on, even if the next upload throws
             geometry.chunks.back().indices = vk::createBufferWithData(device, model.indices.data() + start.firstIndex, indexBytes,
-                                                                      VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+                                                                      VK_BUFFER_USAGE_INDEX_BUFFER_BIT, vk::Addressable::Yes);
             for (uint32_t i = first; i < end; ++i) {
                 const model::ClusterRecord& c = model.clusters[i];
                 commands[i] = {c.indexBytes, 1, c.firstIndex - start.firstIndex, int32_t(c.firstVertex - start.firstVertex), i};
@@ -62,7 +66,16 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
             first = end;
         }
         geometry.clusters = vk::createBufferWithData(device, model.clusters.data(), model.clusters.size_bytes(),
-                                                     VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+                                                     VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, vk::Addressable::Yes);
+        // BVH nodes in power-of-two chunks below the limit, so a shader finds node i in chunk i >> shift.
+        while (geometry.nodeChunkShift < 31 && (VkDeviceSize(sizeof(model::Node)) << (geometry.nodeChunkShift + 1)) <= limit)
+            ++geometry.nodeChunkShift;
+        const size_t nodesPerChunk = size_t(1) << geometry.nodeChunkShift;
+        for (size_t node = 0; node < model.nodes.size(); node += nodesPerChunk) {
+            size_t count = std::min(nodesPerChunk, model.nodes.size() - node);
+            geometry.nodeChunks.push_back(vk::createBufferWithData(device, model.nodes.data() + node, count * sizeof(model::Node),
+                                                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes));
+        }
         geometry.indirect = vk::createBufferWithData(device, commands.data(), commands.size() * sizeof(VkDrawIndexedIndirectCommand),
                                                      VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
     } catch (...) {
@@ -70,7 +83,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         throw;
     }
     geometry.deviceBytes = model.vertices.size_bytes() + model.indices.size_bytes() + model.clusters.size_bytes() +
-                           model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand);
+                           model.nodes.size_bytes() + model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand);
     return geometry;
 }
 
@@ -107,6 +120,8 @@ void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
         vk::destroyBuffer(device, chunk.vertices);
         vk::destroyBuffer(device, chunk.indices);
     }
+    for (vk::Buffer& nodes : geometry.nodeChunks)
+        vk::destroyBuffer(device, nodes);
     vk::destroyBuffer(device, geometry.clusters);
     vk::destroyBuffer(device, geometry.indirect);
     geometry = {};

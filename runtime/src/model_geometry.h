@@ -2,7 +2,9 @@
 // 8-bit triangle strips with primitive restart, R16G16B16A16_UINT vertices
 // dequantized in the vertex shader with the cluster box taken per instance
 // from the ClusterRecord array, one indirect draw per cluster. Buffers are
-// split into chunks below the device's allocation limit.
+// split into chunks below the device's allocation limit. The compressed
+// buffers (and the BVH nodes) are also readable by shaders through their
+// device addresses (the ray tracer).
 #pragma once
 
 #include <functional>
@@ -26,15 +28,22 @@ struct GpuGeometry {
         uint32_t firstCluster = 0;
         uint32_t clusterCount = 0;
         uint64_t vertexBase = 0;  // global index of the chunk's first vertex
+        uint64_t indexBase = 0;   // byte offset in Indices of the chunk's first strip byte
         uint64_t indexCount = 0;  // reference path: indices to draw
     };
     GeometryEncoding encoding = GeometryEncoding::Compressed;
     std::vector<Chunk> chunks;
     vk::Buffer clusters;          // ClusterRecord[] as per-instance vertex data (reference: one identity record)
     vk::Buffer indirect;          // VkDrawIndexedIndirectCommand per cluster
+    // The BVH (model::Node[]) for the ray tracer, in chunks of 2^nodeChunkShift
+    // nodes (node i is in nodeChunks[i >> nodeChunkShift]); compressed only.
+    std::vector<vk::Buffer> nodeChunks;
+    uint32_t nodeChunkShift = 0;
+    uint32_t nodeCount = 0;
+    float maxPositionError = 0;   // header.maxPositionError, model units
     uint64_t triangles = 0;
     uint64_t vertexCount = 0;
-    Bounds bounds;
+    Bounds bounds;                // compressed: the header's (root node) bounds
     uint64_t deviceBytes = 0;     // bytes of all model buffers
 };
 

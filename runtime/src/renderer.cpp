@@ -14,6 +14,7 @@
 #include "penumbra/preprocess.h"
 #include "penumbra/penumbra.h"
 #include "penumbra/shaders/registry.h"
+#include "ray_tracer.h"
 #include "resources.h"
 
 namespace penumbra {
@@ -25,11 +26,12 @@ constexpr VkFormat kNormalFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat kColorFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat kVisibilityFormat = VK_FORMAT_R32_SFLOAT;
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
+constexpr VkFormat kThinFormat = VK_FORMAT_R32_SFLOAT;
 constexpr uint32_t kMaxTimestamps = 64;
 
 // Named passes, in the order stats report them.
-enum Pass : uint32_t { PassCamera, PassShadowMap, PassShade, PassReadback, PassCount };
-constexpr const char* kPassNames[PassCount] = {"camera", "shadow_map", "shade", "readback"};
+enum Pass : uint32_t { PassCamera, PassShadowMap, PassThinTriangles, PassClassify, PassCompact, PassTrace, PassShade, PassReadback, PassCount };
+constexpr const char* kPassNames[PassCount] = {"camera", "shadow_map", "thin_triangles", "classify", "compact", "trace", "shade", "readback"};
 
 VkShaderModule createShaderModule(vk::Device& device, const char* name)
 {
@@ -47,10 +49,12 @@ VkShaderModule createShaderModule(vk::Device& device, const char* name)
 
 struct GraphicsPipelineDesc {
     std::string vertexShader;                 // registry name; ".float" is appended for the reference encoding
+    const char* geometryShader = nullptr;     // optional
     const char* fragmentShader = nullptr;     // null: depth only
     std::vector<VkFormat> colorFormats;
     bool depthBias = false;
     bool depthAttachment = true;
+    bool blendMin = false;                    // colour attachments blend with VK_BLEND_OP_MIN
     bool rasterizerDiscard = false;
     GeometryEncoding encoding = GeometryEncoding::Compressed;
     VkPipelineLayout layout = VK_NULL_HANDLE;
@@ -61,14 +65,17 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     std::string vertexName = desc.vertexShader + (desc.encoding == GeometryEncoding::UncompressedReference ? ".float" : "");
     VkShaderModule vertex = createShaderModule(device, vertexName.c_str());
     VkShaderModule fragment = desc.fragmentShader ? createShaderModule(device, desc.fragmentShader) : VK_NULL_HANDLE;
-    VkPipelineShaderStageCreateInfo stages[2] = {{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO},
-                                                 {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO}};
-    stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
-    stages[0].module = vertex;
-    stages[0].pName = "main";
-    stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
-    stages[1].module = fragment;
-    stages[1].pName = "main";
+    VkShaderModule geometry = desc.geometryShader ? createShaderModule(device, desc.geometryShader) : VK_NULL_HANDLE;
+    std::vector<VkPipelineShaderStageCreateInfo> stages;
+    for (auto [stage, module] : {std::pair{VK_SHADER_STAGE_VERTEX_BIT, vertex}, std::pair{VK_SHADER_STAGE_GEOMETRY_BIT, geometry},
+                                 std::pair{VK_SHADER_STAGE_FRAGMENT_BIT, fragment}})
+        if (module) {
+            VkPipelineShaderStageCreateInfo info{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+            info.stage = stage;
+            info.module = module;
+            info.pName = "main";
+            stages.push_back(info);
+        }
 
     GeometryInputState input = geometryInputState(desc.encoding);
     VkPipelineVertexInputStateCreateInfo vertexInput{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
@@ -98,7 +105,15 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     depth.depthCompareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
     std::vector<VkPipelineColorBlendAttachmentState> blends(desc.colorFormats.size());
     for (auto& blend : blends)
+    {
         blend.colorWriteMask = 0xf;
+        if (desc.blendMin) {
+            blend.blendEnable = VK_TRUE;
+            blend.colorBlendOp = blend.alphaBlendOp = VK_BLEND_OP_MIN;
+            blend.srcColorBlendFactor = blend.dstColorBlendFactor = VK_BLEND_FACTOR_ONE;
+            blend.srcAlphaBlendFactor = blend.dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE;
+        }
+    }
     VkPipelineColorBlendStateCreateInfo blend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
     blend.attachmentCount = uint32_t(blends.size());
     blend.pAttachments = blends.data();
@@ -115,8 +130,8 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     rendering.depthAttachmentFormat = desc.depthAttachment ? kDepthFormat : VK_FORMAT_UNDEFINED;
 
     VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO, &rendering};
-    info.stageCount = fragment ? 2 : 1;
-    info.pStages = stages;
+    info.stageCount = uint32_t(stages.size());
+    info.pStages = stages.data();
     info.pVertexInputState = &vertexInput;
     info.pInputAssemblyState = &assembly;
     info.pViewportState = &viewport;
@@ -128,9 +143,9 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     info.layout = desc.layout;
     VkPipeline pipeline;
     VkResult result = vkCreateGraphicsPipelines(device.device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
-    vkDestroyShaderModule(device.device, vertex, nullptr);
-    if (fragment)
-        vkDestroyShaderModule(device.device, fragment, nullptr);
+    for (VkShaderModule module : {vertex, geometry, fragment})
+        if (module)
+            vkDestroyShaderModule(device.device, module, nullptr);
     VK_CHECK(result);
     return pipeline;
 }
@@ -153,17 +168,34 @@ struct CameraPush {
     glm::vec4 cameraPosition;
 };
 
+struct ThinPush {
+    glm::mat4 viewProj;
+    glm::vec2 mapSize;
+};
+
+struct ClassifyPush {
+    uint32_t lightIndex;
+    uint32_t mode; // 0 sm, 1 srt, 2 frt
+};
+
+struct CompactPush {
+    uint32_t pixelCount;
+    uint32_t phase;
+};
+
 struct ShadePush {
     uint32_t lightIndex;
     uint32_t firstLight;
-    uint32_t writeVisibility;
+    uint32_t debugPip;
     uint32_t pad;
 };
 
 gpu::LightData packLight(const Light& light, const Bounds& bounds)
 {
     gpu::LightData data{};
-    uint32_t layers = lightViewProjections(light, bounds, data.viewProj);
+    LightProjection projection = lightProjection(light, bounds);
+    std::copy(std::begin(projection.viewProj), std::end(projection.viewProj), std::begin(data.viewProj));
+    data.shadowParams = glm::vec4(projection.nearPlane, projection.farPlane, projection.perspective ? 1.0f : 0.0f, projection.footprint);
     uint32_t type = 0;
     switch (light.type) {
     case LightType::Point: type = PENUMBRA_LIGHT_POINT; break;
@@ -177,9 +209,76 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds)
     data.directionRange = glm::vec4(direction, light.range);
     data.colorIntensity = glm::vec4(light.color, light.intensity);
     data.spotCosLayers = glm::vec4(std::cos(glm::radians(light.innerConeDegrees)), std::cos(glm::radians(light.outerConeDegrees)),
-                                   float(layers), 0.0f);
+                                   float(projection.layers), 0.0f);
     return data;
 }
+
+VkDescriptorSetLayout createSetLayout(vk::Device& device, const std::vector<VkDescriptorType>& types, VkShaderStageFlags stages)
+{
+    std::vector<VkDescriptorSetLayoutBinding> bindings;
+    for (uint32_t i = 0; i < types.size(); ++i)
+        bindings.push_back({i, types[i], 1, stages, nullptr});
+    VkDescriptorSetLayoutCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    info.bindingCount = uint32_t(bindings.size());
+    info.pBindings = bindings.data();
+    VkDescriptorSetLayout layout;
+    VK_CHECK(vkCreateDescriptorSetLayout(device.device, &info, nullptr, &layout));
+    return layout;
+}
+
+// One descriptor of a set: an image view (+ sampler) or a whole buffer.
+struct Binding {
+    VkDescriptorType type;
+    VkImageView view = VK_NULL_HANDLE;
+    VkSampler sampler = VK_NULL_HANDLE;
+    VkBuffer buffer = VK_NULL_HANDLE;
+    VkImageLayout layout = VK_IMAGE_LAYOUT_GENERAL;
+};
+
+void writeSet(vk::Device& device, VkDescriptorSet set, const std::vector<Binding>& bindings)
+{
+    std::vector<VkDescriptorImageInfo> images(bindings.size());
+    std::vector<VkDescriptorBufferInfo> buffers(bindings.size());
+    std::vector<VkWriteDescriptorSet> writes;
+    for (uint32_t i = 0; i < bindings.size(); ++i) {
+        const Binding& b = bindings[i];
+        VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+        write.dstSet = set;
+        write.dstBinding = i;
+        write.descriptorCount = 1;
+        write.descriptorType = b.type;
+        if (b.buffer) {
+            buffers[i] = {b.buffer, 0, VK_WHOLE_SIZE};
+            write.pBufferInfo = &buffers[i];
+        } else {
+            images[i] = {b.sampler, b.view, b.layout};
+            write.pImageInfo = &images[i];
+        }
+        writes.push_back(write);
+    }
+    vkUpdateDescriptorSets(device.device, uint32_t(writes.size()), writes.data(), 0, nullptr);
+}
+
+VkPipeline createComputePipeline(vk::Device& device, const char* shader, VkPipelineLayout layout)
+{
+    VkShaderModule module = createShaderModule(device, shader);
+    VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    info.stage.module = module;
+    info.stage.pName = "main";
+    info.layout = layout;
+    VkPipeline pipeline;
+    VkResult result = vkCreateComputePipelines(device.device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
+    vkDestroyShaderModule(device.device, module, nullptr);
+    VK_CHECK(result);
+    return pipeline;
+}
+
+constexpr VkDescriptorType kStorageImage = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+constexpr VkDescriptorType kUniform = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+constexpr VkDescriptorType kStorage = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
 
 } // namespace
 
@@ -190,21 +289,24 @@ struct Renderer::Impl {
     std::optional<Camera> camera;
     std::vector<Light> lights;
     // Pipelines
-    VkDescriptorSetLayout shadeSetLayout = VK_NULL_HANDLE;
-    VkPipelineLayout gbufferLayout = VK_NULL_HANDLE, shadowLayout = VK_NULL_HANDLE, shadeLayout = VK_NULL_HANDLE;
+    VkDescriptorSetLayout classifySetLayout = VK_NULL_HANDLE, compactSetLayout = VK_NULL_HANDLE, shadeSetLayout = VK_NULL_HANDLE;
+    VkPipelineLayout gbufferLayout = VK_NULL_HANDLE, shadowLayout = VK_NULL_HANDLE, thinLayout = VK_NULL_HANDLE;
+    VkPipelineLayout classifyLayout = VK_NULL_HANDLE, compactLayout = VK_NULL_HANDLE, shadeLayout = VK_NULL_HANDLE;
     // Raster pipelines per geometry encoding (index: GeometryEncoding).
-    VkPipeline gbufferPipelines[2] = {}, shadowPipelines[2] = {};
-    VkPipeline shadePipeline = VK_NULL_HANDLE;
+    VkPipeline gbufferPipelines[2] = {}, shadowPipelines[2] = {}, thinPipelines[2] = {};
+    VkPipeline classifyPipeline = VK_NULL_HANDLE, compactPipeline = VK_NULL_HANDLE, shadePipeline = VK_NULL_HANDLE;
+    RayTracer tracer;
     VkSampler nearestSampler = VK_NULL_HANDLE;
     VkDescriptorPool descriptorPool = VK_NULL_HANDLE;
-    VkDescriptorSet shadeSet = VK_NULL_HANDLE;
+    VkDescriptorSet classifySet = VK_NULL_HANDLE, compactSet = VK_NULL_HANDLE, shadeSet = VK_NULL_HANDLE;
     VkQueryPool queryPool = VK_NULL_HANDLE;
     VkCommandBuffer commandBuffer = VK_NULL_HANDLE;
     VkFence fence = VK_NULL_HANDLE;
     // Targets, recreated when the size changes
     uint32_t width = 0, height = 0, shadowSize = 0, shadowLayers = 0;
-    vk::Image position, normal, depth, color, visibility, shadowMap;
-    vk::Buffer frameUniforms, readbackColor, readbackPosition, readbackNormal, readbackVisibility;
+    vk::Image position, normal, depth, color, visibility, shadowMap, thinMap;
+    vk::Buffer frameUniforms, stats, marks, rayList;
+    vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
 
     explicit Impl(const RendererOptions& options)
     {
@@ -220,22 +322,17 @@ struct Renderer::Impl {
 
     void createPipelines()
     {
-        VkDescriptorSetLayoutBinding bindings[6] = {
-            {0, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {1, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {2, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {3, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {4, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {5, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-        };
-        VkDescriptorSetLayoutCreateInfo setInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-        setInfo.bindingCount = 6;
-        setInfo.pBindings = bindings;
-        VK_CHECK(vkCreateDescriptorSetLayout(device.device, &setInfo, nullptr, &shadeSetLayout));
+        const VkShaderStageFlags compute = VK_SHADER_STAGE_COMPUTE_BIT;
+        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kSampled, kStorageImage, kUniform, kStorage, kStorage}, compute);
+        compactSetLayout = createSetLayout(device, {kStorage, kStorage}, compute);
+        shadeSetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage}, compute);
 
         gbufferLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(CameraPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
         shadowLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(glm::mat4), VK_SHADER_STAGE_VERTEX_BIT);
-        shadeLayout = createPipelineLayout(device, shadeSetLayout, sizeof(ShadePush), VK_SHADER_STAGE_COMPUTE_BIT);
+        thinLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(ThinPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_GEOMETRY_BIT);
+        classifyLayout = createPipelineLayout(device, classifySetLayout, sizeof(ClassifyPush), compute);
+        compactLayout = createPipelineLayout(device, compactSetLayout, sizeof(CompactPush), compute);
+        shadeLayout = createPipelineLayout(device, shadeSetLayout, sizeof(ShadePush), compute);
 
         for (GeometryEncoding encoding : {GeometryEncoding::Compressed, GeometryEncoding::UncompressedReference}) {
             GraphicsPipelineDesc gbuffer;
@@ -252,37 +349,44 @@ struct Renderer::Impl {
             shadow.layout = shadowLayout;
             shadow.encoding = encoding;
             shadowPipelines[int(encoding)] = createGraphicsPipeline(device, shadow);
-        }
 
-        VkShaderModule shade = createShaderModule(device, "shade.comp");
-        VkComputePipelineCreateInfo computeInfo{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-        computeInfo.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-        computeInfo.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-        computeInfo.stage.module = shade;
-        computeInfo.stage.pName = "main";
-        computeInfo.layout = shadeLayout;
-        VkResult result = vkCreateComputePipelines(device.device, VK_NULL_HANDLE, 1, &computeInfo, nullptr, &shadePipeline);
-        vkDestroyShaderModule(device.device, shade, nullptr);
-        VK_CHECK(result);
+            GraphicsPipelineDesc thin;
+            thin.vertexShader = "shadow_map.vert";
+            thin.geometryShader = "thin_triangles.geom";
+            thin.fragmentShader = "thin_triangles.frag";
+            thin.colorFormats = {kThinFormat};
+            thin.depthAttachment = false;
+            thin.blendMin = true;
+            thin.layout = thinLayout;
+            thin.encoding = encoding;
+            thinPipelines[int(encoding)] = createGraphicsPipeline(device, thin);
+        }
+        classifyPipeline = createComputePipeline(device, "classify.comp", classifyLayout);
+        compactPipeline = createComputePipeline(device, "compact.comp", compactLayout);
+        shadePipeline = createComputePipeline(device, "shade.comp", shadeLayout);
+        createRayTracer(device, tracer);
 
         VkSamplerCreateInfo samplerInfo{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
         samplerInfo.magFilter = samplerInfo.minFilter = VK_FILTER_NEAREST;
         samplerInfo.addressModeU = samplerInfo.addressModeV = samplerInfo.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
         VK_CHECK(vkCreateSampler(device.device, &samplerInfo, nullptr, &nearestSampler));
 
-        VkDescriptorPoolSize poolSizes[3] = {{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 4},
-                                             {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-                                             {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1}};
+        VkDescriptorPoolSize poolSizes[4] = {{kStorageImage, 16}, {kSampled, 4}, {kUniform, 4}, {kStorage, 8}};
         VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-        poolInfo.maxSets = 1;
-        poolInfo.poolSizeCount = 3;
+        poolInfo.maxSets = 3;
+        poolInfo.poolSizeCount = 4;
         poolInfo.pPoolSizes = poolSizes;
         VK_CHECK(vkCreateDescriptorPool(device.device, &poolInfo, nullptr, &descriptorPool));
+        VkDescriptorSetLayout layouts[3] = {classifySetLayout, compactSetLayout, shadeSetLayout};
+        VkDescriptorSet sets[3];
         VkDescriptorSetAllocateInfo allocInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
         allocInfo.descriptorPool = descriptorPool;
-        allocInfo.descriptorSetCount = 1;
-        allocInfo.pSetLayouts = &shadeSetLayout;
-        VK_CHECK(vkAllocateDescriptorSets(device.device, &allocInfo, &shadeSet));
+        allocInfo.descriptorSetCount = 3;
+        allocInfo.pSetLayouts = layouts;
+        VK_CHECK(vkAllocateDescriptorSets(device.device, &allocInfo, sets));
+        classifySet = sets[0];
+        compactSet = sets[1];
+        shadeSet = sets[2];
 
         VkQueryPoolCreateInfo queryInfo{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
         queryInfo.queryType = VK_QUERY_TYPE_TIMESTAMP;
@@ -298,13 +402,15 @@ struct Renderer::Impl {
         VK_CHECK(vkCreateFence(device.device, &fenceInfo, nullptr, &fence));
 
         frameUniforms = vk::createBuffer(device, sizeof(gpu::FrameData), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUse::Upload);
+        stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint32_t),
+                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
     }
 
     void destroyTargets()
     {
         for (vk::Image* image : {&position, &normal, &depth, &color, &visibility})
             vk::destroyImage(device, *image);
-        for (vk::Buffer* buffer : {&readbackColor, &readbackPosition, &readbackNormal, &readbackVisibility})
+        for (vk::Buffer* buffer : {&marks, &rayList, &readbackColor, &readbackPosition, &readbackNormal, &readbackVisibility})
             vk::destroyBuffer(device, *buffer);
         width = height = 0;
     }
@@ -318,18 +424,23 @@ struct Renderer::Impl {
         vkDeviceWaitIdle(device.device);
         destroyTargets();
         vk::destroyImage(device, shadowMap);
+        vk::destroyImage(device, thinMap);
         destroyGeometry(device, geometry);
+        destroyRayTracer(device, tracer);
         vk::destroyBuffer(device, frameUniforms);
+        vk::destroyBuffer(device, stats);
         VkDevice d = device.device;
         if (fence) vkDestroyFence(d, fence, nullptr);
         if (queryPool) vkDestroyQueryPool(d, queryPool, nullptr);
         if (descriptorPool) vkDestroyDescriptorPool(d, descriptorPool, nullptr);
         if (nearestSampler) vkDestroySampler(d, nearestSampler, nullptr);
-        for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1], shadePipeline})
+        for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1], thinPipelines[0],
+                             thinPipelines[1], classifyPipeline, compactPipeline, shadePipeline})
             if (p) vkDestroyPipeline(d, p, nullptr);
-        for (VkPipelineLayout l : {gbufferLayout, shadowLayout, shadeLayout})
+        for (VkPipelineLayout l : {gbufferLayout, shadowLayout, thinLayout, classifyLayout, compactLayout, shadeLayout})
             if (l) vkDestroyPipelineLayout(d, l, nullptr);
-        if (shadeSetLayout) vkDestroyDescriptorSetLayout(d, shadeSetLayout, nullptr);
+        for (VkDescriptorSetLayout l : {classifySetLayout, compactSetLayout, shadeSetLayout})
+            if (l) vkDestroyDescriptorSetLayout(d, l, nullptr);
         vk::destroyDevice(device);
     }
 
@@ -348,44 +459,58 @@ struct Renderer::Impl {
             depth = vk::createImage(device, w, h, 1, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT);
             color = vk::createImage(device, w, h, 1, kColorFormat, storage);
             visibility = vk::createImage(device, w, h, 1, kVisibilityFormat, storage);
+            VkDeviceSize pixels = VkDeviceSize(w) * h;
+            marks = vk::createBuffer(device, pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
+            rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4,
+                                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                       vk::MemoryUse::DeviceLocal);
             VkBufferUsageFlags dst = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-            readbackColor = vk::createBuffer(device, VkDeviceSize(w) * h * 16, dst, vk::MemoryUse::Readback);
-            readbackPosition = vk::createBuffer(device, VkDeviceSize(w) * h * 16, dst, vk::MemoryUse::Readback);
-            readbackNormal = vk::createBuffer(device, VkDeviceSize(w) * h * 16, dst, vk::MemoryUse::Readback);
-            readbackVisibility = vk::createBuffer(device, VkDeviceSize(w) * h * 4, dst, vk::MemoryUse::Readback);
+            readbackColor = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
+            readbackPosition = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
+            readbackNormal = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
+            readbackVisibility = vk::createBuffer(device, pixels * 4, dst, vk::MemoryUse::Readback);
             width = w;
             height = h;
         }
         if (shadowResized) {
             vk::destroyImage(device, shadowMap);
+            vk::destroyImage(device, thinMap);
             shadowMap = vk::createImage(device, smSize, smSize, smLayers, kDepthFormat,
-                                        VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT);
+                                        VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT, true);
+            // The thin map stays in GENERAL: rendered in srt frames, sampled (cleared to "nothing thin") otherwise.
+            thinMap = vk::createImage(device, smSize, smSize, smLayers, kThinFormat,
+                                      VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, true);
+            vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
+                vk::transition(cmd, shadowMap, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, 0,
+                               VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
+                vk::transition(cmd, thinMap, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_NONE, 0,
+                               VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+                VkClearColorValue far{{1.0f, 1.0f, 1.0f, 1.0f}};
+                VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, smLayers};
+                vkCmdClearColorImage(cmd, thinMap.image, VK_IMAGE_LAYOUT_GENERAL, &far, 1, &range);
+                vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                                  VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
+            });
             shadowSize = smSize;
             shadowLayers = smLayers;
         }
-        VkDescriptorImageInfo images[5] = {
-            {VK_NULL_HANDLE, position.view, VK_IMAGE_LAYOUT_GENERAL},
-            {VK_NULL_HANDLE, normal.view, VK_IMAGE_LAYOUT_GENERAL},
-            {nearestSampler, shadowMap.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-            {VK_NULL_HANDLE, color.view, VK_IMAGE_LAYOUT_GENERAL},
-            {VK_NULL_HANDLE, visibility.view, VK_IMAGE_LAYOUT_GENERAL},
-        };
-        VkDescriptorBufferInfo uniforms{frameUniforms.buffer, 0, sizeof(gpu::FrameData)};
-        VkWriteDescriptorSet writes[6];
-        for (uint32_t i = 0; i < 6; ++i) {
-            writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-            writes[i].dstSet = shadeSet;
-            writes[i].dstBinding = i;
-            writes[i].descriptorCount = 1;
-            writes[i].descriptorType = i == 2 ? VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER
-                                       : i == 5 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
-                                                : VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-            if (i < 5)
-                writes[i].pImageInfo = &images[i];
-            else
-                writes[i].pBufferInfo = &uniforms;
-        }
-        vkUpdateDescriptorSets(device.device, 6, writes, 0, nullptr);
+        writeSet(device, classifySet, {{kStorageImage, position.view}, {kStorageImage, normal.view},
+                                       {kSampled, shadowMap.view, nearestSampler, {}, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+                                       {kSampled, thinMap.view, nearestSampler},
+                                       {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
+                                       {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer}});
+        writeSet(device, compactSet, {{kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, rayList.buffer}});
+        writeSet(device, shadeSet, {{kStorageImage, position.view}, {kStorageImage, normal.view}, {kStorageImage, color.view},
+                                    {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
+                                    {kStorage, {}, {}, marks.buffer}});
+        TraceBindings trace;
+        trace.position = position.view;
+        trace.normal = normal.view;
+        trace.visibility = visibility.view;
+        trace.frameUniforms = frameUniforms.buffer;
+        trace.rayList = rayList.buffer;
+        trace.stats = stats.buffer;
+        bindRayTracerTargets(device, tracer, trace);
     }
 
     void setGeometry(GpuGeometry uploaded)
@@ -393,6 +518,8 @@ struct Renderer::Impl {
         vkDeviceWaitIdle(device.device);
         destroyGeometry(device, geometry);
         geometry = std::move(uploaded);
+        if (geometry.encoding == GeometryEncoding::Compressed)
+            bindRayTracerModel(device, tracer, geometry);
     }
 
     std::vector<float> decodeVerticesOnGpu();
@@ -412,12 +539,17 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
 {
     if (!geometry.triangles)
         fail("render", "no model loaded");
-    const Bounds& bounds = geometry.bounds;
     if (settings.width == 0 || settings.height == 0 || settings.width > 16384 || settings.height > 16384)
         fail("render", "image size must be 1..16384 pixels per side");
     if (settings.shadowMapSize < 16 || settings.shadowMapSize > device.properties.limits.maxImageDimension2D)
         fail("render", "shadow-map size must be 16.." + std::to_string(device.properties.limits.maxImageDimension2D));
+    if (settings.shadows != ShadowMethod::ShadowMap && geometry.encoding != GeometryEncoding::Compressed)
+        fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
     auto cpuStart = std::chrono::steady_clock::now();
+    const Bounds& bounds = geometry.bounds;
+    const bool traced = settings.shadows != ShadowMethod::ShadowMap;
+    const bool selective = settings.shadows == ShadowMethod::Selective;
+    const float rayOffset = settings.rayOffset > 0.0f ? settings.rayOffset : shadowRayOffset(bounds, geometry.maxPositionError);
 
     std::vector<Light> frameLights = lights.empty() ? std::vector<Light>{defaultLight()} : lights;
     Camera frameCamera = camera ? *camera : defaultCamera(bounds);
@@ -428,6 +560,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     frameData.cameraPosition = glm::vec4(view.eye, 1.0f);
     frameData.shading = glm::vec4(settings.ambient, settings.albedo, 0.0f, 0.0f);
     frameData.background = glm::vec4(settings.background[0], settings.background[1], settings.background[2], 1.0f);
+    frameData.pip = glm::vec4(float(PENUMBRA_PIP_DELTA_FRACTION), 0.0f, 0.0f, 0.0f);
     uint32_t maxLayers = 1;
     for (size_t i = 0; i < frameLights.size(); ++i) {
         frameData.lights[i] = packLight(frameLights[i], bounds);
@@ -445,18 +578,26 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
 
     std::vector<Pass> timestampPass;   // pass of the interval ending at timestamp i
     auto timestamp = [&](Pass endedPass) {
+        if (timestampPass.size() >= kMaxTimestamps)
+            fail("render", "too many timestamps");
         timestampPass.push_back(endedPass);
         vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queryPool, uint32_t(timestampPass.size() - 1));
     };
     timestamp(PassCount);
 
-    // Camera pass: G-buffer.
     using vk::transition;
     constexpr VkPipelineStageFlags2 kNone = VK_PIPELINE_STAGE_2_NONE;
     constexpr VkPipelineStageFlags2 kColorOut = VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
     constexpr VkPipelineStageFlags2 kDepthTests = VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
     constexpr VkPipelineStageFlags2 kCompute = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
     constexpr VkPipelineStageFlags2 kCopy = VK_PIPELINE_STAGE_2_COPY_BIT;
+    constexpr VkPipelineStageFlags2 kClear = VK_PIPELINE_STAGE_2_CLEAR_BIT;
+    constexpr VkAccessFlags2 kStorageRW = VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
+
+    vkCmdFillBuffer(cmd, stats.buffer, 0, VK_WHOLE_SIZE, 0);
+    vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+
+    // Camera pass: G-buffer.
     for (vk::Image* image : {&position, &normal})
         transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, kNone, 0, kColorOut,
                    VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT);
@@ -497,16 +638,19 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         transition(cmd, *image, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL, kColorOut,
                    VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT, kCompute | kCopy, VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_TRANSFER_READ_BIT);
     for (vk::Image* image : {&color, &visibility})
-        transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute,
-                   VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+        transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);
 
-    // Per light: shadow map (moving light: re-rendered every frame), then shade.
-    VkImageLayout shadowMapLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    for (uint32_t lightIndex = 0; lightIndex < frameLights.size(); ++lightIndex) {
+    const uint32_t groupsX = (width + 7) / 8, groupsY = (height + 7) / 8;
+    const uint32_t pixelCount = width * height;
+    // Lights in reverse order, so that the visibility image ends with light 0's (readback).
+    for (uint32_t step = 0; step < frameLights.size(); ++step) {
+        const uint32_t lightIndex = uint32_t(frameLights.size()) - 1 - step;
         const gpu::LightData& light = frameData.lights[lightIndex];
-        uint32_t layers = uint32_t(light.spotCosLayers.z);
-        transition(cmd, shadowMap, shadowMapLayout, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, kCompute, 0, kDepthTests,
-                   VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
+        const uint32_t layers = uint32_t(light.spotCosLayers.z);
+
+        // Shadow map from the light, every frame (moving light).
+        transition(cmd, shadowMap, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, kCompute, 0,
+                   kDepthTests, VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
         for (uint32_t layer = 0; layer < layers; ++layer) {
             VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
             depthAttachment.imageView = shadowMap.layerViews[layer];
@@ -526,20 +670,78 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             drawGeometry(cmd, geometry);
             vkCmdEndRendering(cmd);
         }
-        timestamp(PassShadowMap);
         transition(cmd, shadowMap, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, kDepthTests,
                    VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
-        shadowMapLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+        timestamp(PassShadowMap);
+
+        // Thin triangles, rasterized conservatively (srt only).
+        if (selective) {
+            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, kColorOut,
+                              VK_ACCESS_2_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT);
+            for (uint32_t layer = 0; layer < layers; ++layer) {
+                VkRenderingAttachmentInfo target{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+                target.imageView = thinMap.layerViews[layer];
+                target.imageLayout = VK_IMAGE_LAYOUT_GENERAL;
+                target.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+                target.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+                target.clearValue.color = {{1.0f, 1.0f, 1.0f, 1.0f}};
+                VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
+                rendering.renderArea = {{0, 0}, {shadowSize, shadowSize}};
+                rendering.layerCount = 1;
+                rendering.colorAttachmentCount = 1;
+                rendering.pColorAttachments = &target;
+                vkCmdBeginRendering(cmd, &rendering);
+                vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, thinPipelines[int(geometry.encoding)]);
+                setViewport(cmd, shadowSize, shadowSize);
+                ThinPush push{light.viewProj[layer], glm::vec2(float(shadowSize))};
+                vkCmdPushConstants(cmd, thinLayout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(push), &push);
+                drawGeometry(cmd, geometry);
+                vkCmdEndRendering(cmd);
+            }
+            vk::memoryBarrier(cmd, kColorOut, VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
+            timestamp(PassThinTriangles);
+        }
+
+        // Visibility from the shadow map, and the pixels that get rays.
+        if (traced) {
+            vkCmdFillBuffer(cmd, rayList.buffer, 0, PENUMBRA_RAY_LIST_HEADER_UINTS * 4, 0);
+            vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+        }
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, classifyPipeline);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, classifyLayout, 0, 1, &classifySet, 0, nullptr);
+        ClassifyPush classify{lightIndex, uint32_t(settings.shadows)};
+        vkCmdPushConstants(cmd, classifyLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(classify), &classify);
+        vkCmdDispatch(cmd, groupsX, groupsY, 1);
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
+        timestamp(PassClassify);
+
+        if (traced) {
+            // Compaction into a dense ray list, then the indirect dispatch size.
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compactPipeline);
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compactLayout, 0, 1, &compactSet, 0, nullptr);
+            CompactPush compact{pixelCount, 0};
+            vkCmdPushConstants(cmd, compactLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(compact), &compact);
+            vkCmdDispatch(cmd, (pixelCount + PENUMBRA_COMPACT_GROUP_SIZE - 1) / PENUMBRA_COMPACT_GROUP_SIZE, 1, 1);
+            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
+            compact.phase = 1;
+            vkCmdPushConstants(cmd, compactLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(compact), &compact);
+            vkCmdDispatch(cmd, 1, 1, 1);
+            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                              kStorageRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+            timestamp(PassCompact);
+
+            recordTrace(cmd, tracer, lightIndex, rayOffset);
+            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
+            timestamp(PassTrace);
+        }
 
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadeLayout, 0, 1, &shadeSet, 0, nullptr);
-        ShadePush push{lightIndex, lightIndex == 0 ? 1u : 0u, lightIndex == 0 ? 1u : 0u, 0u};
-        vkCmdPushConstants(cmd, shadeLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-        vkCmdDispatch(cmd, (width + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE,
-                      (height + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE, 1);
-        // Next light's shade reads the accumulated colour.
-        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute | kCopy,
-                          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_TRANSFER_READ_BIT);
+        ShadePush shade{lightIndex, step == 0 ? 1u : 0u, settings.debugPip && traced ? 1u : 0u, 0u};
+        vkCmdPushConstants(cmd, shadeLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(shade), &shade);
+        vkCmdDispatch(cmd, groupsX, groupsY, 1);
+        // The next light's passes read the accumulated colour and rewrite visibility and marks.
+        vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute | kCopy, kStorageRW | VK_ACCESS_2_TRANSFER_READ_BIT);
         timestamp(PassShade);
     }
 
@@ -558,7 +760,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         copyImage(normal, readbackNormal);
         copyImage(visibility, readbackVisibility);
     }
-    vk::memoryBarrier(cmd, kCopy, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
+    vk::memoryBarrier(cmd, kCopy | kCompute, VK_ACCESS_2_TRANSFER_WRITE_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                      VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
     timestamp(PassReadback);
     VK_CHECK(vkEndCommandBuffer(cmd));
 
@@ -573,34 +776,46 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     frame.color.width = width;
     frame.color.height = height;
     size_t pixels = size_t(width) * height;
-    frame.color.rgba.assign(static_cast<const float*>(readbackColor.mapped), static_cast<const float*>(readbackColor.mapped) + pixels * 4);
+    auto floats = [](const vk::Buffer& buffer) { return static_cast<const float*>(buffer.mapped); };
+    frame.color.rgba.assign(floats(readbackColor), floats(readbackColor) + pixels * 4);
     if (settings.readbackGBuffer) {
-        frame.positions.assign(static_cast<const float*>(readbackPosition.mapped),
-                               static_cast<const float*>(readbackPosition.mapped) + pixels * 4);
-        frame.normals.assign(static_cast<const float*>(readbackNormal.mapped),
-                             static_cast<const float*>(readbackNormal.mapped) + pixels * 4);
-        frame.visibility.assign(static_cast<const float*>(readbackVisibility.mapped),
-                                static_cast<const float*>(readbackVisibility.mapped) + pixels);
+        frame.positions.assign(floats(readbackPosition), floats(readbackPosition) + pixels * 4);
+        frame.normals.assign(floats(readbackNormal), floats(readbackNormal) + pixels * 4);
+        frame.visibility.assign(floats(readbackVisibility), floats(readbackVisibility) + pixels);
     }
 
-    // Timings.
+    // Timings and counters.
     std::vector<uint64_t> ticks(timestampPass.size());
     VK_CHECK(vkGetQueryPoolResults(device.device, queryPool, 0, uint32_t(ticks.size()), ticks.size() * sizeof(uint64_t), ticks.data(),
                                    sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
     double period = device.properties.limits.timestampPeriod * 1e-6; // ms per tick
     double passMs[PassCount] = {};
-    for (size_t i = 1; i < ticks.size(); ++i)
+    bool ran[PassCount] = {};
+    for (size_t i = 1; i < ticks.size(); ++i) {
         passMs[timestampPass[i]] += double(ticks[i] - ticks[i - 1]) * period;
-    FrameStats& stats = frame.stats;
-    stats.triangles = geometry.triangles;
-    stats.width = width;
-    stats.height = height;
-    stats.lights = uint32_t(frameLights.size());
-    stats.device = device.info;
+        ran[timestampPass[i]] = true;
+    }
+    const uint32_t* counters = static_cast<const uint32_t*>(stats.mapped);
+    FrameStats& out = frame.stats;
+    out.triangles = geometry.triangles;
+    out.width = width;
+    out.height = height;
+    out.lights = uint32_t(frameLights.size());
+    out.shadows = settings.shadows;
+    out.coveredPixels = counters[PENUMBRA_STAT_COVERED] / std::max<uint32_t>(out.lights, 1);
+    out.pipPixels = counters[PENUMBRA_STAT_PIP];
+    out.pipFraction = out.coveredPixels ? double(out.pipPixels) / (double(out.coveredPixels) * out.lights) : 0.0;
+    out.rays = counters[PENUMBRA_STAT_RAYS];
+    out.nodesVisited = counters[PENUMBRA_STAT_NODES];
+    out.leavesVisited = counters[PENUMBRA_STAT_LEAVES];
+    out.triangleTests = counters[PENUMBRA_STAT_TRIANGLES];
+    out.rayOffset = traced ? rayOffset : 0.0f;
+    out.device = device.info;
     for (uint32_t pass = 0; pass < PassCount; ++pass)
-        stats.passes.push_back({kPassNames[pass], passMs[pass]});
-    stats.gpuMs = double(ticks.back() - ticks.front()) * period;
-    stats.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - cpuStart).count();
+        if (ran[pass])
+            out.passes.push_back({kPassNames[pass], passMs[pass]});
+    out.gpuMs = double(ticks.back() - ticks.front()) * period;
+    out.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - cpuStart).count();
     return frame;
 }
 

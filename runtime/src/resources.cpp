@@ -15,9 +15,14 @@ uint32_t findMemoryType(const Device& device, uint32_t typeBits, VkMemoryPropert
     fail("vulkan", "no memory type with the required properties");
 }
 
-VkDeviceMemory allocate(Device& device, VkMemoryRequirements requirements, VkMemoryPropertyFlags required, VkMemoryPropertyFlags preferred)
+VkDeviceMemory allocate(Device& device, VkMemoryRequirements requirements, VkMemoryPropertyFlags required, VkMemoryPropertyFlags preferred,
+                        Addressable addressable = Addressable::No)
 {
+    VkMemoryAllocateFlagsInfo flags{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
+    flags.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
     VkMemoryAllocateInfo info{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    if (addressable == Addressable::Yes)
+        info.pNext = &flags;
     info.allocationSize = requirements.size;
     info.memoryTypeIndex = findMemoryType(device, requirements.memoryTypeBits, required, preferred);
     VkDeviceMemory memory = VK_NULL_HANDLE;
@@ -40,13 +45,15 @@ bool deviceLocalIsHostVisible(const Device& device)
 
 } // namespace
 
-Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage, MemoryUse use)
+Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage, MemoryUse use, Addressable addressable)
 {
     Buffer buffer;
     buffer.size = size;
     VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
     info.size = size;
     info.usage = usage;
+    if (addressable == Addressable::Yes)
+        info.usage |= VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
     VK_CHECK(vkCreateBuffer(device.device, &info, nullptr, &buffer.buffer));
     VkMemoryRequirements requirements;
     vkGetBufferMemoryRequirements(device.device, buffer.buffer, &requirements);
@@ -64,7 +71,7 @@ Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage,
         break;
     }
     try {
-        buffer.memory = allocate(device, requirements, required, preferred);
+        buffer.memory = allocate(device, requirements, required, preferred, addressable);
     } catch (...) {
         vkDestroyBuffer(device.device, buffer.buffer, nullptr);
         throw;
@@ -84,14 +91,14 @@ void destroyBuffer(Device& device, Buffer& buffer)
     buffer = {};
 }
 
-Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage)
+Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage, Addressable addressable)
 {
     if (deviceLocalIsHostVisible(device)) {
-        Buffer buffer = createBuffer(device, size, usage, MemoryUse::Upload);
+        Buffer buffer = createBuffer(device, size, usage, MemoryUse::Upload, addressable);
         std::memcpy(buffer.mapped, data, size);
         return buffer;
     }
-    Buffer buffer = createBuffer(device, size, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUse::DeviceLocal);
+    Buffer buffer = createBuffer(device, size, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUse::DeviceLocal, addressable);
     const VkDeviceSize chunk = 64ull << 20;
     Buffer staging = createBuffer(device, std::min(size, chunk), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUse::Upload);
     for (VkDeviceSize offset = 0; offset < size; offset += chunk) {
@@ -106,7 +113,15 @@ Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size,
     return buffer;
 }
 
-Image createImage(Device& device, uint32_t width, uint32_t height, uint32_t layers, VkFormat format, VkImageUsageFlags usage)
+VkDeviceAddress bufferAddress(const Device& device, const Buffer& buffer)
+{
+    VkBufferDeviceAddressInfo info{VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO};
+    info.buffer = buffer.buffer;
+    return vkGetBufferDeviceAddress(device.device, &info);
+}
+
+Image createImage(Device& device, uint32_t width, uint32_t height, uint32_t layers, VkFormat format, VkImageUsageFlags usage,
+                  bool arrayView)
 {
     Image image;
     image.format = format;
@@ -132,7 +147,7 @@ Image createImage(Device& device, uint32_t width, uint32_t height, uint32_t laye
     bool depth = format == VK_FORMAT_D32_SFLOAT;
     VkImageViewCreateInfo viewInfo{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
     viewInfo.image = image.image;
-    viewInfo.viewType = layers > 1 || (usage & VK_IMAGE_USAGE_SAMPLED_BIT && depth) ? VK_IMAGE_VIEW_TYPE_2D_ARRAY : VK_IMAGE_VIEW_TYPE_2D;
+    viewInfo.viewType = layers > 1 || arrayView ? VK_IMAGE_VIEW_TYPE_2D_ARRAY : VK_IMAGE_VIEW_TYPE_2D;
     viewInfo.format = format;
     viewInfo.subresourceRange = {VkImageAspectFlags(depth ? VK_IMAGE_ASPECT_DEPTH_BIT : VK_IMAGE_ASPECT_COLOR_BIT), 0, 1, 0, layers};
     VK_CHECK(vkCreateImageView(device.device, &viewInfo, nullptr, &image.view));

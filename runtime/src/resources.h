@@ -29,14 +29,25 @@ enum class MemoryUse {
     Readback,     // host-visible, cached where possible
 };
 
-Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage, MemoryUse use);
+// Whether shaders read the buffer through its device address (buffer_reference):
+// adds SHADER_DEVICE_ADDRESS and STORAGE_BUFFER usage and allocates the memory
+// with VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT.
+enum class Addressable { No, Yes };
+
+Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage, MemoryUse use, Addressable addressable = Addressable::No);
 void destroyBuffer(Device& device, Buffer& buffer);
 
 // Creates a device-local buffer holding data: mapped directly when the
 // device-local heap is host-visible, else through a staging copy.
-Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage);
+Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage,
+                            Addressable addressable = Addressable::No);
 
-Image createImage(Device& device, uint32_t width, uint32_t height, uint32_t layers, VkFormat format, VkImageUsageFlags usage);
+// Device address of a buffer created with Addressable::Yes.
+VkDeviceAddress bufferAddress(const Device& device, const Buffer& buffer);
+
+// arrayView: the view is a 2D array (for sampler2DArray) with one 2D view per layer for rendering.
+Image createImage(Device& device, uint32_t width, uint32_t height, uint32_t layers, VkFormat format, VkImageUsageFlags usage,
+                  bool arrayView = false);
 void destroyImage(Device& device, Image& image);
 
 // One-time command buffer: begin, record in fn, submit and wait.

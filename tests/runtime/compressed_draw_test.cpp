@@ -86,7 +86,8 @@ TEST(CompressedDraw, ImageMatchesUncompressedReference)
         Capture reference = renderCapture(scene, false);
         Capture compressed = renderCapture(scene, true);
         Capture chunked = renderCapture(scene, true, 32 * 1024);
-        EXPECT_LT(compressed.deviceBytes, reference.deviceBytes / 2) << name;
+        // Geometry + the whole BVH (for the tracer) still take less than the bare float mesh.
+        EXPECT_LT(compressed.deviceBytes, reference.deviceBytes) << name;
 
         size_t pixels = reference.visibility.size(), coverage = 0, shadow = 0, chunkDifferences = 0;
         for (size_t i = 0; i < pixels; ++i) {

@@ -16,9 +16,13 @@
 
 namespace penumbra {
 
-// How shadows are computed. Only the shadow-map baseline exists so far;
-// selective (srt) and full ray tracing (frt) come with the ray tracer.
-enum class ShadowMethod { ShadowMap };
+// How hard shadows are computed (Lauterbach et al. 2009, section 3.1):
+// sm: the shadow map alone; srt: the shadow map, with rays for the pixels
+// classified as potentially incorrect (depth discontinuities that may affect
+// the pixel, thin triangles rasterized conservatively); frt: a ray for every
+// light-facing pixel. srt and frt use the same GPU ray tracer over the
+// shared BVH.
+enum class ShadowMethod { ShadowMap, Selective, FullRayTrace };
 
 const char* shadowMethodName(ShadowMethod method);
 ShadowMethod parseShadowMethod(const std::string& name); // throws Error
@@ -55,6 +59,10 @@ struct RenderSettings {
     float albedo = 0.8f;                // grey surface reflectance
     float background[3] = {0.06f, 0.07f, 0.09f};
     bool readbackGBuffer = false;       // also return world positions and light-0 visibility
+    bool debugPip = false;              // tint the pixels given rays red (the paper's Figure 4)
+    // Shadow-ray origins move this far along the light-facing normal (model
+    // units); 0: shadowRayOffset of the model.
+    float rayOffset = 0.0f;
 };
 
 // Linear-light RGBA float image, row-major, top row first.
@@ -73,6 +81,15 @@ struct FrameStats {
     uint64_t triangles = 0;
     uint32_t width = 0, height = 0;
     uint32_t lights = 0;
+    ShadowMethod shadows = ShadowMethod::ShadowMap;
+    uint64_t coveredPixels = 0;   // pixels showing the model
+    uint64_t pipPixels = 0;       // pixels given rays (summed over lights): PIP in srt, light-facing in frt
+    double pipFraction = 0;       // pipPixels / (coveredPixels * lights)
+    uint64_t rays = 0;            // shadow rays traced
+    uint64_t nodesVisited = 0;    // BVH nodes tested by the tracer
+    uint64_t leavesVisited = 0;   // strip-range leaves tested
+    uint64_t triangleTests = 0;   // ray/triangle tests
+    float rayOffset = 0;          // shadow-ray origin offset used
     DeviceInfo device;
     std::vector<PassTiming> passes;
     double gpuMs = 0;       // first to last timestamp
@@ -90,6 +107,10 @@ struct Frame {
     std::vector<float> visibility;
     FrameStats stats;
 };
+
+// Shadow-ray origin offset for a model: max(1e-5 x its bounds diagonal,
+// 4 x its largest quantization error). The oracle uses the same value.
+float shadowRayOffset(const Bounds& bounds, float maxPositionError);
 
 // Validation-layer messages seen by every Renderer of this process so far.
 uint32_t validationMessagesInProcess();

@@ -1,0 +1,214 @@
+// The compute ray tracer of shadow rays (Lauterbach et al. 2009, section 3.1
+// and 5.1): pipeline, descriptor set and the model table through which
+// shaders/trace.comp.glsl (bvh_traversal.glsli) finds the model's chunks by
+// device address.
+#include "ray_tracer.h"
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "config.h"
+#include "penumbra/shaders/registry.h"
+#include "resources.h"
+
+namespace penumbra {
+
+namespace {
+
+// Push constants of trace.comp.glsl.
+struct TracePush {
+    VkDeviceAddress modelTable;
+    uint32_t lightIndex;
+    float originOffset;
+};
+static_assert(sizeof(TracePush) == 16);
+
+// The model table (layout documented in shaders/bvh_traversal.glsli).
+struct ModelTableHeader {
+    float boundsMin[4];
+    float boundsMax[4];
+    uint32_t nodeChunkShift;
+    uint32_t nodeChunkCount;
+    uint32_t geometryChunkCount;
+    uint32_t reserved0;
+    VkDeviceAddress clusters;
+    uint64_t reserved1;
+};
+static_assert(sizeof(ModelTableHeader) == 64);
+
+struct ModelTableChunk {
+    uint32_t firstCluster;
+    uint32_t vertexBase;
+    uint32_t indexBase;
+    uint32_t reserved;
+    VkDeviceAddress vertices;
+    VkDeviceAddress indices;
+};
+static_assert(sizeof(ModelTableChunk) == 32);
+
+enum Binding : uint32_t { BindingPosition, BindingNormal, BindingVisibility, BindingFrame, BindingRayList, BindingStats, BindingCount };
+
+VkShaderModule createTraceModule(vk::Device& device)
+{
+    for (const shaders::Embedded& shader : shaders::kAll)
+        if (std::strcmp(shader.name, "trace.comp") == 0) {
+            VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+            info.codeSize = shader.size;
+            info.pCode = shader.code;
+            VkShaderModule module;
+            VK_CHECK(vkCreateShaderModule(device.device, &info, nullptr, &module));
+            return module;
+        }
+    fail("shaders", "no embedded shader named trace.comp");
+}
+
+} // namespace
+
+void createRayTracer(vk::Device& device, RayTracer& tracer)
+{
+    try {
+        VkDescriptorSetLayoutBinding bindings[BindingCount] = {
+            {BindingPosition, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+            {BindingNormal, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+            {BindingVisibility, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+            {BindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+            {BindingRayList, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+            {BindingStats, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+        };
+        VkDescriptorSetLayoutCreateInfo setInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+        setInfo.bindingCount = BindingCount;
+        setInfo.pBindings = bindings;
+        VK_CHECK(vkCreateDescriptorSetLayout(device.device, &setInfo, nullptr, &tracer.setLayout));
+
+        VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(TracePush)};
+        VkPipelineLayoutCreateInfo layoutInfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+        layoutInfo.setLayoutCount = 1;
+        layoutInfo.pSetLayouts = &tracer.setLayout;
+        layoutInfo.pushConstantRangeCount = 1;
+        layoutInfo.pPushConstantRanges = &range;
+        VK_CHECK(vkCreatePipelineLayout(device.device, &layoutInfo, nullptr, &tracer.layout));
+
+        VkShaderModule module = createTraceModule(device);
+        VkComputePipelineCreateInfo pipelineInfo{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+        pipelineInfo.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+        pipelineInfo.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+        pipelineInfo.stage.module = module;
+        pipelineInfo.stage.pName = "main";
+        pipelineInfo.layout = tracer.layout;
+        VkResult result = vkCreateComputePipelines(device.device, VK_NULL_HANDLE, 1, &pipelineInfo, nullptr, &tracer.pipeline);
+        vkDestroyShaderModule(device.device, module, nullptr);
+        VK_CHECK(result);
+
+        VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 3},
+                                        {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+                                        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2}};
+        VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+        poolInfo.maxSets = 1;
+        poolInfo.poolSizeCount = 3;
+        poolInfo.pPoolSizes = sizes;
+        VK_CHECK(vkCreateDescriptorPool(device.device, &poolInfo, nullptr, &tracer.pool));
+        VkDescriptorSetAllocateInfo allocInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+        allocInfo.descriptorPool = tracer.pool;
+        allocInfo.descriptorSetCount = 1;
+        allocInfo.pSetLayouts = &tracer.setLayout;
+        VK_CHECK(vkAllocateDescriptorSets(device.device, &allocInfo, &tracer.set));
+    } catch (...) {
+        destroyRayTracer(device, tracer);
+        throw;
+    }
+}
+
+void destroyRayTracer(vk::Device& device, RayTracer& tracer)
+{
+    vk::destroyBuffer(device, tracer.modelTable);
+    if (tracer.pool)
+        vkDestroyDescriptorPool(device.device, tracer.pool, nullptr);
+    if (tracer.pipeline)
+        vkDestroyPipeline(device.device, tracer.pipeline, nullptr);
+    if (tracer.layout)
+        vkDestroyPipelineLayout(device.device, tracer.layout, nullptr);
+    if (tracer.setLayout)
+        vkDestroyDescriptorSetLayout(device.device, tracer.setLayout, nullptr);
+    tracer = {};
+}
+
+void bindRayTracerModel(vk::Device& device, RayTracer& tracer, const GpuGeometry& geometry)
+{
+    if (geometry.encoding != GeometryEncoding::Compressed || geometry.nodeChunks.empty() || geometry.chunks.empty())
+        fail("ray tracer", "needs a compressed model with its BVH (the uncompressed reference cannot be traced)");
+    // Header, node chunk addresses, then the geometry chunks 16-byte aligned.
+    const size_t nodeChunkCount = geometry.nodeChunks.size();
+    const size_t chunksOffset = (sizeof(ModelTableHeader) + 8 * nodeChunkCount + 15) & ~size_t(15);
+    std::vector<uint8_t> table(chunksOffset + geometry.chunks.size() * sizeof(ModelTableChunk), 0);
+
+    ModelTableHeader header{};
+    for (int axis = 0; axis < 3; ++axis) {
+        header.boundsMin[axis] = geometry.bounds.min[axis];
+        header.boundsMax[axis] = geometry.bounds.max[axis];
+    }
+    header.nodeChunkShift = geometry.nodeChunkShift;
+    header.nodeChunkCount = uint32_t(nodeChunkCount);
+    header.geometryChunkCount = uint32_t(geometry.chunks.size());
+    header.clusters = vk::bufferAddress(device, geometry.clusters);
+    std::memcpy(table.data(), &header, sizeof(header));
+    for (size_t i = 0; i < nodeChunkCount; ++i) {
+        VkDeviceAddress address = vk::bufferAddress(device, geometry.nodeChunks[i]);
+        std::memcpy(table.data() + sizeof(header) + 8 * i, &address, 8);
+    }
+    for (size_t i = 0; i < geometry.chunks.size(); ++i) {
+        const GpuGeometry::Chunk& chunk = geometry.chunks[i];
+        ModelTableChunk entry{};
+        entry.firstCluster = chunk.firstCluster;
+        entry.vertexBase = uint32_t(chunk.vertexBase); // ClusterRecord::firstVertex is 32-bit
+        entry.indexBase = uint32_t(chunk.indexBase);   // ClusterRecord::firstIndex is 32-bit
+        entry.vertices = vk::bufferAddress(device, chunk.vertices);
+        entry.indices = vk::bufferAddress(device, chunk.indices);
+        std::memcpy(table.data() + chunksOffset + i * sizeof(entry), &entry, sizeof(entry));
+    }
+    vk::destroyBuffer(device, tracer.modelTable);
+    tracer.modelTable = vk::createBufferWithData(device, table.data(), table.size(), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
+    tracer.modelTableAddress = vk::bufferAddress(device, tracer.modelTable);
+}
+
+void bindRayTracerTargets(vk::Device& device, RayTracer& tracer, const TraceBindings& bindings)
+{
+    VkDescriptorImageInfo images[3] = {{VK_NULL_HANDLE, bindings.position, VK_IMAGE_LAYOUT_GENERAL},
+                                       {VK_NULL_HANDLE, bindings.normal, VK_IMAGE_LAYOUT_GENERAL},
+                                       {VK_NULL_HANDLE, bindings.visibility, VK_IMAGE_LAYOUT_GENERAL}};
+    VkDescriptorBufferInfo buffers[3] = {{bindings.frameUniforms, 0, VK_WHOLE_SIZE},
+                                         {bindings.rayList, 0, VK_WHOLE_SIZE},
+                                         {bindings.stats, 0, VK_WHOLE_SIZE}};
+    VkWriteDescriptorSet writes[BindingCount];
+    for (uint32_t i = 0; i < BindingCount; ++i) {
+        writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+        writes[i].dstSet = tracer.set;
+        writes[i].dstBinding = i;
+        writes[i].descriptorCount = 1;
+        if (i <= BindingVisibility) {
+            writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+            writes[i].pImageInfo = &images[i];
+        } else {
+            writes[i].descriptorType = i == BindingFrame ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+            writes[i].pBufferInfo = &buffers[i - BindingFrame];
+        }
+    }
+    vkUpdateDescriptorSets(device.device, BindingCount, writes, 0, nullptr);
+    tracer.rayList = bindings.rayList;
+}
+
+void recordTrace(VkCommandBuffer cmd, RayTracer& tracer, uint32_t lightIndex, float originOffset)
+{
+    if (!tracer.modelTableAddress || !tracer.rayList)
+        fail("ray tracer", "recordTrace before bindRayTracerModel and bindRayTracerTargets");
+    if (lightIndex >= PENUMBRA_MAX_LIGHTS)
+        fail("ray tracer", "light index " + std::to_string(lightIndex) + " out of range (at most " +
+                               std::to_string(PENUMBRA_MAX_LIGHTS) + " lights)");
+    TracePush push{tracer.modelTableAddress, lightIndex, originOffset};
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, tracer.pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, tracer.layout, 0, 1, &tracer.set, 0, nullptr);
+    vkCmdPushConstants(cmd, tracer.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+    vkCmdDispatchIndirect(cmd, tracer.rayList, sizeof(uint32_t)); // dispatch[3] follows the count
+}
+
+} // namespace penumbra

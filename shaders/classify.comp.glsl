@@ -1,0 +1,124 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// Shadow-map visibility and PIP classification (Lauterbach et al. 2009, 3.1).
+// Per camera pixel: project into the shadow map, visibility from the standard
+// depth test; in srt mode, mark the pixel potentially incorrect when
+//  - the 3x3 texel neighbourhood has a depth discontinuity Delta above the
+//    threshold and the receiver's depth range within one texel, [d^, d],
+//    overlaps [s - Delta, s + Delta] (d^ from the texel angle alpha and the
+//    angle beta between surface and light: d^ = d sin(beta) / sin(alpha + beta);
+//    for directional lights d^ = d - w cos(beta) / sin(beta), w the texel width), or
+//  - a thin triangle, rasterized conservatively into the thin map, lies in
+//    front of the pixel within its texel.
+// frt mode marks every light-facing pixel; sm mode marks none.
+
+#include "config.h"
+#include "shadow_common.glsli"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
+layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
+layout(set = 0, binding = 2) uniform sampler2DArray shadowMap;
+layout(set = 0, binding = 3) uniform sampler2DArray thinMap;
+layout(set = 0, binding = 4, r32f) uniform writeonly image2D outVisibility;
+layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 6, std430) writeonly buffer Marks { uint marks[]; };
+layout(set = 0, binding = 7, std430) buffer Stats { uint stats[]; };
+
+layout(push_constant) uniform ClassifyPush {
+    uint lightIndex;
+    uint mode;     // 0 sm, 1 srt, 2 frt
+} push;
+
+bool depthDiscontinuityMayAffect(LightData light, ShadowLookup s, ivec2 size, vec3 n, vec3 L)
+{
+    float center = texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r;
+    float delta = 0.0;
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            ivec2 t = clamp(s.texel + ivec2(dx, dy), ivec2(0), size - 1);
+            float neighbour = texelFetch(shadowMap, ivec3(t, s.layer), 0).r;
+            delta = max(delta, abs(linearLightDepth(light, neighbour) - linearLightDepth(light, center)));
+        }
+    float range = light.shadowParams.y - light.shadowParams.x;
+    if (delta <= frame.pip.x * range)
+        return false;
+    float sLinear = linearLightDepth(light, center);
+    float d = linearLightDepth(light, s.depth);
+    float sinBeta = clamp(dot(n, L), 1e-6, 1.0);
+    float cosBeta = sqrt(max(1.0 - sinBeta * sinBeta, 0.0));
+    float dHat;
+    if (light.shadowParams.z != 0.0) {
+        float alpha = light.shadowParams.w / float(size.x);   // texel angle (small-angle)
+        dHat = d * sinBeta / sin(min(alpha + asin(sinBeta), 3.14159265 * 0.5));
+        // Receivers this close to parallel with the light can reach any depth within one texel.
+        if (asin(sinBeta) + alpha >= 3.14159265 * 0.5 - 1e-4)
+            dHat = d * sinBeta;
+    } else {
+        float w = light.shadowParams.w / float(size.x);
+        dHat = d - w * cosBeta / sinBeta;
+    }
+    float lo = min(dHat, d), hi = max(dHat, d);
+    return lo <= sLinear + delta && hi >= sLinear - delta;
+}
+
+shared uint groupCovered, groupMarked;
+
+// Returns (covered, marked) for this invocation's pixel.
+uvec2 classifyPixel()
+{
+    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 imageSizeXY = imageSize(outVisibility);
+    if (any(greaterThanEqual(pixel, imageSizeXY)))
+        return uvec2(0u);
+    uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
+    vec4 position = imageLoad(gPosition, pixel);
+    if (position.w == 0.0) {
+        imageStore(outVisibility, pixel, vec4(-1.0));
+        marks[index] = 0u;
+        return uvec2(0u);
+    }
+    LightData light = frame.lights[push.lightIndex];
+    vec3 p = position.xyz;
+    vec3 n = imageLoad(gNormal, pixel).xyz;
+    float distance;
+    vec3 L = towardLight(light, p, distance);
+    bool lightFacing = dot(n, L) > 0.0;
+
+    ivec2 size = textureSize(shadowMap, 0).xy;
+    ShadowLookup s = projectToShadowMap(light, p, size);
+    float visibility = 1.0;
+    if (s.inside)
+        visibility = s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
+    imageStore(outVisibility, pixel, vec4(visibility));
+
+    bool mark = false;
+    if (lightFacing && push.mode == 2u)
+        mark = true;
+    else if (lightFacing && push.mode == 1u && s.inside) {
+        mark = depthDiscontinuityMayAffect(light, s, size, n, L) ||
+               texelFetch(thinMap, ivec3(s.texel, s.layer), 0).r < s.depth;
+    }
+    marks[index] = mark ? 1u : 0u;
+    return uvec2(1u, mark ? 1u : 0u);
+}
+
+void main()
+{
+    if (gl_LocalInvocationIndex == 0u) {
+        groupCovered = 0u;
+        groupMarked = 0u;
+    }
+    barrier();
+    uvec2 counts = classifyPixel();
+    if (counts.x != 0u)
+        atomicAdd(groupCovered, counts.x);
+    if (counts.y != 0u)
+        atomicAdd(groupMarked, counts.y);
+    barrier();
+    if (gl_LocalInvocationIndex == 0u) {
+        atomicAdd(stats[PENUMBRA_STAT_COVERED], groupCovered);
+        atomicAdd(stats[PENUMBRA_STAT_PIP], groupMarked);
+    }
+}

@@ -1,0 +1,44 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_ballot : require
+// Stream compaction of marked pixels into a dense ray list: per subgroup, a
+// ballot gives each marked pixel its exclusive prefix and the subgroup's
+// total, one elected invocation reserves the subgroup's range with a single
+// atomicAdd, then every marked pixel writes its slot (no workgroup barriers,
+// which are expensive on CPU drivers). Phase 1 (one invocation) writes the
+// tracer's indirect dispatch size from the final count.
+
+#include "config.h"
+
+layout(local_size_x = PENUMBRA_COMPACT_GROUP_SIZE) in;
+
+layout(set = 0, binding = 0, std430) readonly buffer Marks { uint marks[]; };
+layout(set = 0, binding = 1, std430) buffer RayList { uint rays[]; }; // header, then pixel indices
+
+layout(push_constant) uniform CompactPush {
+    uint pixelCount;
+    uint phase;   // 0 compact, 1 write dispatch size
+} push;
+
+void main()
+{
+    if (push.phase == 1u) {
+        uint count = rays[0];
+        rays[1] = (count + PENUMBRA_TRACE_GROUP_SIZE - 1u) / PENUMBRA_TRACE_GROUP_SIZE;
+        rays[2] = 1u;
+        rays[3] = 1u;
+        return;
+    }
+    uint i = gl_GlobalInvocationID.x;
+    bool marked = i < push.pixelCount && marks[i] != 0u;
+    uvec4 ballot = subgroupBallot(marked);
+    uint total = subgroupBallotBitCount(ballot);
+    if (total == 0u)
+        return;
+    uint base = 0u;
+    if (subgroupElect())
+        base = atomicAdd(rays[0], total);
+    base = subgroupBroadcastFirst(base);
+    if (marked)
+        rays[PENUMBRA_RAY_LIST_HEADER_UINTS + base + subgroupBallotExclusiveBitCount(ballot)] = i;
+}

@@ -1,0 +1,93 @@
+// Shadow rays of the listed pixels toward one light (Lauterbach et al. 2009,
+// section 3.1: the ray-traced pass of selective shadows; section 5.1: traversal
+// of the compressed model). One invocation per ray of the list written by
+// compaction; writes visibility 1 (lit) or 0 (shadowed or facing away from the
+// light) for every listed pixel; accumulates traversal counters.
+#version 460
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_8bit_storage : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_GOOGLE_include_directive : require
+
+#include "config.h"
+#include "bvh_traversal.glsli"
+
+layout(local_size_x = PENUMBRA_TRACE_GROUP_SIZE) in;
+
+layout(set = 0, binding = 0, rgba32f) uniform readonly image2D positionImage;
+layout(set = 0, binding = 1, rgba32f) uniform readonly image2D normalImage;
+layout(set = 0, binding = 2, r32f) uniform writeonly image2D visibilityImage;
+layout(set = 0, binding = 3, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 4, std430) readonly buffer RayList
+{
+    uint rayCount;
+    uint dispatch[3];
+    uint rayPixels[];
+};
+layout(set = 0, binding = 5, std430) buffer Stats { uint stats[]; };
+
+layout(push_constant) uniform Push
+{
+    uint64_t modelTable;  // device address of the model table (bvh_traversal.glsli)
+    uint lightIndex;      // into frame.lights
+    float originOffset;   // model units along the normal
+} push;
+
+// 1 lit, 0 shadowed; counts the ray when one is traced.
+float traceVisibility(uint pixelIndex, inout uint rays, inout TraceCounters counters)
+{
+    uint width = uint(imageSize(positionImage).x);
+    ivec2 pixel = ivec2(pixelIndex % width, pixelIndex / width);
+    vec4 position = imageLoad(positionImage, pixel);
+    if (position.w == 0.0)
+        return 1.0; // background: nothing to shadow (compaction never lists it)
+    vec3 normal = imageLoad(normalImage, pixel).xyz;
+
+    LightData light = frame.lights[push.lightIndex];
+    uint type = uint(light.positionType.w);
+    vec3 direction;
+    float tMax;
+    if (type == PENUMBRA_LIGHT_DIRECTIONAL) {
+        direction = -normalize(light.directionRange.xyz);
+        tMax = uintBitsToFloat(0x7F800000u); // +inf
+    } else {
+        direction = light.positionType.xyz - position.xyz;
+        float distance = length(direction);
+        direction /= max(distance, 1e-30);
+        tMax = distance - push.originOffset;
+    }
+    // The G-buffer normal faces the camera: a surface seen from its side
+    // facing away from the light is unlit (no ray).
+    if (dot(normal, direction) <= 0.0)
+        return 0.0;
+    ++rays;
+    ShadowRay ray = makeShadowRay(position.xyz + normal * push.originOffset, direction, tMax);
+    return modelOccludes(push.modelTable, ray, counters) ? 0.0 : 1.0;
+}
+
+void main()
+{
+    // Groups may be laid out in 2D when the list exceeds maxComputeWorkGroupCount[0].
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint index = group * PENUMBRA_TRACE_GROUP_SIZE + gl_LocalInvocationIndex;
+    uint rays = 0u;
+    TraceCounters counters = TraceCounters(0u, 0u, 0u);
+    if (index < rayCount) {
+        uint pixelIndex = rayPixels[index];
+        float visibility = traceVisibility(pixelIndex, rays, counters);
+        uint width = uint(imageSize(visibilityImage).x);
+        imageStore(visibilityImage, ivec2(pixelIndex % width, pixelIndex / width), vec4(visibility));
+    }
+    uint totalRays = subgroupAdd(rays);
+    uint totalNodes = subgroupAdd(counters.nodes);
+    uint totalLeaves = subgroupAdd(counters.leaves);
+    uint totalTriangles = subgroupAdd(counters.triangles);
+    if (subgroupElect() && totalRays > 0u) {
+        atomicAdd(stats[PENUMBRA_STAT_RAYS], totalRays);
+        atomicAdd(stats[PENUMBRA_STAT_NODES], totalNodes);
+        atomicAdd(stats[PENUMBRA_STAT_LEAVES], totalLeaves);
+        atomicAdd(stats[PENUMBRA_STAT_TRIANGLES], totalTriangles);
+    }
+}

@@ -1,0 +1,435 @@
+// The compute ray tracer (runtime/src/ray_tracer.h, shaders/trace.comp.glsl)
+// against the Embree oracle: the same G-buffer (rendered by the public
+// Renderer), the same shadow rays, one ray per covered pixel. Checked against
+// the oracle on the decoded (quantized) triangles, which the tracer must match
+// exactly up to rounding, and on the original mesh (>= 99.99% agreement).
+// A self-contained harness drives the tracer: its own device, model upload,
+// G-buffer images, ray list and frame uniforms.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <cstring>
+
+#include <gtest/gtest.h>
+
+#include "config.h"
+#include "device.h"
+#include "model_geometry.h"
+#include "penumbra/generate.h"
+#include "penumbra/oracle.h"
+#include "penumbra/penumbra.h"
+#include "penumbra/preprocess.h"
+#include "ray_tracer.h"
+#include "resources.h"
+
+namespace penumbra {
+namespace {
+
+// The mesh the tracer actually sees: every stored triangle, decoded.
+Mesh decodedMesh(const CompressedModel& model)
+{
+    Mesh mesh;
+    for (const model::ClusterRecord& cluster : model.clusters) {
+        uint32_t base = uint32_t(mesh.vertexCount());
+        for (uint32_t v = 0; v < cluster.vertexCount; ++v) {
+            glm::vec3 p = decodePosition(cluster, model.vertices[cluster.firstVertex + v]);
+            mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
+        }
+        const uint8_t* strips = model.indices.data() + cluster.firstIndex;
+        forEachStripTriangle(strips, strips + cluster.indexBytes,
+                             [&](uint32_t a, uint32_t b, uint32_t c) { mesh.indices.insert(mesh.indices.end(), {base + a, base + b, base + c}); });
+    }
+    return mesh;
+}
+
+// The shadow-ray offset the runtime should use: quantization error dominates.
+float shadowRayOffset(const CompressedModel& model)
+{
+    const auto& h = model.header;
+    glm::vec3 extent(h.boundsMax[0] - h.boundsMin[0], h.boundsMax[1] - h.boundsMin[1], h.boundsMax[2] - h.boundsMin[2]);
+    return std::max(1e-5f * glm::length(extent), 4.0f * h.maxPositionError);
+}
+
+struct GBuffer {
+    uint32_t width = 0, height = 0;
+    std::vector<float> positions, normals;
+};
+
+GBuffer renderGBuffer(const CompressedModel& model, const Camera& camera, uint32_t size)
+{
+    Renderer renderer;
+    renderer.loadModel(model);
+    renderer.setCamera(camera);
+    RenderSettings settings;
+    settings.width = settings.height = size;
+    settings.readbackGBuffer = true;
+    Frame frame = renderer.render(settings);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+    return {size, size, std::move(frame.positions), std::move(frame.normals)};
+}
+
+gpu::LightData packTraceLight(const Light& light)
+{
+    gpu::LightData data{};
+    uint32_t type = light.type == LightType::Directional ? PENUMBRA_LIGHT_DIRECTIONAL
+                    : light.type == LightType::Spot      ? PENUMBRA_LIGHT_SPOT
+                                                         : PENUMBRA_LIGHT_POINT;
+    data.positionType = glm::vec4(light.position, float(type));
+    data.directionRange = glm::vec4(glm::normalize(light.direction), light.range);
+    return data;
+}
+
+struct TraceResult {
+    std::vector<float> visibility; // per pixel; -5 where the tracer wrote nothing
+    uint32_t stats[PENUMBRA_STAT_COUNT] = {};
+    uint32_t listed = 0;
+};
+
+// The tracer on its own device: uploads the model and the G-buffer, lists
+// every covered pixel, traces toward each light, reads visibility back.
+class TraceHarness {
+public:
+    TraceHarness(const CompressedModel& model, const GBuffer& gbuffer, uint64_t maxModelBufferBytes = 0) : gbuffer(gbuffer)
+    {
+        RendererOptions options;
+        options.maxModelBufferBytes = maxModelBufferBytes;
+        vk::createDevice(device, options);
+        geometry = uploadCompressed(device, model);
+        createRayTracer(device, tracer);
+        bindRayTracerModel(device, tracer, geometry);
+
+        const VkImageUsageFlags usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+        position = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32G32B32A32_SFLOAT, usage);
+        normal = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32G32B32A32_SFLOAT, usage);
+        visibility = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32_SFLOAT, usage);
+        const VkDeviceSize pixels = VkDeviceSize(gbuffer.width) * gbuffer.height;
+        staging = vk::createBuffer(device, pixels * 16, VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                   vk::MemoryUse::Readback);
+        frameUniforms = vk::createBuffer(device, sizeof(gpu::FrameData), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUse::Upload);
+        rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4,
+                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, vk::MemoryUse::Upload);
+        stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Readback);
+
+        // Every covered pixel (light-facing or not: the tracer writes 0 for the others).
+        auto* list = static_cast<uint32_t*>(rayList.mapped);
+        uint32_t count = 0;
+        for (uint32_t i = 0; i < pixels; ++i)
+            if (gbuffer.positions[size_t(i) * 4 + 3] != 0.0f)
+                list[PENUMBRA_RAY_LIST_HEADER_UINTS + count++] = i;
+        list[0] = count;
+        list[1] = (count + PENUMBRA_TRACE_GROUP_SIZE - 1) / PENUMBRA_TRACE_GROUP_SIZE;
+        list[2] = list[3] = 1;
+        listed = count;
+
+        upload(position, gbuffer.positions);
+        upload(normal, gbuffer.normals);
+        vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
+            vk::transition(cmd, visibility, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE,
+                           VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
+        });
+
+        TraceBindings bindings;
+        bindings.position = position.view;
+        bindings.normal = normal.view;
+        bindings.visibility = visibility.view;
+        bindings.frameUniforms = frameUniforms.buffer;
+        bindings.rayList = rayList.buffer;
+        bindings.stats = stats.buffer;
+        bindRayTracerTargets(device, tracer, bindings);
+    }
+
+    ~TraceHarness()
+    {
+        vkDeviceWaitIdle(device.device);
+        for (vk::Image* image : {&position, &normal, &visibility})
+            vk::destroyImage(device, *image);
+        for (vk::Buffer* buffer : {&staging, &frameUniforms, &rayList, &stats})
+            vk::destroyBuffer(device, *buffer);
+        destroyRayTracer(device, tracer);
+        destroyGeometry(device, geometry);
+        EXPECT_EQ(device.validationMessages.load(), 0u);
+        vk::destroyDevice(device);
+    }
+
+    TraceResult trace(const Light& light, float originOffset)
+    {
+        gpu::FrameData frame{};
+        frame.lights[1] = packTraceLight(light); // not light 0, to check lightIndex
+        std::memcpy(frameUniforms.mapped, &frame, sizeof(frame));
+        std::memset(stats.mapped, 0, PENUMBRA_STAT_COUNT * 4);
+        const uint32_t width = gbuffer.width, height = gbuffer.height;
+        vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
+            VkClearColorValue unwritten{};
+            unwritten.float32[0] = -5.0f;
+            VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+            vkCmdClearColorImage(cmd, visibility.image, VK_IMAGE_LAYOUT_GENERAL, &unwritten, 1, &range);
+            vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT | VK_PIPELINE_STAGE_2_HOST_BIT,
+                              VK_ACCESS_2_TRANSFER_WRITE_BIT | VK_ACCESS_2_HOST_WRITE_BIT,
+                              VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                              VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
+                                  VK_ACCESS_2_UNIFORM_READ_BIT | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+            recordTrace(cmd, tracer, 1, originOffset);
+            vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT,
+                              VK_ACCESS_2_HOST_READ_BIT);
+            vk::transition(cmd, visibility, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                           VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_READ_BIT);
+            VkBufferImageCopy copy{};
+            copy.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+            copy.imageExtent = {width, height, 1};
+            vkCmdCopyImageToBuffer(cmd, visibility.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, staging.buffer, 1, &copy);
+            vk::transition(cmd, visibility, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+                           VK_ACCESS_2_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+            vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT,
+                              VK_ACCESS_2_HOST_READ_BIT);
+        });
+        TraceResult result;
+        const float* data = static_cast<const float*>(staging.mapped);
+        result.visibility.assign(data, data + size_t(width) * height);
+        std::memcpy(result.stats, stats.mapped, sizeof(result.stats));
+        result.listed = listed;
+        return result;
+    }
+
+    const GpuGeometry& model() const { return geometry; }
+    vk::Device device;
+
+private:
+    void upload(vk::Image& image, const std::vector<float>& rgba)
+    {
+        std::memcpy(staging.mapped, rgba.data(), rgba.size() * sizeof(float));
+        vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
+            vk::transition(cmd, image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_NONE,
+                           VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+            VkBufferImageCopy copy{};
+            copy.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+            copy.imageExtent = {image.width, image.height, 1};
+            vkCmdCopyBufferToImage(cmd, staging.buffer, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &copy);
+            vk::transition(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+                           VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+        });
+    }
+
+    const GBuffer& gbuffer;
+    GpuGeometry geometry;
+    RayTracer tracer;
+    vk::Image position, normal, visibility;
+    vk::Buffer staging, frameUniforms, rayList, stats;
+    uint32_t listed = 0;
+};
+
+struct Agreement {
+    size_t traced = 0, differing = 0, shadowed = 0;
+    size_t backFacingWrong = 0, unwritten = 0, backgroundWritten = 0;
+    double fraction() const { return traced ? double(differing) / double(traced) : 0.0; }
+};
+
+Agreement compare(const std::vector<float>& oracle, const TraceResult& gpu)
+{
+    Agreement a;
+    for (size_t i = 0; i < oracle.size(); ++i) {
+        float g = gpu.visibility[i];
+        if (oracle[i] == kVisibilityBackground) {
+            a.backgroundWritten += g != -5.0f;
+            continue;
+        }
+        if (oracle[i] == kVisibilityBackFacing) {
+            a.backFacingWrong += g != 0.0f;
+            continue;
+        }
+        a.unwritten += g == -5.0f;
+        ++a.traced;
+        a.shadowed += oracle[i] == 0.0f;
+        a.differing += oracle[i] != g;
+    }
+    return a;
+}
+
+// Of the rays where the tracer and the oracle on the original mesh differ,
+// counts those on which the oracle agrees with the tracer once the ray is
+// shifted sideways by shift in one of four directions: rays passing within
+// about shift of an occluder's silhouette.
+size_t grazingDisagreements(const EmbreeOracle& oracle, const GBuffer& gbuffer, const Light& light, const OracleOptions& options,
+                            const std::vector<float>& reference, const std::vector<float>& traced, float shift)
+{
+    std::vector<bool> explained(reference.size(), false);
+    for (int k = 0; k < 4; ++k) {
+        std::vector<float> positions(gbuffer.positions.size(), 0.0f); // w = 0: not traced
+        for (size_t i = 0; i < reference.size(); ++i) {
+            if (reference[i] < 0.0f || reference[i] == traced[i])
+                continue;
+            glm::vec3 p(gbuffer.positions[i * 4], gbuffer.positions[i * 4 + 1], gbuffer.positions[i * 4 + 2]);
+            glm::vec3 d = light.type == LightType::Directional ? -glm::normalize(light.direction) : glm::normalize(light.position - p);
+            glm::vec3 u = glm::normalize(glm::cross(d, std::abs(d.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0)));
+            glm::vec3 v = glm::cross(d, u);
+            p += (k == 0 ? u : k == 1 ? -u : k == 2 ? v : -v) * shift;
+            positions[i * 4] = p.x;
+            positions[i * 4 + 1] = p.y;
+            positions[i * 4 + 2] = p.z;
+            positions[i * 4 + 3] = 1.0f;
+        }
+        std::vector<float> shifted = oracle.hardShadowVisibility(positions, gbuffer.normals, light, options);
+        for (size_t i = 0; i < reference.size(); ++i)
+            explained[i] = explained[i] || (positions[i * 4 + 3] != 0.0f && shifted[i] == traced[i]);
+    }
+    return size_t(std::count(explained.begin(), explained.end(), true));
+}
+
+struct LightCase {
+    const char* name;
+    Light light;
+};
+
+std::vector<LightCase> testLights(const CompressedModel& model)
+{
+    const auto& h = model.header;
+    glm::vec3 lo(h.boundsMin[0], h.boundsMin[1], h.boundsMin[2]), hi(h.boundsMax[0], h.boundsMax[1], h.boundsMax[2]);
+    Light sun;
+    sun.type = LightType::Directional;
+    sun.direction = glm::normalize(glm::vec3(-0.35f, -1.0f, -0.25f));
+    Light point;
+    point.type = LightType::Point;
+    point.position = lo + (hi - lo) * glm::vec3(0.3f, 0.8f, 0.6f);
+    Light spot = point;
+    spot.type = LightType::Spot;
+    spot.position = lo + (hi - lo) * glm::vec3(0.7f, 0.9f, 0.35f);
+    spot.direction = glm::normalize(glm::vec3(-0.2f, -1.0f, 0.1f));
+    return {{"directional", sun}, {"point", point}, {"spot", spot}};
+}
+
+void expectTracerMatchesOracle(const Mesh& mesh, const Camera& camera, const char* name, uint64_t maxModelBufferBytes = 0,
+                               uint32_t size = 256)
+{
+    CompressedModel model = buildCompressedModel(mesh, PreprocessOptions{});
+    const float offset = shadowRayOffset(model);
+    GBuffer gbuffer = renderGBuffer(model, camera, size);
+    EmbreeOracle original(mesh), decoded(decodedMesh(model));
+    TraceHarness harness(model, gbuffer, maxModelBufferBytes);
+    if (maxModelBufferBytes) { // the chunked upload really is chunked
+        EXPECT_GT(harness.model().chunks.size(), 2u);
+        EXPECT_GT(harness.model().nodeChunks.size(), 2u);
+    }
+    OracleOptions options;
+    options.originOffset = offset;
+    for (const LightCase& c : testLights(model)) {
+        TraceResult gpu = harness.trace(c.light, offset);
+        Agreement exact = compare(decoded.hardShadowVisibility(gbuffer.positions, gbuffer.normals, c.light, options), gpu);
+        std::vector<float> reference = original.hardShadowVisibility(gbuffer.positions, gbuffer.normals, c.light, options);
+        Agreement source = compare(reference, gpu);
+        std::printf("%s %s: offset %g, %zu rays, %.1f%% shadowed; differs from the decoded-mesh oracle on %zu, from the original on %zu; "
+                    "%.1f nodes, %.2f leaves, %.1f triangles per ray\n",
+                    name, c.name, offset, exact.traced, 100.0 * double(exact.shadowed) / double(std::max<size_t>(1, exact.traced)),
+                    exact.differing, source.differing, double(gpu.stats[PENUMBRA_STAT_NODES]) / gpu.stats[PENUMBRA_STAT_RAYS],
+                    double(gpu.stats[PENUMBRA_STAT_LEAVES]) / gpu.stats[PENUMBRA_STAT_RAYS],
+                    double(gpu.stats[PENUMBRA_STAT_TRIANGLES]) / gpu.stats[PENUMBRA_STAT_RAYS]);
+        EXPECT_GT(exact.traced, size_t(size) * size / 8) << name << " " << c.name;
+        EXPECT_EQ(exact.unwritten, 0u) << name << " " << c.name;
+        EXPECT_EQ(exact.backgroundWritten, 0u) << name << " " << c.name;
+        EXPECT_EQ(exact.backFacingWrong, 0u) << name << " " << c.name;
+        EXPECT_EQ(gpu.stats[PENUMBRA_STAT_RAYS], exact.traced) << name << " " << c.name;
+        // Same triangles: the tracer must agree with Embree up to rounding.
+        EXPECT_LE(exact.fraction(), 1e-4) << name << " " << c.name << ": " << exact.differing << " of " << exact.traced;
+        // Original triangles: quantization moves silhouettes by up to
+        // maxPositionError, so rays grazing an occluder may differ. Every
+        // differing ray must be such a grazing ray, and they must be rare.
+        size_t grazing = grazingDisagreements(original, gbuffer, c.light, options, reference, gpu.visibility, 2.0f * model.header.maxPositionError);
+        EXPECT_EQ(grazing, source.differing) << name << " " << c.name << ": differing rays not explained by quantization";
+        EXPECT_LE(source.fraction(), 5e-4) << name << " " << c.name << ": " << source.differing << " of " << source.traced;
+    }
+}
+
+Scene generated(const char* name, uint64_t triangles)
+{
+    GenerateOptions options;
+    options.triangles = triangles;
+    return generateScene(name, options);
+}
+
+// Floor y = 0 (half size 4) and a unit cube over it, y in [2, 3], turned about y.
+Mesh cubeOverFloor()
+{
+    Mesh mesh;
+    auto quad = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d) {
+        uint32_t base = uint32_t(mesh.vertexCount());
+        for (glm::vec3 p : {a, b, c, d})
+            mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
+        mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+    };
+    quad({-4, 0, -4}, {-4, 0, 4}, {4, 0, 4}, {4, 0, -4});
+    const float c = std::cos(0.5f), s = std::sin(0.5f);
+    auto v = [&](int i) {
+        glm::vec3 p(i & 1 ? 0.5f : -0.5f, i & 2 ? 3.0f : 2.0f, i & 4 ? 0.5f : -0.5f);
+        return glm::vec3(c * p.x + s * p.z, p.y, -s * p.x + c * p.z);
+    };
+    quad(v(0), v(1), v(5), v(4));
+    quad(v(2), v(6), v(7), v(3));
+    quad(v(0), v(4), v(6), v(2));
+    quad(v(1), v(3), v(7), v(5));
+    quad(v(0), v(2), v(3), v(1));
+    quad(v(4), v(5), v(7), v(6));
+    return mesh;
+}
+
+TEST(RayTracer, CubeOverFloorMatchesOracle)
+{
+    Camera camera;
+    camera.position = {6, 8, 9};
+    camera.target = {0, 1, 0};
+    expectTracerMatchesOracle(cubeOverFloor(), camera, "cube");
+}
+
+TEST(RayTracer, CityMatchesOracle)
+{
+    Scene scene = generated("city", 100'000);
+    expectTracerMatchesOracle(scene.mesh, scene.cameras.at(0), "city");
+}
+
+TEST(RayTracer, PlantMatchesOracle)
+{
+    Scene scene = generated("plant", 100'000);
+    expectTracerMatchesOracle(scene.mesh, scene.cameras.at(0), "plant");
+}
+
+TEST(RayTracer, InteriorMatchesOracle)
+{
+    Scene scene = generated("interior", 100'000);
+    expectTracerMatchesOracle(scene.mesh, scene.cameras.at(0), "interior");
+}
+
+TEST(RayTracer, ChunkedModelMatchesOracle)
+{
+    Scene scene = generated("plant", 60'000);
+    expectTracerMatchesOracle(scene.mesh, scene.cameras.at(0), "plant chunked", 16 * 1024, 128);
+}
+
+// Rays per second of a full-frame trace (every covered pixel, directional
+// light) on the 1M-triangle city:
+// ./build/tests/runtime_tests --gtest_also_run_disabled_tests --gtest_filter='*DISABLED_Throughput*'
+TEST(RayTracer, DISABLED_ThroughputCity1M)
+{
+    Scene scene = generated("city", 1'000'000);
+    CompressedModel model = buildCompressedModel(scene.mesh, PreprocessOptions{});
+    GBuffer gbuffer = renderGBuffer(model, scene.cameras.at(0), 1024);
+    TraceHarness harness(model, gbuffer);
+    for (const LightCase& c : testLights(model)) {
+        double best = 1e30, bestCpu = 1e30; // wall clock; CPU time of the process (lavapipe's threads included)
+        TraceResult result;
+        for (int run = 0; run < 3; ++run) {
+            auto start = std::chrono::steady_clock::now();
+            std::clock_t cpuStart = std::clock();
+            result = harness.trace(c.light, shadowRayOffset(model));
+            bestCpu = std::min(bestCpu, double(std::clock() - cpuStart) / CLOCKS_PER_SEC);
+            best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        }
+        uint32_t rays = result.stats[PENUMBRA_STAT_RAYS];
+        std::printf("city 1M %s, %s: %u rays in %.3f s, %.3f CPU s (best of 3, incl. clear and readback) = %.2f Mrays/s; %.1f nodes, "
+                    "%.2f leaves, %.1f triangles per ray\n",
+                    c.name, harness.device.info.name.c_str(), rays, best, bestCpu, rays / best * 1e-6,
+                    double(result.stats[PENUMBRA_STAT_NODES]) / rays, double(result.stats[PENUMBRA_STAT_LEAVES]) / rays,
+                    double(result.stats[PENUMBRA_STAT_TRIANGLES]) / rays);
+    }
+}
+
+} // namespace
+} // namespace penumbra

@@ -1,0 +1,165 @@
+// Hard-shadow methods against each other and against the Embree oracle
+// (Lauterbach et al. 2009, 3.1): frt agrees with the oracle, srt with frt, and
+// a scene of thin wires shows what plain shadow mapping misses.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "penumbra/generate.h"
+#include "penumbra/oracle.h"
+#include "penumbra/penumbra.h"
+
+namespace penumbra {
+namespace {
+
+struct MethodResult {
+    Frame frame;
+};
+
+Frame renderMethod(const Mesh& mesh, const Camera& camera, const Light& light, ShadowMethod method, uint32_t size)
+{
+    Renderer renderer;
+    renderer.loadModel(mesh);
+    renderer.setCamera(camera);
+    renderer.setLights({light});
+    RenderSettings settings;
+    settings.width = settings.height = size;
+    settings.shadows = method;
+    settings.readbackGBuffer = true;
+    Frame frame = renderer.render(settings);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+    return frame;
+}
+
+struct Comparison {
+    size_t compared = 0, differing = 0, missedShadow = 0;
+    double fraction() const { return compared ? double(differing) / double(compared) : 1.0; }
+};
+
+// Over the pixels the reference traced (covered, light-facing).
+Comparison compare(const std::vector<float>& reference, const std::vector<float>& other)
+{
+    Comparison c;
+    for (size_t i = 0; i < reference.size(); ++i) {
+        if (reference[i] < 0.0f)
+            continue;
+        ++c.compared;
+        if (reference[i] != other[i]) {
+            ++c.differing;
+            c.missedShadow += reference[i] == 0.0f && other[i] == 1.0f;
+        }
+    }
+    return c;
+}
+
+void addBox(Mesh& mesh, glm::vec3 lo, glm::vec3 hi)
+{
+    uint32_t base = uint32_t(mesh.vertexCount());
+    for (int i = 0; i < 8; ++i)
+        mesh.positions.insert(mesh.positions.end(), {i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
+    const uint32_t faces[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                                   {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+    for (const auto& f : faces)
+        mesh.indices.insert(mesh.indices.end(), {base + f[0], base + f[1], base + f[2]});
+}
+
+// A 40 m ground with a block and 12 wires 4 mm thick strung 3 m above it,
+// lit by a high sun: the wires' shadows are far thinner than a shadow-map texel.
+Mesh wiresOverGround()
+{
+    Mesh mesh;
+    addBox(mesh, {-20, -0.1f, -20}, {20, 0, 20});
+    addBox(mesh, {-2, 0, -2}, {2, 4, 2});
+    for (int i = 0; i < 12; ++i) {
+        float z = -9.0f + 1.5f * float(i);
+        addBox(mesh, {-15, 3.0f, z}, {15, 3.004f, z + 0.004f});
+    }
+    return mesh;
+}
+
+TEST(HardShadows, FullRayTracingAgreesWithTheOracle)
+{
+    struct Case {
+        const char* scene;
+        uint64_t triangles;
+    } cases[] = {{"city", 60'000}, {"interior", 60'000}, {"plant", 60'000}};
+    for (const Case& c : cases) {
+        GenerateOptions options;
+        options.triangles = c.triangles;
+        Scene scene = generateScene(c.scene, options);
+        Frame frt = renderMethod(scene.mesh, scene.cameras[0], scene.lights[0], ShadowMethod::FullRayTrace, 256);
+        OracleOptions oracleOptions;
+        oracleOptions.originOffset = frt.stats.rayOffset;
+        std::vector<float> oracle = EmbreeOracle(scene.mesh).hardShadowVisibility(frt.positions, frt.normals, scene.lights[0], oracleOptions);
+        Comparison cmp = compare(oracle, frt.visibility);
+        EXPECT_GT(cmp.compared, 10000u) << c.scene;
+        EXPECT_LE(cmp.fraction(), 1e-4) << c.scene << ": frt differs from the oracle on " << cmp.differing << " of " << cmp.compared;
+        EXPECT_GT(frt.stats.rays, 0u);
+        EXPECT_GT(frt.stats.nodesVisited, frt.stats.rays);
+    }
+}
+
+TEST(HardShadows, SelectiveMatchesFullRayTracingAndShadowMapMissesWires)
+{
+    Mesh mesh = wiresOverGround();
+    Camera camera;
+    camera.position = {0, 12, 16};
+    camera.target = {0, 0, 0};
+    camera.yfovDegrees = 55;
+    Light sun;
+    sun.direction = {0.15f, -1.0f, 0.1f};
+    Frame sm = renderMethod(mesh, camera, sun, ShadowMethod::ShadowMap, 384);
+    Frame srt = renderMethod(mesh, camera, sun, ShadowMethod::Selective, 384);
+    Frame frt = renderMethod(mesh, camera, sun, ShadowMethod::FullRayTrace, 384);
+
+    OracleOptions oracleOptions;
+    oracleOptions.originOffset = frt.stats.rayOffset;
+    std::vector<float> oracle = EmbreeOracle(mesh).hardShadowVisibility(frt.positions, frt.normals, sun, oracleOptions);
+    Comparison frtVsOracle = compare(oracle, frt.visibility);
+    Comparison smVsOracle = compare(oracle, sm.visibility);
+    Comparison srtVsFrt = compare(frt.visibility, srt.visibility);
+    std::printf("wires: sm misses %zu shadowed pixels; srt differs from frt on %zu of %zu; PIP %.2f%%\n", smVsOracle.missedShadow,
+                srtVsFrt.differing, srtVsFrt.compared, srt.stats.pipFraction * 100.0);
+    EXPECT_LE(frtVsOracle.fraction(), 1e-4) << frtVsOracle.differing;
+    EXPECT_GT(smVsOracle.missedShadow, 200u) << "the shadow map should visibly miss the wires";
+    EXPECT_LE(srtVsFrt.fraction(), 5e-4) << srtVsFrt.differing << " of " << srtVsFrt.compared;
+    EXPECT_LT(srt.stats.pipFraction, 0.5);
+    EXPECT_LT(srt.stats.rays, frt.stats.rays);
+}
+
+TEST(HardShadows, SelectiveMatchesFullRayTracingOnProceduralScenes)
+{
+    for (const char* name : {"city", "interior"}) {
+        GenerateOptions options;
+        options.triangles = 60'000;
+        Scene scene = generateScene(name, options);
+        Frame srt = renderMethod(scene.mesh, scene.cameras[0], scene.lights[0], ShadowMethod::Selective, 256);
+        Frame frt = renderMethod(scene.mesh, scene.cameras[0], scene.lights[0], ShadowMethod::FullRayTrace, 256);
+        Comparison cmp = compare(frt.visibility, srt.visibility);
+        std::printf("%s: srt differs from frt on %zu of %zu pixels, PIP %.2f%%\n", name, cmp.differing, cmp.compared,
+                    srt.stats.pipFraction * 100.0);
+        EXPECT_LE(cmp.fraction(), 5e-4) << name;
+    }
+}
+
+TEST(HardShadows, DebugImageMarksTracedPixelsRed)
+{
+    Mesh mesh = wiresOverGround();
+    Renderer renderer;
+    renderer.loadModel(mesh);
+    RenderSettings settings;
+    settings.width = settings.height = 128;
+    settings.shadows = ShadowMethod::Selective;
+    settings.debugPip = true;
+    Frame frame = renderer.render(settings);
+    // Surfaces are grey under white light (red == green), so a tinted pixel is one whose red exceeds its green.
+    size_t red = 0;
+    for (size_t i = 0; i < frame.color.rgba.size(); i += 4)
+        red += frame.color.rgba[i] > frame.color.rgba[i + 1] + 0.2f;
+    EXPECT_GT(red, 0u);
+    EXPECT_EQ(red, frame.stats.pipPixels);
+    EXPECT_EQ(frame.stats.rays, frame.stats.pipPixels);
+}
+
+} // namespace
+} // namespace penumbra
