@@ -8,8 +8,9 @@
 //    overlaps [s - Delta, s + Delta] (d^ from the texel angle alpha and the
 //    angle beta between surface and light: d^ = d sin(beta) / sin(alpha + beta);
 //    for directional lights d^ = d - w cos(beta) / sin(beta), w the texel width), or
-//  - a thin triangle, rasterized conservatively into the thin map, lies in
-//    front of the pixel within its texel.
+//  - the shadow map calls the pixel lit but a thin triangle, rasterized
+//    conservatively into the thin map, lies in front of it within its texel
+//    (a dropped thin occluder can only darken a pixel).
 // frt mode marks every light-facing pixel; sm mode marks none.
 
 #include "config.h"
@@ -97,8 +98,9 @@ uvec2 classifyPixel()
     if (lightFacing && push.mode == 2u)
         mark = true;
     else if (lightFacing && push.mode == 1u && s.inside) {
+        // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
         mark = depthDiscontinuityMayAffect(light, s, size, n, L) ||
-               texelFetch(thinMap, ivec3(s.texel, s.layer), 0).r < s.depth;
+               (visibility == 1.0 && texelFetch(thinMap, ivec3(s.texel, s.layer), 0).r < s.depth);
     }
     marks[index] = mark ? 1u : 0u;
     return uvec2(1u, mark ? 1u : 0u);
