@@ -10,7 +10,6 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
-#include <cstdlib>
 #include <cstring>
 
 #include <gtest/gtest.h>
@@ -409,10 +408,9 @@ TEST(RayTracer, ChunkedModelMatchesOracle)
 // ./build/tests/runtime_tests --gtest_also_run_disabled_tests --gtest_filter='*DISABLED_Throughput*'
 TEST(RayTracer, DISABLED_ThroughputCity1M)
 {
-    const char* quick = std::getenv("TMP_QUICK");
-    Scene scene = generated("city", quick ? 300'000 : 1'000'000);
+    Scene scene = generated("city", 1'000'000);
     CompressedModel model = buildCompressedModel(scene.mesh, PreprocessOptions{});
-    GBuffer gbuffer = renderGBuffer(model, scene.cameras.at(0), quick ? 384 : 1024);
+    GBuffer gbuffer = renderGBuffer(model, scene.cameras.at(0), 1024);
     TraceHarness harness(model, gbuffer);
     for (const LightCase& c : testLights(model)) {
         double best = 1e30, bestCpu = 1e30; // wall clock; CPU time of the process (lavapipe's threads included)
