@@ -6,7 +6,7 @@
 // total, one elected invocation reserves the subgroup's range with a single
 // atomicAdd, then every marked pixel writes its slot (no workgroup barriers,
 // which are expensive on CPU drivers). Phase 1 (one invocation) writes the
-// tracer's indirect dispatch size from the final count.
+// tracer's indirect dispatch size from the final count (2-D above 65535 groups).
 
 #include "config.h"
 
@@ -23,13 +23,15 @@ layout(push_constant) uniform CompactPush {
 void main()
 {
     if (push.phase == 1u) {
-        uint count = rays[0];
-        rays[1] = (count + PENUMBRA_TRACE_GROUP_SIZE - 1u) / PENUMBRA_TRACE_GROUP_SIZE;
-        rays[2] = 1u;
+        // 2-D when needed: devices may limit each dimension to 65535 workgroups.
+        uint groups = (rays[0] + PENUMBRA_TRACE_GROUP_SIZE - 1u) / PENUMBRA_TRACE_GROUP_SIZE;
+        uint x = min(groups, 65535u);
+        rays[1] = x;
+        rays[2] = x == 0u ? 1u : (groups + x - 1u) / x;
         rays[3] = 1u;
         return;
     }
-    uint i = gl_GlobalInvocationID.x;
+    uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * PENUMBRA_COMPACT_GROUP_SIZE + gl_LocalInvocationID.x;
     bool marked = i < push.pixelCount && marks[i] != 0u;
     uvec4 ballot = subgroupBallot(marked);
     uint total = subgroupBallotBitCount(ballot);

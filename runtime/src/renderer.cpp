@@ -721,7 +721,9 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compactLayout, 0, 1, &compactSet, 0, nullptr);
             CompactPush compact{pixelCount, 0};
             vkCmdPushConstants(cmd, compactLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(compact), &compact);
-            vkCmdDispatch(cmd, (pixelCount + PENUMBRA_COMPACT_GROUP_SIZE - 1) / PENUMBRA_COMPACT_GROUP_SIZE, 1, 1);
+            const uint32_t groups = (pixelCount + PENUMBRA_COMPACT_GROUP_SIZE - 1) / PENUMBRA_COMPACT_GROUP_SIZE;
+            const uint32_t groupsPerRow = std::min(groups, 65535u);
+            vkCmdDispatch(cmd, groupsPerRow, (groups + groupsPerRow - 1) / groupsPerRow, 1);
             vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
             compact.phase = 1;
             vkCmdPushConstants(cmd, compactLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(compact), &compact);

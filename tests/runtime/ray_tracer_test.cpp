@@ -403,6 +403,21 @@ TEST(RayTracer, ChunkedModelMatchesOracle)
     expectTracerMatchesOracle(scene.mesh, scene.cameras.at(0), "plant chunked", 16 * 1024, 128);
 }
 
+TEST(RayTracer, RejectsModelsWithoutBvhAndUnboundUse)
+{
+    vk::Device device;
+    vk::createDevice(device, RendererOptions{});
+    RayTracer tracer;
+    createRayTracer(device, tracer);
+    GpuGeometry reference = uploadReference(device, cubeOverFloor());
+    EXPECT_THROW(bindRayTracerModel(device, tracer, reference), Error);
+    vk::immediateSubmit(device, [&](VkCommandBuffer cmd) { EXPECT_THROW(recordTrace(cmd, tracer, 0, 0.0f), Error); });
+    destroyGeometry(device, reference);
+    destroyRayTracer(device, tracer);
+    EXPECT_EQ(device.validationMessages.load(), 0u);
+    vk::destroyDevice(device);
+}
+
 // Rays per second of a full-frame trace (every covered pixel, directional
 // light) on the 1M-triangle city:
 // ./build/tests/runtime_tests --gtest_also_run_disabled_tests --gtest_filter='*DISABLED_Throughput*'
