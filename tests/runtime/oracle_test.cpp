@@ -7,31 +7,11 @@
 #include "penumbra/generate.h"
 #include "penumbra/oracle.h"
 #include "penumbra/penumbra.h"
+#include "test_scenes.h"
 
 namespace penumbra {
 namespace {
 
-// Floor y = 0 (half size 4) and an axis-aligned unit cube over it, y in [2, 3].
-Mesh boxOverFloor()
-{
-    Mesh mesh;
-    auto quad = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d) {
-        uint32_t base = uint32_t(mesh.vertexCount());
-        for (glm::vec3 p : {a, b, c, d})
-            mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
-        mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-    };
-    quad({-4, 0, -4}, {-4, 0, 4}, {4, 0, 4}, {4, 0, -4});
-    glm::vec3 lo(-0.5f, 2, -0.5f), hi(0.5f, 3, 0.5f);
-    auto v = [&](int i) { return glm::vec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z); };
-    quad(v(0), v(1), v(5), v(4));
-    quad(v(2), v(6), v(7), v(3));
-    quad(v(0), v(4), v(6), v(2));
-    quad(v(1), v(3), v(7), v(5));
-    quad(v(0), v(2), v(3), v(1));
-    quad(v(4), v(5), v(7), v(6));
-    return mesh;
-}
 
 Frame renderGBuffer(const Mesh& mesh, const Camera& camera, const Light& light, uint32_t size)
 {
@@ -67,7 +47,7 @@ Agreement compare(const std::vector<float>& oracle, const std::vector<float>& sh
 
 TEST(Oracle, MatchesTheAnalyticShadowOfABox)
 {
-    Mesh mesh = boxOverFloor();
+    Mesh mesh = test::cubeOverFloor(0.0f);
     Camera camera;
     camera.projection = Projection::Orthographic;
     camera.orthoHeight = 2.0f;
@@ -90,7 +70,7 @@ TEST(Oracle, MatchesTheAnalyticShadowOfABox)
 
 TEST(Oracle, AgreesWithTheShadowMapAwayFromEdges)
 {
-    Mesh mesh = boxOverFloor();
+    Mesh mesh = test::cubeOverFloor(0.0f);
     Camera camera;
     camera.position = {6, 8, 9};
     camera.target = {0, 1, 0};

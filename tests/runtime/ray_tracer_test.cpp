@@ -20,6 +20,7 @@
 #include "penumbra/generate.h"
 #include "penumbra/oracle.h"
 #include "penumbra/penumbra.h"
+#include "test_scenes.h"
 #include "penumbra/preprocess.h"
 #include "ray_tracer.h"
 #include "resources.h"
@@ -346,37 +347,13 @@ Scene generated(const char* name, uint64_t triangles)
     return generateScene(name, options);
 }
 
-// Floor y = 0 (half size 4) and a unit cube over it, y in [2, 3], turned about y.
-Mesh cubeOverFloor()
-{
-    Mesh mesh;
-    auto quad = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d) {
-        uint32_t base = uint32_t(mesh.vertexCount());
-        for (glm::vec3 p : {a, b, c, d})
-            mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
-        mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-    };
-    quad({-4, 0, -4}, {-4, 0, 4}, {4, 0, 4}, {4, 0, -4});
-    const float c = std::cos(0.5f), s = std::sin(0.5f);
-    auto v = [&](int i) {
-        glm::vec3 p(i & 1 ? 0.5f : -0.5f, i & 2 ? 3.0f : 2.0f, i & 4 ? 0.5f : -0.5f);
-        return glm::vec3(c * p.x + s * p.z, p.y, -s * p.x + c * p.z);
-    };
-    quad(v(0), v(1), v(5), v(4));
-    quad(v(2), v(6), v(7), v(3));
-    quad(v(0), v(4), v(6), v(2));
-    quad(v(1), v(3), v(7), v(5));
-    quad(v(0), v(2), v(3), v(1));
-    quad(v(4), v(5), v(7), v(6));
-    return mesh;
-}
 
 TEST(RayTracer, CubeOverFloorMatchesOracle)
 {
     Camera camera;
     camera.position = {6, 8, 9};
     camera.target = {0, 1, 0};
-    expectTracerMatchesOracle(cubeOverFloor(), camera, "cube");
+    expectTracerMatchesOracle(test::cubeOverFloor(0.5f), camera, "cube");
 }
 
 TEST(RayTracer, CityMatchesOracle)
@@ -409,7 +386,7 @@ TEST(RayTracer, RejectsModelsWithoutBvhAndUnboundUse)
     vk::createDevice(device, RendererOptions{});
     RayTracer tracer;
     createRayTracer(device, tracer);
-    GpuGeometry reference = uploadReference(device, cubeOverFloor());
+    GpuGeometry reference = uploadReference(device, test::cubeOverFloor(0.5f));
     EXPECT_THROW(bindRayTracerModel(device, tracer, reference), Error);
     vk::immediateSubmit(device, [&](VkCommandBuffer cmd) { EXPECT_THROW(recordTrace(cmd, tracer, 0, 0.0f), Error); });
     destroyGeometry(device, reference);

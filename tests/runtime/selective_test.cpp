@@ -8,13 +8,10 @@
 #include "penumbra/generate.h"
 #include "penumbra/oracle.h"
 #include "penumbra/penumbra.h"
+#include "test_scenes.h"
 
 namespace penumbra {
 namespace {
-
-struct MethodResult {
-    Frame frame;
-};
 
 Frame renderMethod(const Mesh& mesh, const Camera& camera, const Light& light, ShadowMethod method, uint32_t size)
 {
@@ -52,27 +49,17 @@ Comparison compare(const std::vector<float>& reference, const std::vector<float>
     return c;
 }
 
-void addBox(Mesh& mesh, glm::vec3 lo, glm::vec3 hi)
-{
-    uint32_t base = uint32_t(mesh.vertexCount());
-    for (int i = 0; i < 8; ++i)
-        mesh.positions.insert(mesh.positions.end(), {i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
-    const uint32_t faces[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                                   {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-    for (const auto& f : faces)
-        mesh.indices.insert(mesh.indices.end(), {base + f[0], base + f[1], base + f[2]});
-}
 
 // A 40 m ground with a block and 12 wires 4 mm thick strung 3 m above it,
 // lit by a high sun: the wires' shadows are far thinner than a shadow-map texel.
 Mesh wiresOverGround()
 {
     Mesh mesh;
-    addBox(mesh, {-20, -0.1f, -20}, {20, 0, 20});
-    addBox(mesh, {-2, 0, -2}, {2, 4, 2});
+    test::addBox(mesh, {-20, -0.1f, -20}, {20, 0, 20});
+    test::addBox(mesh, {-2, 0, -2}, {2, 4, 2});
     for (int i = 0; i < 12; ++i) {
         float z = -9.0f + 1.5f * float(i);
-        addBox(mesh, {-15, 3.0f, z}, {15, 3.004f, z + 0.004f});
+        test::addBox(mesh, {-15, 3.0f, z}, {15, 3.004f, z + 0.004f});
     }
     return mesh;
 }

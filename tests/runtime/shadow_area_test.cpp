@@ -5,38 +5,12 @@
 #include <gtest/gtest.h>
 
 #include "penumbra/penumbra.h"
+#include "test_scenes.h"
 
 namespace penumbra {
 namespace {
 
-void addQuad(Mesh& mesh, glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d)
-{
-    uint32_t base = uint32_t(mesh.vertexCount());
-    for (glm::vec3 p : {a, b, c, d})
-        mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
-    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-}
 
-// Plane y = 0 of half size 4; unit cube spanning y in [2, 3], turned 30 degrees
-// about y so that its shadow edges do not line up with the pixel or texel grids.
-Mesh cubeOverPlane()
-{
-    Mesh mesh;
-    addQuad(mesh, {-4, 0, -4}, {-4, 0, 4}, {4, 0, 4}, {4, 0, -4});
-    glm::vec3 lo(-0.5f, 2.0f, -0.5f), hi(0.5f, 3.0f, 0.5f);
-    const float c = std::cos(0.5235988f), s = std::sin(0.5235988f);
-    auto v = [&](int i) {
-        glm::vec3 p(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
-        return glm::vec3(c * p.x + s * p.z, p.y, -s * p.x + c * p.z);
-    };
-    addQuad(mesh, v(0), v(1), v(5), v(4)); // bottom
-    addQuad(mesh, v(2), v(6), v(7), v(3)); // top
-    addQuad(mesh, v(0), v(4), v(6), v(2)); // -x
-    addQuad(mesh, v(1), v(3), v(7), v(5)); // +x
-    addQuad(mesh, v(0), v(2), v(3), v(1)); // -z
-    addQuad(mesh, v(4), v(5), v(7), v(6)); // +z
-    return mesh;
-}
 
 struct AreaResult {
     double area = 0;
@@ -49,7 +23,7 @@ struct AreaResult {
 AreaResult measureShadowArea(const std::vector<Light>& lights, float orthoHeight, uint32_t size = 512)
 {
     Renderer renderer;
-    renderer.loadModel(cubeOverPlane());
+    renderer.loadModel(test::cubeOverFloor(0.5235988f));
     Camera camera;
     camera.projection = Projection::Orthographic;
     camera.orthoHeight = orthoHeight;
@@ -130,7 +104,7 @@ TEST(ShadowMap, SeveralLightsAccumulateAndShadowTheSameScene)
 TEST(Renderer, ReportsPassTimingsAndDevice)
 {
     Renderer renderer;
-    renderer.loadModel(cubeOverPlane());
+    renderer.loadModel(test::cubeOverFloor(0.5235988f));
     RenderSettings settings;
     settings.width = 128;
     settings.height = 96;
@@ -153,7 +127,7 @@ TEST(Renderer, RejectsBadSettingsWithClearErrors)
 {
     Renderer renderer;
     EXPECT_THROW(renderer.render({}), Error); // no model
-    renderer.loadModel(cubeOverPlane());
+    renderer.loadModel(test::cubeOverFloor(0.5235988f));
     RenderSettings settings;
     settings.width = 0;
     try {

@@ -1,0 +1,50 @@
+// Small hand-made scenes shared by the runtime tests.
+#pragma once
+
+#include <cmath>
+
+#include "penumbra/mesh.h"
+
+namespace penumbra::test {
+
+inline void addQuad(Mesh& mesh, glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d)
+{
+    uint32_t base = uint32_t(mesh.vertexCount());
+    for (glm::vec3 p : {a, b, c, d})
+        mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
+    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+}
+
+// Axis-aligned box [lo, hi], 12 outward-facing triangles.
+inline void addBox(Mesh& mesh, glm::vec3 lo, glm::vec3 hi)
+{
+    uint32_t base = uint32_t(mesh.vertexCount());
+    for (int i = 0; i < 8; ++i)
+        mesh.positions.insert(mesh.positions.end(), {i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
+    const uint32_t faces[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                                   {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+    for (const auto& f : faces)
+        mesh.indices.insert(mesh.indices.end(), {base + f[0], base + f[1], base + f[2]});
+}
+
+// Floor y = 0 of half size 4 and a unit cube over it, y in [2, 3], turned by
+// `turn` radians about y (a turn keeps shadow edges off the pixel and texel grids).
+inline Mesh cubeOverFloor(float turn)
+{
+    Mesh mesh;
+    addQuad(mesh, {-4, 0, -4}, {-4, 0, 4}, {4, 0, 4}, {4, 0, -4});
+    const float c = std::cos(turn), s = std::sin(turn);
+    auto v = [&](int i) {
+        glm::vec3 p(i & 1 ? 0.5f : -0.5f, i & 2 ? 3.0f : 2.0f, i & 4 ? 0.5f : -0.5f);
+        return glm::vec3(c * p.x + s * p.z, p.y, -s * p.x + c * p.z);
+    };
+    addQuad(mesh, v(0), v(1), v(5), v(4)); // bottom
+    addQuad(mesh, v(2), v(6), v(7), v(3)); // top
+    addQuad(mesh, v(0), v(4), v(6), v(2)); // -x
+    addQuad(mesh, v(1), v(3), v(7), v(5)); // +x
+    addQuad(mesh, v(0), v(2), v(3), v(1)); // -z
+    addQuad(mesh, v(4), v(5), v(7), v(6)); // +z
+    return mesh;
+}
+
+} // namespace penumbra::test
