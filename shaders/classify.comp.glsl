@@ -10,7 +10,9 @@
 //    for directional lights d^ = d - w cos(beta) / sin(beta), w the texel width), or
 //  - the shadow map calls the pixel lit but a thin triangle, rasterized
 //    conservatively into the thin map, lies in front of it within its texel
-//    (a dropped thin occluder can only darken a pixel).
+//    (a dropped thin occluder can only darken a pixel); when the thin
+//    rectangles overflowed their buffer (thin_detect.comp.glsl), every pixel
+//    the shadow map calls lit is marked instead.
 // frt mode marks every light-facing pixel; sm mode marks none.
 
 #include "config.h"
@@ -26,6 +28,14 @@ layout(set = 0, binding = 4, r32f) uniform writeonly image2D outVisibility;
 layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 6, std430) writeonly buffer Marks { uint marks[]; };
 layout(set = 0, binding = 7, std430) buffer Stats { uint stats[]; };
+// Header of the thin quads buffer (thin_detect.comp.glsl).
+layout(set = 0, binding = 8, std430) readonly buffer ThinQuads
+{
+    uint thinDraw[4];
+    uint thinClaimed;
+    uint thinOverflow;
+    uint thinReserved[2];
+};
 
 layout(push_constant) uniform ClassifyPush {
     uint lightIndex;
@@ -100,7 +110,7 @@ uvec2 classifyPixel()
     else if (lightFacing && push.mode == 1u && s.inside) {
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
         mark = depthDiscontinuityMayAffect(light, s, size, n, L) ||
-               (visibility == 1.0 && texelFetch(thinMap, ivec3(s.texel, s.layer), 0).r < s.depth);
+               (visibility == 1.0 && (thinOverflow != 0u || texelFetch(thinMap, ivec3(s.texel, s.layer), 0).r < s.depth));
     }
     marks[index] = mark ? 1u : 0u;
     return uvec2(1u, mark ? 1u : 0u);

@@ -272,10 +272,10 @@ void createDevice(Device& device, const RendererOptions& options)
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &features13};
     vkGetPhysicalDeviceFeatures2(device.physical, &supported);
     if (!features13.dynamicRendering || !features13.synchronization2 || !features13.maintenance4 || !uint8Features.indexTypeUint8 ||
-        !supported.features.multiDrawIndirect || !supported.features.drawIndirectFirstInstance || !supported.features.geometryShader)
+        !supported.features.multiDrawIndirect || !supported.features.drawIndirectFirstInstance)
         fail("vulkan", device.info.name +
                            " lacks a required feature (dynamicRendering, synchronization2, maintenance4, indexTypeUint8, "
-                           "multiDrawIndirect, drawIndirectFirstInstance, geometryShader)");
+                           "multiDrawIndirect, drawIndirectFirstInstance)");
     // The ray tracer reads the model through buffer device addresses (64-bit
     // pointers, 8-bit strip loads).
     if (!features12.bufferDeviceAddress || !supported.features.shaderInt64 || !features12.storageBuffer8BitAccess)
@@ -298,7 +298,6 @@ void createDevice(Device& device, const RendererOptions& options)
     VkPhysicalDeviceFeatures2 enable{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &enable13};
     enable.features.fullDrawIndexUint32 = supported.features.fullDrawIndexUint32;
     enable.features.multiDrawIndirect = VK_TRUE;
-    enable.features.geometryShader = VK_TRUE; // conservative rasterization of thin triangles
     enable.features.shaderInt64 = VK_TRUE;
     enable.features.drawIndirectFirstInstance = VK_TRUE;
     enable.features.vertexPipelineStoresAndAtomics = supported.features.vertexPipelineStoresAndAtomics;

@@ -49,26 +49,25 @@ VkShaderModule createShaderModule(vk::Device& device, const char* name)
 
 struct GraphicsPipelineDesc {
     std::string vertexShader;                 // registry name; ".float" is appended for the reference encoding
-    const char* geometryShader = nullptr;     // optional
     const char* fragmentShader = nullptr;     // null: depth only
     std::vector<VkFormat> colorFormats;
     bool depthBias = false;
     bool depthAttachment = true;
     bool blendMin = false;                    // colour attachments blend with VK_BLEND_OP_MIN
     bool rasterizerDiscard = false;
+    bool pulledVertices = false;              // no vertex input: the vertex shader pulls triangle lists itself
     GeometryEncoding encoding = GeometryEncoding::Compressed;
     VkPipelineLayout layout = VK_NULL_HANDLE;
 };
 
 VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc& desc)
 {
-    std::string vertexName = desc.vertexShader + (desc.encoding == GeometryEncoding::UncompressedReference ? ".float" : "");
+    std::string vertexName =
+        desc.vertexShader + (!desc.pulledVertices && desc.encoding == GeometryEncoding::UncompressedReference ? ".float" : "");
     VkShaderModule vertex = createShaderModule(device, vertexName.c_str());
     VkShaderModule fragment = desc.fragmentShader ? createShaderModule(device, desc.fragmentShader) : VK_NULL_HANDLE;
-    VkShaderModule geometry = desc.geometryShader ? createShaderModule(device, desc.geometryShader) : VK_NULL_HANDLE;
     std::vector<VkPipelineShaderStageCreateInfo> stages;
-    for (auto [stage, module] : {std::pair{VK_SHADER_STAGE_VERTEX_BIT, vertex}, std::pair{VK_SHADER_STAGE_GEOMETRY_BIT, geometry},
-                                 std::pair{VK_SHADER_STAGE_FRAGMENT_BIT, fragment}})
+    for (auto [stage, module] : {std::pair{VK_SHADER_STAGE_VERTEX_BIT, vertex}, std::pair{VK_SHADER_STAGE_FRAGMENT_BIT, fragment}})
         if (module) {
             VkPipelineShaderStageCreateInfo info{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
             info.stage = stage;
@@ -78,6 +77,11 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
         }
 
     GeometryInputState input = geometryInputState(desc.encoding);
+    if (desc.pulledVertices) {
+        input.bindingCount = input.attributeCount = 0;
+        input.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+        input.primitiveRestart = VK_FALSE;
+    }
     VkPipelineVertexInputStateCreateInfo vertexInput{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
     vertexInput.vertexBindingDescriptionCount = input.bindingCount;
     vertexInput.pVertexBindingDescriptions = input.bindings;
@@ -143,7 +147,7 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     info.layout = desc.layout;
     VkPipeline pipeline;
     VkResult result = vkCreateGraphicsPipelines(device.device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
-    for (VkShaderModule module : {vertex, geometry, fragment})
+    for (VkShaderModule module : {vertex, fragment})
         if (module)
             vkDestroyShaderModule(device.device, module, nullptr);
     VK_CHECK(result);
@@ -168,9 +172,25 @@ struct CameraPush {
     glm::vec4 cameraPosition;
 };
 
-struct ThinPush {
+// Thin-triangle pass: thin_detect.comp writes the conservative rectangles of
+// the thin triangles (at most kMaxThinQuads; more set the overflow flag, and
+// classify then marks every lit pixel), thin_quads.vert draws them.
+constexpr uint32_t kMaxThinQuads = 1u << 20;
+constexpr VkDeviceSize kThinQuadsHeaderBytes = 32;   // draw[4], claimed, overflow, reserved[2]
+constexpr VkDeviceSize kThinQuadBytes = 48;          // 3 vec4 per quad
+
+struct ThinDetectPush {
     glm::mat4 viewProj;
     glm::vec2 mapSize;
+    uint32_t nodeCount;
+    uint32_t maxQuads;
+    VkDeviceAddress modelTable;
+    VkDeviceAddress thinQuads;
+};
+static_assert(sizeof(ThinDetectPush) == 96);
+
+struct ThinDrawPush {
+    VkDeviceAddress thinQuads;
 };
 
 struct ClassifyPush {
@@ -233,6 +253,7 @@ struct Binding {
     VkSampler sampler = VK_NULL_HANDLE;
     VkBuffer buffer = VK_NULL_HANDLE;
     VkImageLayout layout = VK_IMAGE_LAYOUT_GENERAL;
+    VkDeviceSize range = VK_WHOLE_SIZE;
 };
 
 void writeSet(vk::Device& device, VkDescriptorSet set, const std::vector<Binding>& bindings)
@@ -248,7 +269,7 @@ void writeSet(vk::Device& device, VkDescriptorSet set, const std::vector<Binding
         write.descriptorCount = 1;
         write.descriptorType = b.type;
         if (b.buffer) {
-            buffers[i] = {b.buffer, 0, VK_WHOLE_SIZE};
+            buffers[i] = {b.buffer, 0, b.range};
             write.pBufferInfo = &buffers[i];
         } else {
             images[i] = {b.sampler, b.view, b.layout};
@@ -292,8 +313,10 @@ struct Renderer::Impl {
     VkDescriptorSetLayout classifySetLayout = VK_NULL_HANDLE, compactSetLayout = VK_NULL_HANDLE, shadeSetLayout = VK_NULL_HANDLE;
     VkPipelineLayout gbufferLayout = VK_NULL_HANDLE, shadowLayout = VK_NULL_HANDLE, thinLayout = VK_NULL_HANDLE;
     VkPipelineLayout classifyLayout = VK_NULL_HANDLE, compactLayout = VK_NULL_HANDLE, shadeLayout = VK_NULL_HANDLE;
+    VkPipelineLayout thinDetectLayout = VK_NULL_HANDLE;
     // Raster pipelines per geometry encoding (index: GeometryEncoding).
-    VkPipeline gbufferPipelines[2] = {}, shadowPipelines[2] = {}, thinPipelines[2] = {};
+    VkPipeline gbufferPipelines[2] = {}, shadowPipelines[2] = {};
+    VkPipeline thinPipeline = VK_NULL_HANDLE, thinDetectPipeline = VK_NULL_HANDLE;
     VkPipeline classifyPipeline = VK_NULL_HANDLE, compactPipeline = VK_NULL_HANDLE, shadePipeline = VK_NULL_HANDLE;
     RayTracer tracer;
     VkSampler nearestSampler = VK_NULL_HANDLE;
@@ -305,7 +328,7 @@ struct Renderer::Impl {
     // Targets, recreated when the size changes
     uint32_t width = 0, height = 0, shadowSize = 0, shadowLayers = 0;
     vk::Image position, normal, depth, color, visibility, shadowMap, thinMap;
-    vk::Buffer frameUniforms, stats, marks, rayList;
+    vk::Buffer frameUniforms, stats, marks, rayList, thinQuads;
     vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
 
     explicit Impl(const RendererOptions& options)
@@ -323,13 +346,14 @@ struct Renderer::Impl {
     void createPipelines()
     {
         const VkShaderStageFlags compute = VK_SHADER_STAGE_COMPUTE_BIT;
-        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kSampled, kStorageImage, kUniform, kStorage, kStorage}, compute);
+        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kSampled, kStorageImage, kUniform, kStorage, kStorage, kStorage}, compute);
         compactSetLayout = createSetLayout(device, {kStorage, kStorage}, compute);
         shadeSetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage}, compute);
 
         gbufferLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(CameraPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
         shadowLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(glm::mat4), VK_SHADER_STAGE_VERTEX_BIT);
-        thinLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(ThinPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_GEOMETRY_BIT);
+        thinLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(ThinDrawPush), VK_SHADER_STAGE_VERTEX_BIT);
+        thinDetectLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(ThinDetectPush), compute);
         classifyLayout = createPipelineLayout(device, classifySetLayout, sizeof(ClassifyPush), compute);
         compactLayout = createPipelineLayout(device, compactSetLayout, sizeof(CompactPush), compute);
         shadeLayout = createPipelineLayout(device, shadeSetLayout, sizeof(ShadePush), compute);
@@ -349,18 +373,17 @@ struct Renderer::Impl {
             shadow.layout = shadowLayout;
             shadow.encoding = encoding;
             shadowPipelines[int(encoding)] = createGraphicsPipeline(device, shadow);
-
-            GraphicsPipelineDesc thin;
-            thin.vertexShader = "shadow_map.vert";
-            thin.geometryShader = "thin_triangles.geom";
-            thin.fragmentShader = "thin_triangles.frag";
-            thin.colorFormats = {kThinFormat};
-            thin.depthAttachment = false;
-            thin.blendMin = true;
-            thin.layout = thinLayout;
-            thin.encoding = encoding;
-            thinPipelines[int(encoding)] = createGraphicsPipeline(device, thin);
         }
+        GraphicsPipelineDesc thin;
+        thin.vertexShader = "thin_quads.vert";
+        thin.pulledVertices = true;
+        thin.fragmentShader = "thin_triangles.frag";
+        thin.colorFormats = {kThinFormat};
+        thin.depthAttachment = false;
+        thin.blendMin = true;
+        thin.layout = thinLayout;
+        thinPipeline = createGraphicsPipeline(device, thin);
+        thinDetectPipeline = createComputePipeline(device, "thin_detect.comp", thinDetectLayout);
         classifyPipeline = createComputePipeline(device, "classify.comp", classifyLayout);
         compactPipeline = createComputePipeline(device, "compact.comp", compactLayout);
         shadePipeline = createComputePipeline(device, "shade.comp", shadeLayout);
@@ -371,7 +394,7 @@ struct Renderer::Impl {
         samplerInfo.addressModeU = samplerInfo.addressModeV = samplerInfo.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
         VK_CHECK(vkCreateSampler(device.device, &samplerInfo, nullptr, &nearestSampler));
 
-        VkDescriptorPoolSize poolSizes[4] = {{kStorageImage, 16}, {kSampled, 4}, {kUniform, 4}, {kStorage, 8}};
+        VkDescriptorPoolSize poolSizes[4] = {{kStorageImage, 16}, {kSampled, 4}, {kUniform, 4}, {kStorage, 10}};
         VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
         poolInfo.maxSets = 3;
         poolInfo.poolSizeCount = 4;
@@ -404,6 +427,9 @@ struct Renderer::Impl {
         frameUniforms = vk::createBuffer(device, sizeof(gpu::FrameData), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUse::Upload);
         stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint32_t),
                                  VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
+        thinQuads = vk::createBuffer(device, kThinQuadsHeaderBytes + VkDeviceSize(kMaxThinQuads) * kThinQuadBytes,
+                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                     vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
     }
 
     void destroyTargets()
@@ -429,15 +455,16 @@ struct Renderer::Impl {
         destroyRayTracer(device, tracer);
         vk::destroyBuffer(device, frameUniforms);
         vk::destroyBuffer(device, stats);
+        vk::destroyBuffer(device, thinQuads);
         VkDevice d = device.device;
         if (fence) vkDestroyFence(d, fence, nullptr);
         if (queryPool) vkDestroyQueryPool(d, queryPool, nullptr);
         if (descriptorPool) vkDestroyDescriptorPool(d, descriptorPool, nullptr);
         if (nearestSampler) vkDestroySampler(d, nearestSampler, nullptr);
-        for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1], thinPipelines[0],
-                             thinPipelines[1], classifyPipeline, compactPipeline, shadePipeline})
+        for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1], thinPipeline,
+                             thinDetectPipeline, classifyPipeline, compactPipeline, shadePipeline})
             if (p) vkDestroyPipeline(d, p, nullptr);
-        for (VkPipelineLayout l : {gbufferLayout, shadowLayout, thinLayout, classifyLayout, compactLayout, shadeLayout})
+        for (VkPipelineLayout l : {gbufferLayout, shadowLayout, thinLayout, thinDetectLayout, classifyLayout, compactLayout, shadeLayout})
             if (l) vkDestroyPipelineLayout(d, l, nullptr);
         for (VkDescriptorSetLayout l : {classifySetLayout, compactSetLayout, shadeSetLayout})
             if (l) vkDestroyDescriptorSetLayout(d, l, nullptr);
@@ -498,7 +525,8 @@ struct Renderer::Impl {
                                        {kSampled, shadowMap.view, nearestSampler, {}, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
                                        {kSampled, thinMap.view, nearestSampler},
                                        {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
-                                       {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer}});
+                                       {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer},
+                                       {kStorage, {}, {}, thinQuads.buffer, VK_IMAGE_LAYOUT_GENERAL, kThinQuadsHeaderBytes}});
         writeSet(device, compactSet, {{kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, rayList.buffer}});
         writeSet(device, shadeSet, {{kStorageImage, position.view}, {kStorageImage, normal.view}, {kStorageImage, color.view},
                                     {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
@@ -674,11 +702,35 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                    VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
         timestamp(PassShadowMap);
 
-        // Thin triangles, rasterized conservatively (srt only).
+        // Thin triangles, rasterized conservatively (srt only): per layer, a
+        // compute pass over the model's leaves writes the rectangles of the thin
+        // triangles and their indirect draw, which then blends them into the thin map.
         if (selective) {
+            constexpr VkPipelineStageFlags2 kTransfer = VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT;
+            constexpr VkPipelineStageFlags2 kQuadReaders = VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT;
+            constexpr VkAccessFlags2 kQuadReads = VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT;
             vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, kColorOut,
                               VK_ACCESS_2_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT);
+            const VkDeviceAddress quadsAddress = vk::bufferAddress(device, thinQuads);
+            const uint32_t detectGroups = (geometry.nodeCount + 63) / 64;
+            const uint32_t maxGroupsX = device.properties.limits.maxComputeWorkGroupCount[0];
+            const uint32_t groupsXDetect = std::min(detectGroups, maxGroupsX), groupsYDetect = (detectGroups + groupsXDetect - 1) / groupsXDetect;
             for (uint32_t layer = 0; layer < layers; ++layer) {
+                // Reset the draw (0 vertices, 1 instance) and the claimed count; the
+                // overflow flag once per light (classify reads it for all layers).
+                const uint32_t header[6] = {0, 1, 0, 0, 0, 0};
+                vk::memoryBarrier(cmd, kQuadReaders | kCompute, kQuadReads | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kTransfer,
+                                  VK_ACCESS_2_TRANSFER_WRITE_BIT);
+                vkCmdUpdateBuffer(cmd, thinQuads.buffer, 0, layer == 0 ? 24 : 20, header);
+                vk::memoryBarrier(cmd, kTransfer, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+                vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
+                ThinDetectPush detect{light.viewProj[layer], glm::vec2(float(shadowSize)), geometry.nodeCount, kMaxThinQuads,
+                                      tracer.modelTableAddress, quadsAddress};
+                vkCmdPushConstants(cmd, thinDetectLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(detect), &detect);
+                vkCmdDispatch(cmd, groupsXDetect, groupsYDetect, 1);
+                vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kQuadReaders | kCompute,
+                                  kQuadReads);
+
                 VkRenderingAttachmentInfo target{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
                 target.imageView = thinMap.layerViews[layer];
                 target.imageLayout = VK_IMAGE_LAYOUT_GENERAL;
@@ -691,11 +743,11 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                 rendering.colorAttachmentCount = 1;
                 rendering.pColorAttachments = &target;
                 vkCmdBeginRendering(cmd, &rendering);
-                vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, thinPipelines[int(geometry.encoding)]);
+                vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, thinPipeline);
                 setViewport(cmd, shadowSize, shadowSize);
-                ThinPush push{light.viewProj[layer], glm::vec2(float(shadowSize))};
-                vkCmdPushConstants(cmd, thinLayout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(push), &push);
-                drawGeometry(cmd, geometry);
+                ThinDrawPush draw{quadsAddress};
+                vkCmdPushConstants(cmd, thinLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(draw), &draw);
+                vkCmdDrawIndirect(cmd, thinQuads.buffer, 0, 1, sizeof(VkDrawIndirectCommand));
                 vkCmdEndRendering(cmd);
             }
             vk::memoryBarrier(cmd, kColorOut, VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);

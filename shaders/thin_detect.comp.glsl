@@ -1,0 +1,162 @@
+// Thin-triangle detection for the conservative rasterization of thin
+// triangles in the light view (Lauterbach et al. 2009, section 3.1; no
+// conservative-rasterization extension on lavapipe). One invocation per BVH
+// node; a Leaf node decodes its strip range exactly as the tracer does
+// (bvh_traversal.glsli: forEachStripTriangle, decodeVertex, degenerate
+// triangles skipped), projects every triangle with the layer's viewProj and
+// keeps those whose height over their longest edge (or whose longest edge)
+// is under PENUMBRA_THIN_TEXELS texels: such a triangle may be missed by the
+// shadow map, so it is replaced by the rectangle around its longest edge,
+// grown by the texel square's half width in each direction of the edge's
+// frame (every texel the triangle touches has its centre inside), at the
+// triangle's nearest NDC depth. Triangles with a vertex at w <= 0 are skipped
+// (the shadow map clips them too); rectangles the rasterizer would discard
+// entirely (outside the map, depth outside [0, 1]) are not written.
+// Output (thin quads buffer, by device address; thin_quads.vert.glsl draws it):
+//   uint draw[4]      VkDrawIndirectCommand: 6 vertices per written quad, 1 instance
+//   uint claimed      quads claimed (may exceed maxQuads)
+//   uint overflow     1 when a quad did not fit: classify then marks every lit pixel
+//   uint reserved[2]
+//   vec4 quads[3 * maxQuads]  per quad: (c0.xy, c1.xy), (c2.xy, c3.xy), (z, 0, 0, 0) in NDC
+#version 460
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_8bit_storage : require
+#extension GL_GOOGLE_include_directive : require
+
+#include "config.h"
+#include "bvh_traversal.glsli"
+
+layout(local_size_x = 64) in;
+
+layout(buffer_reference, std430, buffer_reference_align = 16) buffer ThinQuads
+{
+    uint draw[4];
+    uint claimed;
+    uint overflow;
+    uint reserved[2];
+    vec4 quads[];
+};
+
+layout(push_constant) uniform ThinDetectPush
+{
+    mat4 viewProj;
+    vec2 mapSize;        // texels
+    uint nodeCount;
+    uint maxQuads;
+    uint64_t modelTable; // bvh_traversal.glsli
+    uint64_t thinQuads;  // ThinQuads
+} push;
+
+// Appends the conservative rectangle of triangle (v0, v1, v2) when it is thin.
+void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
+{
+    vec4 clip[3] = vec4[3](push.viewProj * vec4(v0, 1.0), push.viewProj * vec4(v1, 1.0), push.viewProj * vec4(v2, 1.0));
+    if (clip[0].w <= 0.0 || clip[1].w <= 0.0 || clip[2].w <= 0.0)
+        return; // crosses the light's near plane: the shadow map clips it too
+    vec2 p[3];
+    float zMin = 1.0;
+    for (int i = 0; i < 3; ++i) {
+        vec3 ndc = clip[i].xyz / clip[i].w;
+        p[i] = (ndc.xy * 0.5 + 0.5) * push.mapSize;
+        zMin = min(zMin, ndc.z);
+    }
+    if (!(zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
+        return;
+    // Longest edge a -> b, third vertex c.
+    int a = 0;
+    float longest = -1.0;
+    for (int i = 0; i < 3; ++i) {
+        float len = distance(p[i], p[(i + 1) % 3]);
+        if (len > longest) {
+            longest = len;
+            a = i;
+        }
+    }
+    vec2 A = p[a], B = p[(a + 1) % 3], C = p[(a + 2) % 3];
+    float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
+    float height = longest > 0.0 ? twiceArea / longest : 0.0;
+    if (height >= PENUMBRA_THIN_TEXELS && longest >= PENUMBRA_THIN_TEXELS)
+        return;
+    vec2 d = longest > 1e-12 ? (B - A) / longest : vec2(1.0, 0.0);
+    vec2 nrm = vec2(-d.y, d.x);
+    float c = dot(C - A, nrm);
+    float along = dot(C - A, d);
+    float e_d = 0.5 * (abs(d.x) + abs(d.y)), e_n = 0.5 * (abs(nrm.x) + abs(nrm.y));
+    float d0 = min(0.0, along) - e_d, d1 = max(longest, along) + e_d;
+    float n0 = min(0.0, c) - e_n, n1 = max(0.0, c) + e_n;
+    vec2 corners[4] = vec2[4](A + d * d0 + nrm * n0, A + d * d1 + nrm * n0, A + d * d0 + nrm * n1, A + d * d1 + nrm * n1);
+    vec2 lo = min(min(corners[0], corners[1]), min(corners[2], corners[3]));
+    vec2 hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]));
+    if (any(greaterThan(lo, push.mapSize)) || any(lessThan(hi, vec2(0.0))))
+        return; // covers no texel centre of the map
+    ThinQuads out_ = ThinQuads(push.thinQuads);
+    uint slot = atomicAdd(out_.claimed, 1u);
+    if (slot >= push.maxQuads) {
+        out_.overflow = 1u;
+        return;
+    }
+    vec2 ndc[4];
+    for (int i = 0; i < 4; ++i)
+        ndc[i] = corners[i] / push.mapSize * 2.0 - 1.0;
+    out_.quads[3u * slot] = vec4(ndc[0], ndc[1]);
+    out_.quads[3u * slot + 1u] = vec4(ndc[2], ndc[3]);
+    out_.quads[3u * slot + 2u] = vec4(zMin, 0.0, 0.0, 0.0);
+    atomicAdd(out_.draw[0], 6u);
+}
+
+void main()
+{
+    // Groups may be laid out in 2D when the nodes exceed maxComputeWorkGroupCount[0].
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint index = group * 64u + gl_LocalInvocationIndex;
+    if (index >= push.nodeCount)
+        return;
+    ModelTable table = ModelTable(push.modelTable);
+    NodeChunks nodeChunks = NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift);
+    uvec4 leaf = loadNode(nodeChunks, index);
+    if (((leaf.y >> 16) & 0xFFu) != PENUMBRA_NODE_LEAF)
+        return;
+    GeometryChunks chunks = GeometryChunks(push.modelTable + uint64_t((64u + 8u * table.nodeChunkCount + 15u) & ~15u));
+
+    // As leafOccludes() in bvh_traversal.glsli.
+    uint cluster = leaf.z;
+    ClusterArray records = ClusterArray(table.clusters);
+    uvec4 w0 = records.clusterWords[cluster * 3u], w1 = records.clusterWords[cluster * 3u + 1u];
+    vec3 boxMin = uintBitsToFloat(w0.xyz);
+    vec3 step = vec3(uintBitsToFloat(w0.w), uintBitsToFloat(w1.x), uintBitsToFloat(w1.y));
+    uint firstVertex = w1.z, firstIndex = w1.w;
+    uint lo = 0u, hi = table.geometryChunkCount - 1u;
+    while (lo < hi) {
+        uint mid = (lo + hi + 1u) >> 1;
+        if (chunks.geometryChunks[mid].firstCluster <= cluster)
+            lo = mid;
+        else
+            hi = mid - 1u;
+    }
+    GeometryChunk chunk = chunks.geometryChunks[lo];
+    VertexArray vertices = VertexArray(chunk.vertices + uint64_t(firstVertex - chunk.vertexBase) * 8ul);
+    uint start = leaf.w & 0xFFFFu, count = leaf.w >> 16;
+    ByteArray strips = ByteArray(chunk.indices + uint64_t(firstIndex - chunk.indexBase + start));
+
+    uint i0 = 0u, i1 = 0u;
+    vec3 p0 = vec3(0.0), p1 = vec3(0.0);
+    uint position = 0u; // bytes of the current strip so far
+    for (uint byteIndex = 0u; byteIndex < count; ++byteIndex) {
+        uint i2 = uint(strips.bytes[byteIndex]);
+        if (i2 == 0xFFu) {
+            position = 0u;
+            continue;
+        }
+        vec3 p2 = decodeVertex(vertices.vertices[i2], boxMin, step);
+        if (position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
+            bool odd = ((position - 2u) & 1u) != 0u;
+            emitIfThin(odd ? p1 : p0, odd ? p0 : p1, p2);
+        }
+        i0 = i1;
+        p0 = p1;
+        i1 = i2;
+        p1 = p2;
+        ++position;
+    }
+}
