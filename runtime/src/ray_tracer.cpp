@@ -9,7 +9,6 @@
 #include <vector>
 
 #include "config.h"
-#include "penumbra/shaders/registry.h"
 #include "resources.h"
 
 namespace penumbra {
@@ -49,20 +48,6 @@ static_assert(sizeof(ModelTableChunk) == 32);
 
 enum Binding : uint32_t { BindingPosition, BindingNormal, BindingVisibility, BindingFrame, BindingRayList, BindingStats, BindingCount };
 
-VkShaderModule createTraceModule(vk::Device& device)
-{
-    for (const shaders::Embedded& shader : shaders::kAll)
-        if (std::strcmp(shader.name, "trace.comp") == 0) {
-            VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-            info.codeSize = shader.size;
-            info.pCode = shader.code;
-            VkShaderModule module;
-            VK_CHECK(vkCreateShaderModule(device.device, &info, nullptr, &module));
-            return module;
-        }
-    fail("shaders", "no embedded shader named trace.comp");
-}
-
 } // namespace
 
 void createRayTracer(vk::Device& device, RayTracer& tracer)
@@ -89,7 +74,7 @@ void createRayTracer(vk::Device& device, RayTracer& tracer)
         layoutInfo.pPushConstantRanges = &range;
         VK_CHECK(vkCreatePipelineLayout(device.device, &layoutInfo, nullptr, &tracer.layout));
 
-        VkShaderModule module = createTraceModule(device);
+        VkShaderModule module = vk::createShaderModule(device, "trace.comp");
         VkComputePipelineCreateInfo pipelineInfo{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
         pipelineInfo.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
         pipelineInfo.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;

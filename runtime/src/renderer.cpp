@@ -13,7 +13,6 @@
 #include "model_geometry.h"
 #include "penumbra/preprocess.h"
 #include "penumbra/penumbra.h"
-#include "penumbra/shaders/registry.h"
 #include "ray_tracer.h"
 #include "resources.h"
 
@@ -33,20 +32,6 @@ constexpr uint32_t kMaxTimestamps = 64;
 enum Pass : uint32_t { PassCamera, PassShadowMap, PassThinTriangles, PassClassify, PassCompact, PassTrace, PassShade, PassReadback, PassCount };
 constexpr const char* kPassNames[PassCount] = {"camera", "shadow_map", "thin_triangles", "classify", "compact", "trace", "shade", "readback"};
 
-VkShaderModule createShaderModule(vk::Device& device, const char* name)
-{
-    for (const shaders::Embedded& shader : shaders::kAll)
-        if (std::strcmp(shader.name, name) == 0) {
-            VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-            info.codeSize = shader.size;
-            info.pCode = shader.code;
-            VkShaderModule module;
-            VK_CHECK(vkCreateShaderModule(device.device, &info, nullptr, &module));
-            return module;
-        }
-    fail("shaders", std::string("no embedded shader named ") + name);
-}
-
 struct GraphicsPipelineDesc {
     std::string vertexShader;                 // registry name; ".float" is appended for the reference encoding
     const char* fragmentShader = nullptr;     // null: depth only
@@ -64,8 +49,8 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
 {
     std::string vertexName =
         desc.vertexShader + (!desc.pulledVertices && desc.encoding == GeometryEncoding::UncompressedReference ? ".float" : "");
-    VkShaderModule vertex = createShaderModule(device, vertexName.c_str());
-    VkShaderModule fragment = desc.fragmentShader ? createShaderModule(device, desc.fragmentShader) : VK_NULL_HANDLE;
+    VkShaderModule vertex = vk::createShaderModule(device, vertexName.c_str());
+    VkShaderModule fragment = desc.fragmentShader ? vk::createShaderModule(device, desc.fragmentShader) : VK_NULL_HANDLE;
     std::vector<VkPipelineShaderStageCreateInfo> stages;
     for (auto [stage, module] : {std::pair{VK_SHADER_STAGE_VERTEX_BIT, vertex}, std::pair{VK_SHADER_STAGE_FRAGMENT_BIT, fragment}})
         if (module) {
@@ -282,7 +267,7 @@ void writeSet(vk::Device& device, VkDescriptorSet set, const std::vector<Binding
 
 VkPipeline createComputePipeline(vk::Device& device, const char* shader, VkPipelineLayout layout)
 {
-    VkShaderModule module = createShaderModule(device, shader);
+    VkShaderModule module = vk::createShaderModule(device, shader);
     VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
     info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
     info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;

@@ -2,6 +2,8 @@
 
 #include <cstring>
 
+#include "penumbra/shaders/registry.h"
+
 namespace penumbra::vk {
 
 namespace {
@@ -173,6 +175,20 @@ void destroyImage(Device& device, Image& image)
     if (image.memory)
         vkFreeMemory(device.device, image.memory, nullptr);
     image = {};
+}
+
+VkShaderModule createShaderModule(Device& device, const char* name)
+{
+    for (const shaders::Embedded& shader : shaders::kAll)
+        if (std::strcmp(shader.name, name) == 0) {
+            VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+            info.codeSize = shader.size;
+            info.pCode = shader.code;
+            VkShaderModule module;
+            VK_CHECK(vkCreateShaderModule(device.device, &info, nullptr, &module));
+            return module;
+        }
+    fail("shaders", std::string("no embedded shader named ") + name);
 }
 
 VkCommandBuffer beginOneTime(Device& device)

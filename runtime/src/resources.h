@@ -50,6 +50,9 @@ Image createImage(Device& device, uint32_t width, uint32_t height, uint32_t laye
                   bool arrayView = false);
 void destroyImage(Device& device, Image& image);
 
+// Shader module of an embedded SPIR-V shader by registry name ("shade.comp").
+VkShaderModule createShaderModule(Device& device, const char* name);
+
 // One-time command buffer: begin, record in fn, submit and wait.
 template <typename Fn>
 void immediateSubmit(Device& device, Fn&& fn);
