@@ -76,7 +76,10 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     vec2 A = p[a], B = p[(a + 1) % 3], C = p[(a + 2) % 3];
     float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
     float height = longest > 0.0 ? twiceArea / longest : 0.0;
-    if (height >= PENUMBRA_THIN_TEXELS && longest >= PENUMBRA_THIN_TEXELS)
+    // Slivers only (long and narrow: wires, poles, bars). Triangles small in
+    // every direction belong to dense surfaces whose neighbours cover the
+    // texels; the depth-discontinuity test handles their silhouettes.
+    if (height >= PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_TEXELS)
         return;
     vec2 d = longest > 1e-12 ? (B - A) / longest : vec2(1.0, 0.0);
     vec2 nrm = vec2(-d.y, d.x);
