@@ -1,5 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_atomic_int64 : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Shadow-map visibility and PIP classification (Lauterbach et al. 2009, 3.1).
 // Per camera pixel: project into the shadow map, visibility from the standard
 // depth test; in srt mode, mark the pixel potentially incorrect when
@@ -27,7 +29,7 @@ layout(set = 0, binding = 3) uniform sampler2DArray thinMap;
 layout(set = 0, binding = 4, r32f) uniform writeonly image2D outVisibility;
 layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 6, std430) writeonly buffer Marks { uint marks[]; };
-layout(set = 0, binding = 7, std430) buffer Stats { uint stats[]; };
+layout(set = 0, binding = 7, std430) buffer Stats { uint64_t stats[]; };
 // Header of the thin quads buffer (thin_detect.comp.glsl).
 layout(set = 0, binding = 8, std430) readonly buffer ThinQuads
 {
@@ -130,7 +132,7 @@ void main()
         atomicAdd(groupMarked, counts.y);
     barrier();
     if (gl_LocalInvocationIndex == 0u) {
-        atomicAdd(stats[PENUMBRA_STAT_COVERED], groupCovered);
-        atomicAdd(stats[PENUMBRA_STAT_PIP], groupMarked);
+        atomicAdd(stats[PENUMBRA_STAT_COVERED], uint64_t(groupCovered));
+        atomicAdd(stats[PENUMBRA_STAT_PIP], uint64_t(groupMarked));
     }
 }

@@ -23,6 +23,8 @@ layout(push_constant) uniform CompactPush {
 void main()
 {
     if (push.phase == 1u) {
+        if (gl_GlobalInvocationID.x != 0u)
+            return;
         // 2-D when needed: devices may limit each dimension to 65535 workgroups.
         uint groups = (rays[0] + PENUMBRA_TRACE_GROUP_SIZE - 1u) / PENUMBRA_TRACE_GROUP_SIZE;
         uint x = min(groups, 65535u);

@@ -17,7 +17,7 @@
 // where pixels[i] = y * width + x of a pixel to trace.
 #define PENUMBRA_RAY_LIST_HEADER_UINTS 4
 
-// Counters of one frame (std430 uint array, atomically accumulated).
+// Counters of one frame (std430 uint64_t array, atomically accumulated).
 #define PENUMBRA_STAT_RAYS 0             // rays traced
 #define PENUMBRA_STAT_NODES 1            // BVH nodes visited (children tested)
 #define PENUMBRA_STAT_LEAVES 2           // strip-range leaves tested

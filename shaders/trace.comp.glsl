@@ -10,6 +10,7 @@
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_atomic_int64 : require
 
 #include "config.h"
 #include "bvh_traversal.glsli"
@@ -26,7 +27,7 @@ layout(set = 0, binding = 4, std430) readonly buffer RayList
     uint dispatch[3];
     uint rayPixels[];
 };
-layout(set = 0, binding = 5, std430) buffer Stats { uint stats[]; };
+layout(set = 0, binding = 5, std430) buffer Stats { uint64_t stats[]; };
 
 layout(push_constant) uniform Push
 {
@@ -85,9 +86,9 @@ void main()
     uint totalLeaves = subgroupAdd(counters.leaves);
     uint totalTriangles = subgroupAdd(counters.triangles);
     if (subgroupElect() && totalRays > 0u) {
-        atomicAdd(stats[PENUMBRA_STAT_RAYS], totalRays);
-        atomicAdd(stats[PENUMBRA_STAT_NODES], totalNodes);
-        atomicAdd(stats[PENUMBRA_STAT_LEAVES], totalLeaves);
-        atomicAdd(stats[PENUMBRA_STAT_TRIANGLES], totalTriangles);
+        atomicAdd(stats[PENUMBRA_STAT_RAYS], uint64_t(totalRays));
+        atomicAdd(stats[PENUMBRA_STAT_NODES], uint64_t(totalNodes));
+        atomicAdd(stats[PENUMBRA_STAT_LEAVES], uint64_t(totalLeaves));
+        atomicAdd(stats[PENUMBRA_STAT_TRIANGLES], uint64_t(totalTriangles));
     }
 }

@@ -68,6 +68,8 @@ bool setLightProperty(Light& light, const std::string& key, const Json& value, c
     return true;
 }
 
+} // namespace
+
 void validateLight(const Light& light, const std::string& subject)
 {
     if (glm::length(light.direction) == 0.0f && light.type != LightType::Point && light.type != LightType::Sphere)
@@ -78,6 +80,9 @@ void validateLight(const Light& light, const std::string& subject)
         !(light.outerConeDegrees > 0.0f && light.outerConeDegrees < 90.0f && light.innerConeDegrees <= light.outerConeDegrees))
         fail(subject, "spot cones need 0 < inner_cone <= outer_cone < 90 degrees");
 }
+
+namespace {
+
 
 Light parseLight(const Json& object, const std::string& subject)
 {

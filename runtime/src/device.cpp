@@ -278,8 +278,11 @@ void createDevice(Device& device, const RendererOptions& options)
                            "multiDrawIndirect, drawIndirectFirstInstance)");
     // The ray tracer reads the model through buffer device addresses (64-bit
     // pointers, 8-bit strip loads).
-    if (!features12.bufferDeviceAddress || !supported.features.shaderInt64 || !features12.storageBuffer8BitAccess)
-        fail("vulkan", device.info.name + " lacks a feature the ray tracer needs (bufferDeviceAddress, shaderInt64, storageBuffer8BitAccess)");
+    if (!features12.bufferDeviceAddress || !supported.features.shaderInt64 || !features12.storageBuffer8BitAccess ||
+        !features12.shaderBufferInt64Atomics)
+        fail("vulkan", device.info.name +
+                           " lacks a feature the ray tracer needs (bufferDeviceAddress, shaderInt64, storageBuffer8BitAccess, "
+                           "shaderBufferInt64Atomics)");
     device.vertexStores = supported.features.vertexPipelineStoresAndAtomics;
     VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
     VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &maintenance3};
@@ -290,6 +293,7 @@ void createDevice(Device& device, const RendererOptions& options)
     enableUint8.indexTypeUint8 = VK_TRUE;
     VkPhysicalDeviceVulkan12Features enable12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES, &enableUint8};
     enable12.bufferDeviceAddress = VK_TRUE;
+    enable12.shaderBufferInt64Atomics = VK_TRUE; // 64-bit frame counters (nodes visited overflow 32 bits at 4K)
     enable12.storageBuffer8BitAccess = VK_TRUE;
     VkPhysicalDeviceVulkan13Features enable13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &enable12};
     enable13.dynamicRendering = VK_TRUE;

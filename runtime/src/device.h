@@ -34,8 +34,8 @@ struct Device {
     VkPhysicalDeviceMemoryProperties memory{};
     DeviceInfo info;
     VkDeviceSize maxAllocationSize = 1ull << 30; // VkPhysicalDeviceMaintenance3Properties
-    bool vertexStores = false;
-    VkDeviceSize maxModelBufferBytes = 0;        // RendererOptions::maxModelBufferBytes                   // vertexPipelineStoresAndAtomics (decode check)
+    bool vertexStores = false;                   // vertexPipelineStoresAndAtomics (decode check)
+    VkDeviceSize maxModelBufferBytes = 0;        // RendererOptions::maxModelBufferBytes
     std::atomic<uint32_t> validationMessages{0};
 };
 

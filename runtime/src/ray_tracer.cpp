@@ -120,6 +120,7 @@ void destroyRayTracer(vk::Device& device, RayTracer& tracer)
 
 void bindRayTracerModel(vk::Device& device, RayTracer& tracer, const GpuGeometry& geometry)
 {
+    tracer.modelTableAddress = 0; // nothing traceable until the new table exists
     if (geometry.encoding != GeometryEncoding::Compressed || geometry.nodeChunks.empty() || geometry.chunks.empty())
         fail("ray tracer", "needs a compressed model with its BVH (the uncompressed reference cannot be traced)");
     // Header, node chunk addresses, then the geometry chunks 16-byte aligned.

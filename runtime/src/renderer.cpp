@@ -1,5 +1,7 @@
-// Renderer: camera G-buffer pass, per-light shadow-map pass with slope-scaled
-// depth bias, compute shade pass, readback. One command buffer per frame.
+// Renderer: one command buffer per frame. Camera G-buffer pass, then per light:
+// shadow map (slope-scaled depth bias), thin-triangle detection and thin map
+// (srt), classify (shadow-map visibility, PIP marks), compaction and trace
+// (srt/frt), shade; then readback.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -313,7 +315,7 @@ struct Renderer::Impl {
     // Targets, recreated when the size changes
     uint32_t width = 0, height = 0, shadowSize = 0, shadowLayers = 0;
     vk::Image position, normal, depth, color, visibility, shadowMap, thinMap;
-    vk::Buffer frameUniforms, stats, marks, rayList, thinQuads;
+    vk::Buffer frameUniforms, stats, readbackStats, marks, rayList, thinQuads;
     vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
 
     explicit Impl(const RendererOptions& options)
@@ -410,8 +412,12 @@ struct Renderer::Impl {
         VK_CHECK(vkCreateFence(device.device, &fenceInfo, nullptr, &fence));
 
         frameUniforms = vk::createBuffer(device, sizeof(gpu::FrameData), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUse::Upload);
-        stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint32_t),
-                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
+        // Counters stay in device memory (GPU atomics) and are copied out once per frame.
+        stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t),
+                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                 vk::MemoryUse::DeviceLocal);
+        readbackStats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                         vk::MemoryUse::Readback);
         thinQuads = vk::createBuffer(device, kThinQuadsHeaderBytes + VkDeviceSize(kMaxThinQuads) * kThinQuadBytes,
                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                      vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
@@ -440,6 +446,7 @@ struct Renderer::Impl {
         destroyRayTracer(device, tracer);
         vk::destroyBuffer(device, frameUniforms);
         vk::destroyBuffer(device, stats);
+        vk::destroyBuffer(device, readbackStats);
         vk::destroyBuffer(device, thinQuads);
         VkDevice d = device.device;
         if (fence) vkDestroyFence(d, fence, nullptr);
@@ -487,6 +494,7 @@ struct Renderer::Impl {
         if (shadowResized) {
             vk::destroyImage(device, shadowMap);
             vk::destroyImage(device, thinMap);
+            shadowSize = shadowLayers = 0; // stays 0 if a creation below throws
             shadowMap = vk::createImage(device, smSize, smSize, smLayers, kDepthFormat,
                                         VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT, true);
             // The thin map stays in GENERAL: rendered in srt frames, sampled (cleared to "nothing thin") otherwise.
@@ -531,6 +539,7 @@ struct Renderer::Impl {
         vkDeviceWaitIdle(device.device);
         destroyGeometry(device, geometry);
         geometry = std::move(uploaded);
+        tracer.modelTableAddress = 0;
         if (geometry.encoding == GeometryEncoding::Compressed)
             bindRayTracerModel(device, tracer, geometry);
     }
@@ -556,6 +565,10 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         fail("render", "image size must be 1..16384 pixels per side");
     if (settings.shadowMapSize < 16 || settings.shadowMapSize > device.properties.limits.maxImageDimension2D)
         fail("render", "shadow-map size must be 16.." + std::to_string(device.properties.limits.maxImageDimension2D));
+    const VkDeviceSize pixelBytes = VkDeviceSize(settings.width) * settings.height * 16;
+    if (pixelBytes > device.maxAllocationSize || pixelBytes / 4 + 16 > device.properties.limits.maxStorageBufferRange)
+        fail("render", std::to_string(settings.width) + "x" + std::to_string(settings.height) +
+                           " exceeds this device's buffer limits (one RGBA32F image must fit one allocation and the ray list one storage binding)");
     if (settings.shadows != ShadowMethod::ShadowMap && geometry.encoding != GeometryEncoding::Compressed)
         fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
     auto cpuStart = std::chrono::steady_clock::now();
@@ -697,7 +710,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, kColorOut,
                               VK_ACCESS_2_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT);
             const VkDeviceAddress quadsAddress = vk::bufferAddress(device, thinQuads);
-            const uint32_t detectGroups = (geometry.nodeCount + 63) / 64;
+            const uint32_t detectGroups = std::max((geometry.nodeCount + 63) / 64, 1u);
             const uint32_t maxGroupsX = device.properties.limits.maxComputeWorkGroupCount[0];
             const uint32_t groupsXDetect = std::min(detectGroups, maxGroupsX), groupsYDetect = (detectGroups + groupsXDetect - 1) / groupsXDetect;
             for (uint32_t layer = 0; layer < layers; ++layer) {
@@ -779,8 +792,10 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         ShadePush shade{lightIndex, step == 0 ? 1u : 0u, settings.debugPip && traced ? 1u : 0u, 0u};
         vkCmdPushConstants(cmd, shadeLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(shade), &shade);
         vkCmdDispatch(cmd, groupsX, groupsY, 1);
-        // The next light's passes read the accumulated colour and rewrite visibility and marks.
-        vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute | kCopy, kStorageRW | VK_ACCESS_2_TRANSFER_READ_BIT);
+        // The next light's passes read the accumulated colour, rewrite visibility and marks, and clear
+        // the ray-list header that this light's trace read (also as indirect arguments).
+        vk::memoryBarrier(cmd, kCompute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT, kStorageRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT,
+                          kCompute | kClear, kStorageRW | VK_ACCESS_2_TRANSFER_WRITE_BIT);
         timestamp(PassShade);
     }
 
@@ -794,6 +809,9 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         vkCmdCopyImageToBuffer(cmd, image.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, buffer.buffer, 1, &region);
     };
     copyImage(color, readbackColor);
+    vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCopy, VK_ACCESS_2_TRANSFER_READ_BIT);
+    VkBufferCopy statsRegion{0, 0, PENUMBRA_STAT_COUNT * sizeof(uint64_t)};
+    vkCmdCopyBuffer(cmd, stats.buffer, readbackStats.buffer, 1, &statsRegion);
     if (settings.readbackGBuffer) {
         copyImage(position, readbackPosition);
         copyImage(normal, readbackNormal);
@@ -834,14 +852,14 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         passMs[timestampPass[i]] += double(ticks[i] - ticks[i - 1]) * period;
         ran[timestampPass[i]] = true;
     }
-    const uint32_t* counters = static_cast<const uint32_t*>(stats.mapped);
+    const uint64_t* counters = static_cast<const uint64_t*>(readbackStats.mapped);
     FrameStats& out = frame.stats;
     out.triangles = geometry.triangles;
     out.width = width;
     out.height = height;
     out.lights = uint32_t(frameLights.size());
     out.shadows = settings.shadows;
-    out.coveredPixels = counters[PENUMBRA_STAT_COVERED] / std::max<uint32_t>(out.lights, 1);
+    out.coveredPixels = counters[PENUMBRA_STAT_COVERED] / std::max<uint64_t>(out.lights, 1);
     out.pipPixels = counters[PENUMBRA_STAT_PIP];
     out.pipFraction = out.coveredPixels ? double(out.pipPixels) / (double(out.coveredPixels) * out.lights) : 0.0;
     out.rays = counters[PENUMBRA_STAT_RAYS];
@@ -975,6 +993,8 @@ void Renderer::setLights(const std::vector<Light>& lights)
 {
     if (lights.size() > PENUMBRA_MAX_LIGHTS)
         fail("lights", "at most " + std::to_string(PENUMBRA_MAX_LIGHTS) + " lights are supported, got " + std::to_string(lights.size()));
+    for (size_t i = 0; i < lights.size(); ++i)
+        validateLight(lights[i], "light " + std::to_string(i));
     impl->lights = lights;
 }
 

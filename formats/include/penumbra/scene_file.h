@@ -33,6 +33,10 @@ SceneDescription loadSceneDescription(const std::string& path);
 // Keys as in the JSON file; vectors comma-separated. Throws Error naming the spec.
 Light parseLightSpec(const std::string& spec);
 
+// Checks a light's values (non-zero direction where one is needed, positive
+// sizes, spot cones within 0..90 degrees). Throws Error("<subject>: <problem>").
+void validateLight(const Light& light, const std::string& subject);
+
 // Parses "x,y,z". Throws Error naming what.
 glm::vec3 parseVec3(const std::string& text, const std::string& what);
 
