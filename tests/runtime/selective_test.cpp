@@ -150,3 +150,37 @@ TEST(HardShadows, DebugImageMarksTracedPixelsRed)
 
 } // namespace
 } // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+TEST(HardShadows, SeveralLightsTraceEachLightIndependently)
+{
+    GenerateOptions options;
+    options.triangles = 40'000;
+    Scene scene = generateScene("city", options);
+    Light point;
+    point.type = LightType::Point;
+    point.position = glm::vec3(10.0f, 300.0f, 10.0f); // above the rooftops
+    point.intensity = 50000.0f;
+    for (ShadowMethod method : {ShadowMethod::Selective, ShadowMethod::FullRayTrace}) {
+        Renderer renderer;
+        renderer.loadModel(scene.mesh);
+        renderer.setCamera(scene.cameras[0]);
+        RenderSettings settings;
+        settings.width = settings.height = 192;
+        settings.shadows = method;
+        settings.readbackGBuffer = true;
+        renderer.setLights({scene.lights[0]});
+        Frame alone = renderer.render(settings);
+        renderer.setLights({scene.lights[0], point, point});
+        Frame together = renderer.render(settings);
+        // The visibility readback is light 0's: the other lights' passes must not disturb it.
+        EXPECT_EQ(alone.visibility, together.visibility) << shadowMethodName(method);
+        EXPECT_GT(together.stats.rays, alone.stats.rays);
+        EXPECT_EQ(renderer.validationMessageCount(), 0u);
+    }
+}
+
+} // namespace
+} // namespace penumbra
