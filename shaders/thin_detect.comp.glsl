@@ -3,7 +3,8 @@
 // conservative-rasterization extension on lavapipe). One invocation per BVH
 // node; a Leaf node decodes its strip range exactly as the tracer does
 // (bvh_traversal.glsli: forEachStripTriangle, decodeVertex, degenerate
-// triangles skipped), projects every triangle with the layer's viewProj and
+// triangles skipped) unless its smallest model-space altitude (computed at
+// upload) rules out slivers at this light's texel size, projects every triangle with the layer's viewProj and
 // keeps those whose height over their longest edge (or whose longest edge)
 // is under PENUMBRA_THIN_TEXELS texels: such a triangle may be missed by the
 // shadow map, so it is replaced by the rectangle around its longest edge,
@@ -38,6 +39,11 @@ layout(buffer_reference, std430, buffer_reference_align = 16) buffer ThinQuads
     vec4 quads[];
 };
 
+layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer LeafAltitudes
+{
+    float altitude[]; // per node: a leaf's smallest triangle altitude, model units
+};
+
 layout(push_constant) uniform ThinDetectPush
 {
     mat4 viewProj;
@@ -46,6 +52,10 @@ layout(push_constant) uniform ThinDetectPush
     uint maxQuads;
     uint64_t modelTable; // bvh_traversal.glsli
     uint64_t thinQuads;  // ThinQuads
+    vec4 light;          // xyz position; w: 0 orthographic, else a lower bound of light-view depth / distance
+    uint64_t leafAltitudes; // LeafAltitudes, 0: skip no leaf
+    float texelSize;     // orthographic: texel size; perspective: texel size per unit of light-view depth
+    float pad;
 } push;
 
 // Appends the conservative rectangle of triangle (v0, v1, v2) when it is thin.
@@ -129,6 +139,21 @@ void main()
     vec3 boxMin = uintBitsToFloat(w0.xyz);
     vec3 step = vec3(uintBitsToFloat(w0.w), uintBitsToFloat(w1.x), uintBitsToFloat(w1.y));
     uint firstVertex = w1.z, firstIndex = w1.w;
+
+    // A leaf whose every triangle is wider than the thin threshold in model
+    // space, at the smallest texel size the leaf can see, holds no sliver
+    // unless seen edge-on; edge-on faces of closed objects are covered by their
+    // neighbours in the shadow map, so the leaf is skipped without decoding.
+    if (push.leafAltitudes != 0ul) {
+        float altitude = LeafAltitudes(push.leafAltitudes).altitude[index];
+        float texel = push.texelSize;
+        if (push.light.w != 0.0) {
+            vec3 boxMax = boxMin + 65535.0 * step;
+            texel *= distance(clamp(push.light.xyz, boxMin, boxMax), push.light.xyz) * push.light.w;
+        }
+        if (altitude >= PENUMBRA_THIN_TEXELS * texel)
+            return;
+    }
     uint lo = 0u, hi = table.geometryChunkCount - 1u;
     while (lo < hi) {
         uint mid = (lo + hi + 1u) >> 1;

@@ -1,10 +1,50 @@
 #include "model_geometry.h"
 
 #include <algorithm>
+#include <limits>
+#include <thread>
+
+#include <glm/geometric.hpp>
 
 namespace penumbra {
 
 namespace {
+
+// Smallest altitude (twice the area over the longest edge) of each leaf's
+// decoded triangles: a triangle can be a sliver in a light's view only if it
+// is thin in model space or seen edge-on.
+std::vector<float> leafMinimumAltitudes(const CompressedModel& model)
+{
+    std::vector<float> altitudes(model.nodes.size(), 0.0f);
+    auto work = [&](size_t begin, size_t end) {
+        for (size_t n = begin; n < end; ++n) {
+            const model::Node& node = model.nodes[n];
+            if (node.kind != uint8_t(model::NodeKind::Leaf))
+                continue;
+            const model::ClusterRecord& cluster = model.clusters[node.first];
+            const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.second & 0xFFFF);
+            const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
+            float smallest = std::numeric_limits<float>::max();
+            forEachStripTriangle(strips, strips + (node.second >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
+                glm::vec3 p0 = decodePosition(cluster, vertices[a]), p1 = decodePosition(cluster, vertices[b]),
+                          p2 = decodePosition(cluster, vertices[c]);
+                float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
+                float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
+                smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
+            });
+            altitudes[n] = smallest;
+        }
+    };
+    unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+    std::vector<std::thread> pool;
+    size_t per = (altitudes.size() + threads - 1) / threads;
+    for (unsigned t = 1; t < threads && t * per < altitudes.size(); ++t)
+        pool.emplace_back(work, t * per, std::min(altitudes.size(), (t + 1) * per));
+    work(0, std::min(altitudes.size(), per));
+    for (std::thread& thread : pool)
+        thread.join();
+    return altitudes;
+}
 
 constexpr VkDeviceSize kChunkBytes = 1ull << 30; // per buffer, also capped by maxMemoryAllocationSize
 
@@ -78,12 +118,18 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         }
         geometry.indirect = vk::createBufferWithData(device, commands.data(), commands.size() * sizeof(VkDrawIndexedIndirectCommand),
                                                      VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
+        if (model.nodes.size() * sizeof(float) <= limit) {
+            std::vector<float> altitudes = leafMinimumAltitudes(model);
+            geometry.leafAltitudes = vk::createBufferWithData(device, altitudes.data(), altitudes.size() * sizeof(float),
+                                                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
+        }
     } catch (...) {
         destroyGeometry(device, geometry);
         throw;
     }
     geometry.deviceBytes = model.vertices.size_bytes() + model.indices.size_bytes() + model.clusters.size_bytes() +
-                           model.nodes.size_bytes() + model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand);
+                           model.nodes.size_bytes() + model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand) +
+                           geometry.leafAltitudes.size;
     return geometry;
 }
 
@@ -124,6 +170,7 @@ void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
         vk::destroyBuffer(device, nodes);
     vk::destroyBuffer(device, geometry.clusters);
     vk::destroyBuffer(device, geometry.indirect);
+    vk::destroyBuffer(device, geometry.leafAltitudes);
     geometry = {};
 }
 

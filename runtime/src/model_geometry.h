@@ -38,6 +38,10 @@ struct GpuGeometry {
     // The BVH (model::Node[]) for the ray tracer, in chunks of 2^nodeChunkShift
     // nodes (node i is in nodeChunks[i >> nodeChunkShift]); compressed only.
     std::vector<vk::Buffer> nodeChunks;
+    // float per node: a Leaf's smallest triangle altitude (model units), 0 for
+    // other nodes. The thin-triangle pass skips leaves with no sliver. Empty
+    // when the array would not fit one buffer (then no leaf is skipped).
+    vk::Buffer leafAltitudes;
     uint32_t nodeChunkShift = 0;
     uint32_t nodeCount = 0;
     float maxPositionError = 0;   // header.maxPositionError, model units

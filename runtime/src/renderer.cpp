@@ -168,13 +168,17 @@ constexpr VkDeviceSize kThinQuadBytes = 48;          // 3 vec4 per quad
 
 struct ThinDetectPush {
     glm::mat4 viewProj;
-    glm::vec2 mapSize;
+    glm::vec2 mapSize;          // texels
     uint32_t nodeCount;
     uint32_t maxQuads;
     VkDeviceAddress modelTable;
     VkDeviceAddress thinQuads;
+    glm::vec4 light;            // xyz light position; w: 0 orthographic, else a lower bound of light-view depth / distance
+    VkDeviceAddress leafAltitudes; // 0: skip no leaf
+    float texelSize;            // orthographic: texel size; perspective: texel size per unit of light-view depth
+    float pad;
 };
-static_assert(sizeof(ThinDetectPush) == 96);
+static_assert(sizeof(ThinDetectPush) == 128);
 
 struct ThinDrawPush {
     VkDeviceAddress thinQuads;
@@ -722,8 +726,20 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                 vkCmdUpdateBuffer(cmd, thinQuads.buffer, 0, layer == 0 ? 24 : 20, header);
                 vk::memoryBarrier(cmd, kTransfer, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
                 vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
-                ThinDetectPush detect{light.viewProj[layer], glm::vec2(float(shadowSize)), geometry.nodeCount, kMaxThinQuads,
-                                      tracer.modelTableAddress, quadsAddress};
+                // Texel size at depth z: orthographic footprint / size; perspective footprint * z / size, with
+                // z >= distance * cos(half the frustum's diagonal angle): 1/sqrt(3) for cube faces, cos(outer) for spots.
+                const bool perspective = light.shadowParams.z != 0.0f;
+                const float depthPerDistance = uint32_t(light.positionType.w) == PENUMBRA_LIGHT_SPOT ? light.spotCosLayers.y : 0.57735f;
+                ThinDetectPush detect{light.viewProj[layer],
+                                      glm::vec2(float(shadowSize)),
+                                      geometry.nodeCount,
+                                      kMaxThinQuads,
+                                      tracer.modelTableAddress,
+                                      quadsAddress,
+                                      glm::vec4(glm::vec3(light.positionType), perspective ? depthPerDistance : 0.0f),
+                                      geometry.leafAltitudes.buffer ? vk::bufferAddress(device, geometry.leafAltitudes) : 0,
+                                      light.shadowParams.w / float(shadowSize),
+                                      0.0f};
                 vkCmdPushConstants(cmd, thinDetectLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(detect), &detect);
                 vkCmdDispatch(cmd, groupsXDetect, groupsYDetect, 1);
                 vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kQuadReaders | kCompute,
