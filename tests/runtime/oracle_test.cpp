@@ -27,23 +27,6 @@ Frame renderGBuffer(const Mesh& mesh, const Camera& camera, const Light& light, 
     return frame;
 }
 
-struct Agreement {
-    size_t compared = 0, differing = 0;
-    double fraction() const { return compared ? double(differing) / double(compared) : 0.0; }
-};
-
-// Pixels the oracle traced (covered, light-facing) where the shadow map says otherwise.
-Agreement compare(const std::vector<float>& oracle, const std::vector<float>& shadowMap)
-{
-    Agreement a;
-    for (size_t i = 0; i < oracle.size(); ++i) {
-        if (oracle[i] < 0.0f)
-            continue;
-        ++a.compared;
-        a.differing += oracle[i] != shadowMap[i];
-    }
-    return a;
-}
 
 TEST(Oracle, MatchesTheAnalyticShadowOfABox)
 {
@@ -78,7 +61,7 @@ TEST(Oracle, AgreesWithTheShadowMapAwayFromEdges)
     sun.direction = {-0.3f, -1.0f, -0.2f};
     Frame frame = renderGBuffer(mesh, camera, sun, 256);
     std::vector<float> visibility = EmbreeOracle(mesh).hardShadowVisibility(frame.positions, frame.normals, sun);
-    Agreement a = compare(visibility, frame.visibility);
+    test::Comparison a = test::compareVisibility(visibility, frame.visibility);
     EXPECT_GT(a.compared, 20000u);
     EXPECT_LT(a.fraction(), 0.005) << a.differing << " of " << a.compared;
 }
@@ -90,10 +73,8 @@ TEST(Oracle, SeesTheThinGeometryTheShadowMapMisses)
     Scene city = generateScene("city", options);
     Frame frame = renderGBuffer(city.mesh, city.cameras.at(0), city.lights.at(0), 384);
     std::vector<float> visibility = EmbreeOracle(city.mesh).hardShadowVisibility(frame.positions, frame.normals, city.lights[0]);
-    Agreement a = compare(visibility, frame.visibility);
-    size_t missedShadow = 0;
-    for (size_t i = 0; i < visibility.size(); ++i)
-        missedShadow += visibility[i] == 0.0f && frame.visibility[i] == 1.0f;
+    test::Comparison a = test::compareVisibility(visibility, frame.visibility);
+    size_t missedShadow = a.missedShadow;
     std::printf("city: shadow map differs from the oracle on %zu of %zu pixels, %zu of them lit where the oracle sees shadow\n",
                 a.differing, a.compared, missedShadow);
     EXPECT_LT(a.fraction(), 0.05);   // mostly right ...

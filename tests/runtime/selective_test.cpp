@@ -28,25 +28,11 @@ Frame renderMethod(const Mesh& mesh, const Camera& camera, const Light& light, S
     return frame;
 }
 
-struct Comparison {
-    size_t compared = 0, differing = 0, missedShadow = 0;
-    double fraction() const { return compared ? double(differing) / double(compared) : 1.0; }
-};
+using test::Comparison;
 
-// Over the pixels the reference traced (covered, light-facing).
 Comparison compare(const std::vector<float>& reference, const std::vector<float>& other)
 {
-    Comparison c;
-    for (size_t i = 0; i < reference.size(); ++i) {
-        if (reference[i] < 0.0f)
-            continue;
-        ++c.compared;
-        if (reference[i] != other[i]) {
-            ++c.differing;
-            c.missedShadow += reference[i] == 0.0f && other[i] == 1.0f;
-        }
-    }
-    return c;
+    return test::compareVisibility(reference, other);
 }
 
 

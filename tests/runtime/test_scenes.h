@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <vector>
 
 #include "penumbra/mesh.h"
 
@@ -45,6 +46,29 @@ inline Mesh cubeOverFloor(float turn)
     addQuad(mesh, v(0), v(2), v(3), v(1)); // -z
     addQuad(mesh, v(4), v(5), v(7), v(6)); // +z
     return mesh;
+}
+
+// Visibility of one method against a reference, over the pixels the reference
+// traced (covered and light-facing: reference value >= 0).
+struct Comparison {
+    size_t compared = 0, differing = 0;
+    size_t missedShadow = 0; // reference shadowed, other lit
+    double fraction() const { return compared ? double(differing) / double(compared) : 1.0; }
+};
+
+inline Comparison compareVisibility(const std::vector<float>& reference, const std::vector<float>& other)
+{
+    Comparison c;
+    for (size_t i = 0; i < reference.size(); ++i) {
+        if (reference[i] < 0.0f)
+            continue;
+        ++c.compared;
+        if (reference[i] != other[i]) {
+            ++c.differing;
+            c.missedShadow += reference[i] == 0.0f && other[i] == 1.0f;
+        }
+    }
+    return c;
 }
 
 } // namespace penumbra::test
