@@ -11,10 +11,8 @@
 //    angle beta between surface and light: d^ = d sin(beta) / sin(alpha + beta);
 //    for directional lights d^ = d - w cos(beta) / sin(beta), w the texel width), or
 //  - the shadow map calls the pixel lit but a thin triangle, rasterized
-//    conservatively into the thin map, lies in front of it within its texel
-//    (a dropped thin occluder can only darken a pixel); when the thin
-//    rectangles overflowed their buffer (thin_detect.comp.glsl), every pixel
-//    the shadow map calls lit is marked instead.
+//    conservatively into the thin map (thin_detect.comp.glsl), lies in front
+//    of it within its texel (a dropped thin occluder can only darken a pixel).
 // frt mode marks every light-facing pixel; sm mode marks none.
 
 #include "config.h"
@@ -25,19 +23,11 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
 layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
 layout(set = 0, binding = 2) uniform sampler2DArray shadowMap;
-layout(set = 0, binding = 3) uniform sampler2DArray thinMap;
+layout(set = 0, binding = 3, r32ui) uniform readonly uimage2DArray thinMap; // float bits of the nearest thin depth
 layout(set = 0, binding = 4, r32f) uniform writeonly image2D outVisibility;
 layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 6, std430) writeonly buffer Marks { uint marks[]; };
 layout(set = 0, binding = 7, std430) buffer Stats { uint64_t stats[]; };
-// Header of the thin quads buffer (thin_detect.comp.glsl).
-layout(set = 0, binding = 8, std430) readonly buffer ThinQuads
-{
-    uint thinDraw[4];
-    uint thinClaimed;
-    uint thinOverflow;
-    uint thinReserved[2];
-};
 
 layout(push_constant) uniform ClassifyPush {
     uint lightIndex;
@@ -112,7 +102,7 @@ uvec2 classifyPixel()
     else if (lightFacing && push.mode == 1u && s.inside) {
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
         mark = depthDiscontinuityMayAffect(light, s, size, n, L) ||
-               (visibility == 1.0 && (thinOverflow != 0u || texelFetch(thinMap, ivec3(s.texel, s.layer), 0).r < s.depth));
+               (visibility == 1.0 && uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r) < s.depth);
     }
     marks[index] = mark ? 1u : 0u;
     return uvec2(1u, mark ? 1u : 0u);

@@ -7,18 +7,13 @@
 // upload) rules out slivers at this light's texel size, projects every triangle with the layer's viewProj and
 // keeps those whose height over their longest edge (or whose longest edge)
 // is under PENUMBRA_THIN_TEXELS texels: such a triangle may be missed by the
-// shadow map, so it is replaced by the rectangle around its longest edge,
-// grown by the texel square's half width in each direction of the edge's
-// frame (every texel the triangle touches has its centre inside), at the
-// triangle's nearest NDC depth. Triangles with a vertex at w <= 0 are skipped
-// (the shadow map clips them too); rectangles the rasterizer would discard
-// entirely (outside the map, depth outside [0, 1]) are not written.
-// Output (thin quads buffer, by device address; thin_quads.vert.glsl draws it):
-//   uint draw[4]      VkDrawIndirectCommand: 6 vertices per written quad, 1 instance
-//   uint claimed      quads claimed (may exceed maxQuads)
-//   uint overflow     1 when a quad did not fit: classify then marks every lit pixel
-//   uint reserved[2]
-//   vec4 quads[3 * maxQuads]  per quad: (c0.xy, c1.xy), (c2.xy, c3.xy), (z, 0, 0, 0) in NDC
+// shadow map, so every texel whose centre lies in the rectangle around its
+// longest edge, grown by the texel square's half width in each direction of
+// the edge's frame (so every texel the triangle touches is included), takes
+// the triangle's nearest NDC depth with imageAtomicMin into the thin map
+// (R32_UINT: float bits of depths in [0, 1] order like the floats). Triangles
+// with a vertex at w <= 0 are skipped (the shadow map clips them too), as are
+// rectangles whose depth would be clipped.
 #version 460
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
@@ -30,14 +25,7 @@
 
 layout(local_size_x = 64) in;
 
-layout(buffer_reference, std430, buffer_reference_align = 16) buffer ThinQuads
-{
-    uint draw[4];
-    uint claimed;
-    uint overflow;
-    uint reserved[2];
-    vec4 quads[];
-};
+layout(set = 0, binding = 0, r32ui) uniform uimage2DArray thinMap;
 
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer LeafAltitudes
 {
@@ -49,14 +37,26 @@ layout(push_constant) uniform ThinDetectPush
     mat4 viewProj;
     vec2 mapSize;        // texels
     uint nodeCount;
-    uint maxQuads;
+    uint layer;          // thin-map layer (cube face) being written
     uint64_t modelTable; // bvh_traversal.glsli
-    uint64_t thinQuads;  // ThinQuads
-    vec4 light;          // xyz position; w: 0 orthographic, else a lower bound of light-view depth / distance
     uint64_t leafAltitudes; // LeafAltitudes, 0: skip no leaf
+    vec4 light;          // xyz position; w: 0 orthographic, else a lower bound of light-view depth / distance
     float texelSize;     // orthographic: texel size; perspective: texel size per unit of light-view depth
-    float pad;
+    float pad0, pad1, pad2;
 } push;
+
+// Narrows [xLo, xHi] to the X with a * X in [lo, hi].
+void clipLinear(float a, float lo, float hi, inout float xLo, inout float xHi)
+{
+    if (abs(a) < 1e-12) {
+        if (lo > 0.0 || hi < 0.0)
+            xHi = xLo - 1.0; // empty
+        return;
+    }
+    float b0 = lo / a, b1 = hi / a;
+    xLo = max(xLo, min(b0, b1));
+    xHi = min(xHi, max(b0, b1));
+}
 
 // Appends the conservative rectangle of triangle (v0, v1, v2) when it is thin.
 void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
@@ -101,21 +101,20 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     vec2 corners[4] = vec2[4](A + d * d0 + nrm * n0, A + d * d1 + nrm * n0, A + d * d0 + nrm * n1, A + d * d1 + nrm * n1);
     vec2 lo = min(min(corners[0], corners[1]), min(corners[2], corners[3]));
     vec2 hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]));
-    if (any(greaterThan(lo, push.mapSize)) || any(lessThan(hi, vec2(0.0))))
-        return; // covers no texel centre of the map
-    ThinQuads out_ = ThinQuads(push.thinQuads);
-    uint slot = atomicAdd(out_.claimed, 1u);
-    if (slot >= push.maxQuads) {
-        out_.overflow = 1u;
-        return;
+    // Scanline fill of the texel centres inside the rectangle
+    // {A + d t + nrm u : t in [d0, d1], u in [n0, n1]}.
+    ivec2 size = ivec2(push.mapSize);
+    int yBegin = max(int(ceil(lo.y - 0.5)), 0), yEnd = min(int(floor(hi.y - 0.5)), size.y - 1);
+    uint depthBits = floatBitsToUint(zMin);
+    for (int y = yBegin; y <= yEnd; ++y) {
+        float cy = float(y) + 0.5 - A.y;
+        float xLo = lo.x - A.x - 1.0, xHi = hi.x - A.x + 1.0; // X = x + 0.5 - A.x
+        clipLinear(d.x, d0 - d.y * cy, d1 - d.y * cy, xLo, xHi);     // t = d.x X + d.y cy
+        clipLinear(-d.y, n0 - d.x * cy, n1 - d.x * cy, xLo, xHi);    // u = -d.y X + d.x cy
+        int xBegin = max(int(ceil(xLo + A.x - 0.5)), 0), xEnd = min(int(floor(xHi + A.x - 0.5)), size.x - 1);
+        for (int x = xBegin; x <= xEnd; ++x)
+            imageAtomicMin(thinMap, ivec3(x, y, int(push.layer)), depthBits);
     }
-    vec2 ndc[4];
-    for (int i = 0; i < 4; ++i)
-        ndc[i] = corners[i] / push.mapSize * 2.0 - 1.0;
-    out_.quads[3u * slot] = vec4(ndc[0], ndc[1]);
-    out_.quads[3u * slot + 1u] = vec4(ndc[2], ndc[3]);
-    out_.quads[3u * slot + 2u] = vec4(zMin, 0.0, 0.0, 0.0);
-    atomicAdd(out_.draw[0], 6u);
 }
 
 void main()

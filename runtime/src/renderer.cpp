@@ -27,7 +27,7 @@ constexpr VkFormat kNormalFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat kColorFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat kVisibilityFormat = VK_FORMAT_R32_SFLOAT;
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
-constexpr VkFormat kThinFormat = VK_FORMAT_R32_SFLOAT;
+constexpr VkFormat kThinFormat = VK_FORMAT_R32_UINT; // float bits of the nearest thin depth (imageAtomicMin)
 constexpr uint32_t kMaxTimestamps = 64;
 
 // Named passes, in the order stats report them.
@@ -40,9 +40,7 @@ struct GraphicsPipelineDesc {
     std::vector<VkFormat> colorFormats;
     bool depthBias = false;
     bool depthAttachment = true;
-    bool blendMin = false;                    // colour attachments blend with VK_BLEND_OP_MIN
     bool rasterizerDiscard = false;
-    bool pulledVertices = false;              // no vertex input: the vertex shader pulls triangle lists itself
     GeometryEncoding encoding = GeometryEncoding::Compressed;
     VkPipelineLayout layout = VK_NULL_HANDLE;
 };
@@ -50,7 +48,7 @@ struct GraphicsPipelineDesc {
 VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc& desc)
 {
     std::string vertexName =
-        desc.vertexShader + (!desc.pulledVertices && desc.encoding == GeometryEncoding::UncompressedReference ? ".float" : "");
+        desc.vertexShader + (desc.encoding == GeometryEncoding::UncompressedReference ? ".float" : "");
     VkShaderModule vertex = vk::createShaderModule(device, vertexName.c_str());
     VkShaderModule fragment = desc.fragmentShader ? vk::createShaderModule(device, desc.fragmentShader) : VK_NULL_HANDLE;
     std::vector<VkPipelineShaderStageCreateInfo> stages;
@@ -64,11 +62,6 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
         }
 
     GeometryInputState input = geometryInputState(desc.encoding);
-    if (desc.pulledVertices) {
-        input.bindingCount = input.attributeCount = 0;
-        input.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
-        input.primitiveRestart = VK_FALSE;
-    }
     VkPipelineVertexInputStateCreateInfo vertexInput{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
     vertexInput.vertexBindingDescriptionCount = input.bindingCount;
     vertexInput.pVertexBindingDescriptions = input.bindings;
@@ -96,15 +89,7 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     depth.depthCompareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
     std::vector<VkPipelineColorBlendAttachmentState> blends(desc.colorFormats.size());
     for (auto& blend : blends)
-    {
         blend.colorWriteMask = 0xf;
-        if (desc.blendMin) {
-            blend.blendEnable = VK_TRUE;
-            blend.colorBlendOp = blend.alphaBlendOp = VK_BLEND_OP_MIN;
-            blend.srcColorBlendFactor = blend.dstColorBlendFactor = VK_BLEND_FACTOR_ONE;
-            blend.srcAlphaBlendFactor = blend.dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE;
-        }
-    }
     VkPipelineColorBlendStateCreateInfo blend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
     blend.attachmentCount = uint32_t(blends.size());
     blend.pAttachments = blends.data();
@@ -160,29 +145,19 @@ struct CameraPush {
 };
 
 // Thin-triangle pass: thin_detect.comp writes the conservative rectangles of
-// the thin triangles (at most kMaxThinQuads; more set the overflow flag, and
-// classify then marks every lit pixel), thin_quads.vert draws them.
-constexpr uint32_t kMaxThinQuads = 1u << 20;
-constexpr VkDeviceSize kThinQuadsHeaderBytes = 32;   // draw[4], claimed, overflow, reserved[2]
-constexpr VkDeviceSize kThinQuadBytes = 48;          // 3 vec4 per quad
-
+// the thin triangles straight into the thin map with imageAtomicMin.
 struct ThinDetectPush {
     glm::mat4 viewProj;
-    glm::vec2 mapSize;          // texels
+    glm::vec2 mapSize;             // texels
     uint32_t nodeCount;
-    uint32_t maxQuads;
+    uint32_t layer;                // thin-map layer written
     VkDeviceAddress modelTable;
-    VkDeviceAddress thinQuads;
-    glm::vec4 light;            // xyz light position; w: 0 orthographic, else a lower bound of light-view depth / distance
     VkDeviceAddress leafAltitudes; // 0: skip no leaf
-    float texelSize;            // orthographic: texel size; perspective: texel size per unit of light-view depth
-    float pad;
+    glm::vec4 light;               // xyz light position; w: 0 orthographic, else a lower bound of light-view depth / distance
+    float texelSize;               // orthographic: texel size; perspective: texel size per unit of light-view depth
+    float pad[3];
 };
 static_assert(sizeof(ThinDetectPush) == 128);
-
-struct ThinDrawPush {
-    VkDeviceAddress thinQuads;
-};
 
 struct ClassifyPush {
     uint32_t lightIndex;
@@ -302,24 +277,25 @@ struct Renderer::Impl {
     std::vector<Light> lights;
     // Pipelines
     VkDescriptorSetLayout classifySetLayout = VK_NULL_HANDLE, compactSetLayout = VK_NULL_HANDLE, shadeSetLayout = VK_NULL_HANDLE;
-    VkPipelineLayout gbufferLayout = VK_NULL_HANDLE, shadowLayout = VK_NULL_HANDLE, thinLayout = VK_NULL_HANDLE;
+    VkDescriptorSetLayout thinDetectSetLayout = VK_NULL_HANDLE;
+    VkPipelineLayout gbufferLayout = VK_NULL_HANDLE, shadowLayout = VK_NULL_HANDLE;
     VkPipelineLayout classifyLayout = VK_NULL_HANDLE, compactLayout = VK_NULL_HANDLE, shadeLayout = VK_NULL_HANDLE;
     VkPipelineLayout thinDetectLayout = VK_NULL_HANDLE;
     // Raster pipelines per geometry encoding (index: GeometryEncoding).
     VkPipeline gbufferPipelines[2] = {}, shadowPipelines[2] = {};
-    VkPipeline thinPipeline = VK_NULL_HANDLE, thinDetectPipeline = VK_NULL_HANDLE;
+    VkPipeline thinDetectPipeline = VK_NULL_HANDLE;
     VkPipeline classifyPipeline = VK_NULL_HANDLE, compactPipeline = VK_NULL_HANDLE, shadePipeline = VK_NULL_HANDLE;
     RayTracer tracer;
     VkSampler nearestSampler = VK_NULL_HANDLE;
     VkDescriptorPool descriptorPool = VK_NULL_HANDLE;
-    VkDescriptorSet classifySet = VK_NULL_HANDLE, compactSet = VK_NULL_HANDLE, shadeSet = VK_NULL_HANDLE;
+    VkDescriptorSet classifySet = VK_NULL_HANDLE, compactSet = VK_NULL_HANDLE, shadeSet = VK_NULL_HANDLE, thinDetectSet = VK_NULL_HANDLE;
     VkQueryPool queryPool = VK_NULL_HANDLE;
     VkCommandBuffer commandBuffer = VK_NULL_HANDLE;
     VkFence fence = VK_NULL_HANDLE;
     // Targets, recreated when the size changes
     uint32_t width = 0, height = 0, shadowSize = 0, shadowLayers = 0;
     vk::Image position, normal, depth, color, visibility, shadowMap, thinMap;
-    vk::Buffer frameUniforms, stats, readbackStats, marks, rayList, thinQuads;
+    vk::Buffer frameUniforms, stats, readbackStats, marks, rayList;
     vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
 
     explicit Impl(const RendererOptions& options)
@@ -337,14 +313,14 @@ struct Renderer::Impl {
     void createPipelines()
     {
         const VkShaderStageFlags compute = VK_SHADER_STAGE_COMPUTE_BIT;
-        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kSampled, kStorageImage, kUniform, kStorage, kStorage, kStorage}, compute);
+        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kStorageImage, kStorageImage, kUniform, kStorage, kStorage}, compute);
+        thinDetectSetLayout = createSetLayout(device, {kStorageImage}, compute);
         compactSetLayout = createSetLayout(device, {kStorage, kStorage}, compute);
         shadeSetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage}, compute);
 
         gbufferLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(CameraPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
         shadowLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(glm::mat4), VK_SHADER_STAGE_VERTEX_BIT);
-        thinLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(ThinDrawPush), VK_SHADER_STAGE_VERTEX_BIT);
-        thinDetectLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(ThinDetectPush), compute);
+        thinDetectLayout = createPipelineLayout(device, thinDetectSetLayout, sizeof(ThinDetectPush), compute);
         classifyLayout = createPipelineLayout(device, classifySetLayout, sizeof(ClassifyPush), compute);
         compactLayout = createPipelineLayout(device, compactSetLayout, sizeof(CompactPush), compute);
         shadeLayout = createPipelineLayout(device, shadeSetLayout, sizeof(ShadePush), compute);
@@ -365,15 +341,6 @@ struct Renderer::Impl {
             shadow.encoding = encoding;
             shadowPipelines[int(encoding)] = createGraphicsPipeline(device, shadow);
         }
-        GraphicsPipelineDesc thin;
-        thin.vertexShader = "thin_quads.vert";
-        thin.pulledVertices = true;
-        thin.fragmentShader = "thin_triangles.frag";
-        thin.colorFormats = {kThinFormat};
-        thin.depthAttachment = false;
-        thin.blendMin = true;
-        thin.layout = thinLayout;
-        thinPipeline = createGraphicsPipeline(device, thin);
         thinDetectPipeline = createComputePipeline(device, "thin_detect.comp", thinDetectLayout);
         classifyPipeline = createComputePipeline(device, "classify.comp", classifyLayout);
         compactPipeline = createComputePipeline(device, "compact.comp", compactLayout);
@@ -387,20 +354,21 @@ struct Renderer::Impl {
 
         VkDescriptorPoolSize poolSizes[4] = {{kStorageImage, 16}, {kSampled, 4}, {kUniform, 4}, {kStorage, 10}};
         VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-        poolInfo.maxSets = 3;
+        poolInfo.maxSets = 4;
         poolInfo.poolSizeCount = 4;
         poolInfo.pPoolSizes = poolSizes;
         VK_CHECK(vkCreateDescriptorPool(device.device, &poolInfo, nullptr, &descriptorPool));
-        VkDescriptorSetLayout layouts[3] = {classifySetLayout, compactSetLayout, shadeSetLayout};
-        VkDescriptorSet sets[3];
+        VkDescriptorSetLayout layouts[4] = {classifySetLayout, compactSetLayout, shadeSetLayout, thinDetectSetLayout};
+        VkDescriptorSet sets[4];
         VkDescriptorSetAllocateInfo allocInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
         allocInfo.descriptorPool = descriptorPool;
-        allocInfo.descriptorSetCount = 3;
+        allocInfo.descriptorSetCount = 4;
         allocInfo.pSetLayouts = layouts;
         VK_CHECK(vkAllocateDescriptorSets(device.device, &allocInfo, sets));
         classifySet = sets[0];
         compactSet = sets[1];
         shadeSet = sets[2];
+        thinDetectSet = sets[3];
 
         VkQueryPoolCreateInfo queryInfo{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
         queryInfo.queryType = VK_QUERY_TYPE_TIMESTAMP;
@@ -422,9 +390,6 @@ struct Renderer::Impl {
                                  vk::MemoryUse::DeviceLocal);
         readbackStats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                          vk::MemoryUse::Readback);
-        thinQuads = vk::createBuffer(device, kThinQuadsHeaderBytes + VkDeviceSize(kMaxThinQuads) * kThinQuadBytes,
-                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                     vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
     }
 
     void destroyTargets()
@@ -451,18 +416,17 @@ struct Renderer::Impl {
         vk::destroyBuffer(device, frameUniforms);
         vk::destroyBuffer(device, stats);
         vk::destroyBuffer(device, readbackStats);
-        vk::destroyBuffer(device, thinQuads);
         VkDevice d = device.device;
         if (fence) vkDestroyFence(d, fence, nullptr);
         if (queryPool) vkDestroyQueryPool(d, queryPool, nullptr);
         if (descriptorPool) vkDestroyDescriptorPool(d, descriptorPool, nullptr);
         if (nearestSampler) vkDestroySampler(d, nearestSampler, nullptr);
-        for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1], thinPipeline,
+        for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1],
                              thinDetectPipeline, classifyPipeline, compactPipeline, shadePipeline})
             if (p) vkDestroyPipeline(d, p, nullptr);
-        for (VkPipelineLayout l : {gbufferLayout, shadowLayout, thinLayout, thinDetectLayout, classifyLayout, compactLayout, shadeLayout})
+        for (VkPipelineLayout l : {gbufferLayout, shadowLayout, thinDetectLayout, classifyLayout, compactLayout, shadeLayout})
             if (l) vkDestroyPipelineLayout(d, l, nullptr);
-        for (VkDescriptorSetLayout l : {classifySetLayout, compactSetLayout, shadeSetLayout})
+        for (VkDescriptorSetLayout l : {classifySetLayout, compactSetLayout, shadeSetLayout, thinDetectSetLayout})
             if (l) vkDestroyDescriptorSetLayout(d, l, nullptr);
         vk::destroyDevice(device);
     }
@@ -501,29 +465,27 @@ struct Renderer::Impl {
             shadowSize = shadowLayers = 0; // stays 0 if a creation below throws
             shadowMap = vk::createImage(device, smSize, smSize, smLayers, kDepthFormat,
                                         VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT, true);
-            // The thin map stays in GENERAL: rendered in srt frames, sampled (cleared to "nothing thin") otherwise.
+            // The thin map stays in GENERAL: written in srt frames, read (cleared to "nothing thin") otherwise.
             thinMap = vk::createImage(device, smSize, smSize, smLayers, kThinFormat,
-                                      VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, true);
+                                      VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, true);
             vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
                 vk::transition(cmd, shadowMap, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, 0,
                                VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
                 vk::transition(cmd, thinMap, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_NONE, 0,
                                VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
-                VkClearColorValue far{{1.0f, 1.0f, 1.0f, 1.0f}};
-                VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, smLayers};
-                vkCmdClearColorImage(cmd, thinMap.image, VK_IMAGE_LAYOUT_GENERAL, &far, 1, &range);
+                clearThinMap(cmd);
                 vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                                  VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
+                                  VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
             });
             shadowSize = smSize;
             shadowLayers = smLayers;
         }
         writeSet(device, classifySet, {{kStorageImage, position.view}, {kStorageImage, normal.view},
                                        {kSampled, shadowMap.view, nearestSampler, {}, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-                                       {kSampled, thinMap.view, nearestSampler},
+                                       {kStorageImage, thinMap.view},
                                        {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
-                                       {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer},
-                                       {kStorage, {}, {}, thinQuads.buffer, VK_IMAGE_LAYOUT_GENERAL, kThinQuadsHeaderBytes}});
+                                       {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer}});
+        writeSet(device, thinDetectSet, {{kStorageImage, thinMap.view}});
         writeSet(device, compactSet, {{kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, rayList.buffer}});
         writeSet(device, shadeSet, {{kStorageImage, position.view}, {kStorageImage, normal.view}, {kStorageImage, color.view},
                                     {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
@@ -536,6 +498,15 @@ struct Renderer::Impl {
         trace.rayList = rayList.buffer;
         trace.stats = stats.buffer;
         bindRayTracerTargets(device, tracer, trace);
+    }
+
+    // Every layer of the thin map to "nothing thin": the bits of 1.0f (the far plane).
+    void clearThinMap(VkCommandBuffer cmd)
+    {
+        VkClearColorValue far{};
+        far.uint32[0] = 0x3F800000u;
+        VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, thinMap.layers};
+        vkCmdClearColorImage(cmd, thinMap.image, VK_IMAGE_LAYOUT_GENERAL, &far, 1, &range);
     }
 
     void setGeometry(GpuGeometry uploaded)
@@ -705,66 +676,35 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         timestamp(PassShadowMap);
 
         // Thin triangles, rasterized conservatively (srt only): per layer, a
-        // compute pass over the model's leaves writes the rectangles of the thin
-        // triangles and their indirect draw, which then blends them into the thin map.
+        // compute pass over the model's leaves writes the nearest depth of the
+        // thin triangles' conservative rectangles into the thin map.
         if (selective) {
-            constexpr VkPipelineStageFlags2 kTransfer = VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT;
-            constexpr VkPipelineStageFlags2 kQuadReaders = VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT;
-            constexpr VkAccessFlags2 kQuadReads = VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT;
-            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, kColorOut,
-                              VK_ACCESS_2_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT);
-            const VkDeviceAddress quadsAddress = vk::bufferAddress(device, thinQuads);
+            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+            clearThinMap(cmd);
+            vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectLayout, 0, 1, &thinDetectSet, 0, nullptr);
             const uint32_t detectGroups = std::max((geometry.nodeCount + 63) / 64, 1u);
             const uint32_t maxGroupsX = device.properties.limits.maxComputeWorkGroupCount[0];
             const uint32_t groupsXDetect = std::min(detectGroups, maxGroupsX), groupsYDetect = (detectGroups + groupsXDetect - 1) / groupsXDetect;
+            // Texel size at depth z: orthographic footprint / size; perspective footprint * z / size, with
+            // z >= distance * cos(half the frustum's diagonal angle): 1/sqrt(3) for cube faces, cos(outer) for spots.
+            const bool perspective = light.shadowParams.z != 0.0f;
+            const float depthPerDistance = uint32_t(light.positionType.w) == PENUMBRA_LIGHT_SPOT ? light.spotCosLayers.y : 0.57735f;
             for (uint32_t layer = 0; layer < layers; ++layer) {
-                // Reset the draw (0 vertices, 1 instance) and the claimed count; the
-                // overflow flag once per light (classify reads it for all layers).
-                const uint32_t header[6] = {0, 1, 0, 0, 0, 0};
-                vk::memoryBarrier(cmd, kQuadReaders | kCompute, kQuadReads | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kTransfer,
-                                  VK_ACCESS_2_TRANSFER_WRITE_BIT);
-                vkCmdUpdateBuffer(cmd, thinQuads.buffer, 0, layer == 0 ? 24 : 20, header);
-                vk::memoryBarrier(cmd, kTransfer, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
-                vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
-                // Texel size at depth z: orthographic footprint / size; perspective footprint * z / size, with
-                // z >= distance * cos(half the frustum's diagonal angle): 1/sqrt(3) for cube faces, cos(outer) for spots.
-                const bool perspective = light.shadowParams.z != 0.0f;
-                const float depthPerDistance = uint32_t(light.positionType.w) == PENUMBRA_LIGHT_SPOT ? light.spotCosLayers.y : 0.57735f;
                 ThinDetectPush detect{light.viewProj[layer],
                                       glm::vec2(float(shadowSize)),
                                       geometry.nodeCount,
-                                      kMaxThinQuads,
+                                      layer,
                                       tracer.modelTableAddress,
-                                      quadsAddress,
-                                      glm::vec4(glm::vec3(light.positionType), perspective ? depthPerDistance : 0.0f),
                                       geometry.leafAltitudes.buffer ? vk::bufferAddress(device, geometry.leafAltitudes) : 0,
+                                      glm::vec4(glm::vec3(light.positionType), perspective ? depthPerDistance : 0.0f),
                                       light.shadowParams.w / float(shadowSize),
-                                      0.0f};
+                                      {}};
                 vkCmdPushConstants(cmd, thinDetectLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(detect), &detect);
                 vkCmdDispatch(cmd, groupsXDetect, groupsYDetect, 1);
-                vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kQuadReaders | kCompute,
-                                  kQuadReads);
-
-                VkRenderingAttachmentInfo target{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-                target.imageView = thinMap.layerViews[layer];
-                target.imageLayout = VK_IMAGE_LAYOUT_GENERAL;
-                target.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-                target.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-                target.clearValue.color = {{1.0f, 1.0f, 1.0f, 1.0f}};
-                VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
-                rendering.renderArea = {{0, 0}, {shadowSize, shadowSize}};
-                rendering.layerCount = 1;
-                rendering.colorAttachmentCount = 1;
-                rendering.pColorAttachments = &target;
-                vkCmdBeginRendering(cmd, &rendering);
-                vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, thinPipeline);
-                setViewport(cmd, shadowSize, shadowSize);
-                ThinDrawPush draw{quadsAddress};
-                vkCmdPushConstants(cmd, thinLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(draw), &draw);
-                vkCmdDrawIndirect(cmd, thinQuads.buffer, 0, 1, sizeof(VkDrawIndirectCommand));
-                vkCmdEndRendering(cmd);
             }
-            vk::memoryBarrier(cmd, kColorOut, VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
+            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
             timestamp(PassThinTriangles);
         }
 
