@@ -4,11 +4,14 @@
 // device address.
 #include "ray_tracer.h"
 
+#include "pipelines.h"
+
 #include <cstring>
 #include <string>
 #include <vector>
 
 #include "config.h"
+#include "pipelines.h"
 #include "resources.h"
 
 namespace penumbra {
@@ -46,44 +49,16 @@ struct ModelTableChunk {
 };
 static_assert(sizeof(ModelTableChunk) == 32);
 
-enum Binding : uint32_t { BindingPosition, BindingNormal, BindingVisibility, BindingFrame, BindingRayList, BindingStats, BindingCount };
-
 } // namespace
 
 void createRayTracer(vk::Device& device, RayTracer& tracer)
 {
     try {
-        VkDescriptorSetLayoutBinding bindings[BindingCount] = {
-            {BindingPosition, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {BindingNormal, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {BindingVisibility, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {BindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {BindingRayList, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-            {BindingStats, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-        };
-        VkDescriptorSetLayoutCreateInfo setInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-        setInfo.bindingCount = BindingCount;
-        setInfo.pBindings = bindings;
-        VK_CHECK(vkCreateDescriptorSetLayout(device.device, &setInfo, nullptr, &tracer.setLayout));
-
-        VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(TracePush)};
-        VkPipelineLayoutCreateInfo layoutInfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-        layoutInfo.setLayoutCount = 1;
-        layoutInfo.pSetLayouts = &tracer.setLayout;
-        layoutInfo.pushConstantRangeCount = 1;
-        layoutInfo.pPushConstantRanges = &range;
-        VK_CHECK(vkCreatePipelineLayout(device.device, &layoutInfo, nullptr, &tracer.layout));
-
-        VkShaderModule module = vk::createShaderModule(device, "trace.comp");
-        VkComputePipelineCreateInfo pipelineInfo{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-        pipelineInfo.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-        pipelineInfo.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-        pipelineInfo.stage.module = module;
-        pipelineInfo.stage.pName = "main";
-        pipelineInfo.layout = tracer.layout;
-        VkResult result = vkCreateComputePipelines(device.device, VK_NULL_HANDLE, 1, &pipelineInfo, nullptr, &tracer.pipeline);
-        vkDestroyShaderModule(device.device, module, nullptr);
-        VK_CHECK(result);
+        tracer.setLayout = vk::createSetLayout(device, {vk::kStorageImage, vk::kStorageImage, vk::kStorageImage, vk::kUniform,
+                                                        vk::kStorage, vk::kStorage},
+                                               VK_SHADER_STAGE_COMPUTE_BIT);
+        tracer.layout = vk::createPipelineLayout(device, tracer.setLayout, sizeof(TracePush), VK_SHADER_STAGE_COMPUTE_BIT);
+        tracer.pipeline = vk::createComputePipeline(device, "trace.comp", tracer.layout);
 
         VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 3},
                                         {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
@@ -159,27 +134,11 @@ void bindRayTracerModel(vk::Device& device, RayTracer& tracer, const GpuGeometry
 
 void bindRayTracerTargets(vk::Device& device, RayTracer& tracer, const TraceBindings& bindings)
 {
-    VkDescriptorImageInfo images[3] = {{VK_NULL_HANDLE, bindings.position, VK_IMAGE_LAYOUT_GENERAL},
-                                       {VK_NULL_HANDLE, bindings.normal, VK_IMAGE_LAYOUT_GENERAL},
-                                       {VK_NULL_HANDLE, bindings.visibility, VK_IMAGE_LAYOUT_GENERAL}};
-    VkDescriptorBufferInfo buffers[3] = {{bindings.frameUniforms, 0, VK_WHOLE_SIZE},
-                                         {bindings.rayList, 0, VK_WHOLE_SIZE},
-                                         {bindings.stats, 0, VK_WHOLE_SIZE}};
-    VkWriteDescriptorSet writes[BindingCount];
-    for (uint32_t i = 0; i < BindingCount; ++i) {
-        writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-        writes[i].dstSet = tracer.set;
-        writes[i].dstBinding = i;
-        writes[i].descriptorCount = 1;
-        if (i <= BindingVisibility) {
-            writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-            writes[i].pImageInfo = &images[i];
-        } else {
-            writes[i].descriptorType = i == BindingFrame ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-            writes[i].pBufferInfo = &buffers[i - BindingFrame];
-        }
-    }
-    vkUpdateDescriptorSets(device.device, BindingCount, writes, 0, nullptr);
+    // trace.comp's set 0: position, normal, visibility, frame, ray list, stats.
+    vk::writeSet(device, tracer.set,
+                 {{vk::kStorageImage, bindings.position}, {vk::kStorageImage, bindings.normal}, {vk::kStorageImage, bindings.visibility},
+                  {vk::kUniform, {}, {}, bindings.frameUniforms}, {vk::kStorage, {}, {}, bindings.rayList},
+                  {vk::kStorage, {}, {}, bindings.stats}});
     tracer.rayList = bindings.rayList;
 }
 

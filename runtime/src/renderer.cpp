@@ -13,12 +13,23 @@
 #include "device.h"
 #include "light_space.h"
 #include "model_geometry.h"
+#include "pipelines.h"
 #include "penumbra/preprocess.h"
 #include "penumbra/penumbra.h"
 #include "ray_tracer.h"
 #include "resources.h"
 
 namespace penumbra {
+
+using vk::Binding;
+using vk::createComputePipeline;
+using vk::createPipelineLayout;
+using vk::createSetLayout;
+using vk::kSampled;
+using vk::kStorage;
+using vk::kStorageImage;
+using vk::kUniform;
+using vk::writeSet;
 
 namespace {
 
@@ -126,19 +137,6 @@ VkPipeline createGraphicsPipeline(vk::Device& device, const GraphicsPipelineDesc
     return pipeline;
 }
 
-VkPipelineLayout createPipelineLayout(vk::Device& device, VkDescriptorSetLayout setLayout, uint32_t pushBytes, VkShaderStageFlags stages)
-{
-    VkPushConstantRange range{stages, 0, pushBytes};
-    VkPipelineLayoutCreateInfo info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-    info.setLayoutCount = setLayout ? 1 : 0;
-    info.pSetLayouts = &setLayout;
-    info.pushConstantRangeCount = 1;
-    info.pPushConstantRanges = &range;
-    VkPipelineLayout layout;
-    VK_CHECK(vkCreatePipelineLayout(device.device, &info, nullptr, &layout));
-    return layout;
-}
-
 struct CameraPush {
     glm::mat4 viewProj;
     glm::vec4 cameraPosition;
@@ -199,73 +197,6 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds)
     return data;
 }
 
-VkDescriptorSetLayout createSetLayout(vk::Device& device, const std::vector<VkDescriptorType>& types, VkShaderStageFlags stages)
-{
-    std::vector<VkDescriptorSetLayoutBinding> bindings;
-    for (uint32_t i = 0; i < types.size(); ++i)
-        bindings.push_back({i, types[i], 1, stages, nullptr});
-    VkDescriptorSetLayoutCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    info.bindingCount = uint32_t(bindings.size());
-    info.pBindings = bindings.data();
-    VkDescriptorSetLayout layout;
-    VK_CHECK(vkCreateDescriptorSetLayout(device.device, &info, nullptr, &layout));
-    return layout;
-}
-
-// One descriptor of a set: an image view (+ sampler) or a whole buffer.
-struct Binding {
-    VkDescriptorType type;
-    VkImageView view = VK_NULL_HANDLE;
-    VkSampler sampler = VK_NULL_HANDLE;
-    VkBuffer buffer = VK_NULL_HANDLE;
-    VkImageLayout layout = VK_IMAGE_LAYOUT_GENERAL;
-    VkDeviceSize range = VK_WHOLE_SIZE;
-};
-
-void writeSet(vk::Device& device, VkDescriptorSet set, const std::vector<Binding>& bindings)
-{
-    std::vector<VkDescriptorImageInfo> images(bindings.size());
-    std::vector<VkDescriptorBufferInfo> buffers(bindings.size());
-    std::vector<VkWriteDescriptorSet> writes;
-    for (uint32_t i = 0; i < bindings.size(); ++i) {
-        const Binding& b = bindings[i];
-        VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-        write.dstSet = set;
-        write.dstBinding = i;
-        write.descriptorCount = 1;
-        write.descriptorType = b.type;
-        if (b.buffer) {
-            buffers[i] = {b.buffer, 0, b.range};
-            write.pBufferInfo = &buffers[i];
-        } else {
-            images[i] = {b.sampler, b.view, b.layout};
-            write.pImageInfo = &images[i];
-        }
-        writes.push_back(write);
-    }
-    vkUpdateDescriptorSets(device.device, uint32_t(writes.size()), writes.data(), 0, nullptr);
-}
-
-VkPipeline createComputePipeline(vk::Device& device, const char* shader, VkPipelineLayout layout)
-{
-    VkShaderModule module = vk::createShaderModule(device, shader);
-    VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-    info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-    info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    info.stage.module = module;
-    info.stage.pName = "main";
-    info.layout = layout;
-    VkPipeline pipeline;
-    VkResult result = vkCreateComputePipelines(device.device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
-    vkDestroyShaderModule(device.device, module, nullptr);
-    VK_CHECK(result);
-    return pipeline;
-}
-
-constexpr VkDescriptorType kStorageImage = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-constexpr VkDescriptorType kUniform = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-constexpr VkDescriptorType kStorage = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
 
 } // namespace
 
