@@ -129,15 +129,9 @@ void main()
     uvec4 leaf = loadNode(nodeChunks, index);
     if (((leaf.y >> 16) & 0xFFu) != PENUMBRA_NODE_LEAF)
         return;
-    GeometryChunks chunks = GeometryChunks(push.modelTable + uint64_t((64u + 8u * table.nodeChunkCount + 15u) & ~15u));
-
-    // As leafOccludes() in bvh_traversal.glsli.
-    uint cluster = leaf.z;
-    ClusterArray records = ClusterArray(table.clusters);
-    uvec4 w0 = records.clusterWords[cluster * 3u], w1 = records.clusterWords[cluster * 3u + 1u];
-    vec3 boxMin = uintBitsToFloat(w0.xyz);
-    vec3 step = vec3(uintBitsToFloat(w0.w), uintBitsToFloat(w1.x), uintBitsToFloat(w1.y));
-    uint firstVertex = w1.z, firstIndex = w1.w;
+    GeometryChunks chunks = geometryChunksOf(push.modelTable, table);
+    ClusterInfo cluster = loadCluster(table, leaf.z);
+    vec3 boxMin = cluster.boxMin, step = cluster.step;
 
     // A leaf whose every triangle is wider than the thin threshold in model
     // space, at the smallest texel size the leaf can see, holds no sliver
@@ -153,18 +147,11 @@ void main()
         if (altitude >= PENUMBRA_THIN_TEXELS * texel)
             return;
     }
-    uint lo = 0u, hi = table.geometryChunkCount - 1u;
-    while (lo < hi) {
-        uint mid = (lo + hi + 1u) >> 1;
-        if (chunks.geometryChunks[mid].firstCluster <= cluster)
-            lo = mid;
-        else
-            hi = mid - 1u;
-    }
-    GeometryChunk chunk = chunks.geometryChunks[lo];
-    VertexArray vertices = VertexArray(chunk.vertices + uint64_t(firstVertex - chunk.vertexBase) * 8ul);
-    uint start = leaf.w & 0xFFFFu, count = leaf.w >> 16;
-    ByteArray strips = ByteArray(chunk.indices + uint64_t(firstIndex - chunk.indexBase + start));
+    // The strips, decoded as leafOccludes() in bvh_traversal.glsli does.
+    LeafStrips leafStrips = openLeaf(table, chunks, cluster, leaf);
+    VertexArray vertices = leafStrips.vertices;
+    ByteArray strips = leafStrips.strips;
+    uint count = leafStrips.count;
 
     uint i0 = 0u, i1 = 0u;
     vec3 p0 = vec3(0.0), p1 = vec3(0.0);
