@@ -223,25 +223,6 @@ TEST(BadStl, Problems)
 
 // ---- glTF / GLB ----
 
-std::string glb(std::string jsonText, std::string bin)
-{
-    while (jsonText.size() % 4)
-        jsonText += ' ';
-    while (bin.size() % 4)
-        bin += '\0';
-    std::string out;
-    append(out, uint32_t(0x46546C67));
-    append(out, uint32_t(2));
-    append(out, uint32_t(12 + 8 + jsonText.size() + 8 + bin.size()));
-    append(out, uint32_t(jsonText.size()));
-    append(out, uint32_t(0x4E4F534A));
-    out += jsonText;
-    append(out, uint32_t(bin.size()));
-    append(out, uint32_t(0x004E4942));
-    out += bin;
-    return out;
-}
-
 std::string triangleBin(uint16_t lastIndex = 2)
 {
     std::string bin;
@@ -271,7 +252,7 @@ TEST(BadGltf, Container)
 {
     expectImportError("bad_magic.glb", "glTX0000000000000000000000", {"not a glTF binary (bad magic)"});
     expectImportError("short.glb", "glTF", {"not a glTF binary", "too short"});
-    std::string good = glb(triangleJson(), triangleBin());
+    std::string good = makeGlb(triangleJson(), triangleBin());
     ASSERT_NO_THROW(importScene(writeFile("good.glb", good)));
     expectImportError("truncated.glb", good.substr(0, good.size() - 10), {"truncated", "header says"});
     std::string bigChunk = good;
@@ -281,7 +262,7 @@ TEST(BadGltf, Container)
     std::string version = good;
     version[4] = 3;
     expectImportError("version.glb", version, {"unsupported glTF binary version 3"});
-    expectImportError("bad_json.glb", glb("{\"asset\": ", triangleBin()), {"malformed JSON"});
+    expectImportError("bad_json.glb", makeGlb("{\"asset\": ", triangleBin()), {"malformed JSON"});
     expectImportError("bad_json.gltf", "{]", {"malformed JSON"});
     expectImportError("no_asset.gltf", "{}", {"missing asset.version"});
     expectImportError("deep.gltf", std::string(200000, '[') + std::string(200000, ']'), {"not a JSON object"});
@@ -293,24 +274,24 @@ TEST(BadGltf, Container)
 
 TEST(BadGltf, ReferencesAndBounds)
 {
-    expectImportError("bad_accessor_ref.glb", glb(triangleJson(R"([])"), triangleBin()),
+    expectImportError("bad_accessor_ref.glb", makeGlb(triangleJson(R"([])"), triangleBin()),
                       {"references accessor 0 but there are 0"});
-    expectImportError("index_range.glb", glb(triangleJson(), triangleBin(7)),
+    expectImportError("index_range.glb", makeGlb(triangleJson(), triangleBin(7)),
                       {"mesh 0 primitive 0", "triangle 0 references vertex 7 but there are 3 vertices"});
     expectImportError("accessor_overrun.glb",
-                      glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+                      makeGlb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
                           triangleBin()),
                       {"truncated", "accessor 0", "runs past the end of its bufferView"});
     expectImportError(
         "hostile_count.glb",
-        glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 1099511627776, "type": "VEC3"},
+        makeGlb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 1099511627776, "type": "VEC3"},
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
             triangleBin()),
         {"truncated", "1099511627776 elements"});
     expectImportError(
         "view_overrun.glb",
-        glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+        makeGlb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])",
                          R"({"attributes": {"POSITION": 0}, "indices": 1})", R"([{"mesh": 0}])",
                          R"([{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 40, "byteLength": 8}])"),
@@ -328,13 +309,13 @@ TEST(BadGltf, ReferencesAndBounds)
                           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}]})",
                       {"buffer 0", "nowhere.bin: file not found"});
     expectImportError("wrong_type.glb",
-                      glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
+                      makeGlb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
                                        R"({"attributes": {"POSITION": "zero"}})"),
                           triangleBin()),
                       {"POSITION", "expected a non-negative integer"});
     expectImportError(
         "sparse.glb",
-        glb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "sparse": {}},
+        makeGlb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "sparse": {}},
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
             triangleBin()),
         {"sparse accessors are not supported"});
@@ -347,10 +328,10 @@ TEST(BadGltf, CycleAndNonTriangles)
                 {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])",
                      R"({"attributes": {"POSITION": 0}, "indices": 1})",
                      R"([{"mesh": 0, "children": [1]}, {"children": [0]}], "scenes": [{"nodes": [0]}])");
-    expectImportError("cycle2.glb", glb(cyclic, triangleBin()), {"node 0 appears more than once"});
+    expectImportError("cycle2.glb", makeGlb(cyclic, triangleBin()), {"node 0 appears more than once"});
     std::string points = triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
                                       R"({"attributes": {"POSITION": 0}, "mode": 0})");
-    expectImportError("points.glb", glb(points, triangleBin()), {"no triangles (points or lines only)"});
+    expectImportError("points.glb", makeGlb(points, triangleBin()), {"no triangles (points or lines only)"});
     std::string lines = triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
                                      R"({"attributes": {"POSITION": 0}, "mode": 3})");
     expectImportError("lines.gltf", lines, {"no triangles (points or lines only)"});
@@ -358,9 +339,9 @@ TEST(BadGltf, CycleAndNonTriangles)
     expectImportError("nomesh.gltf", noMesh, {"no triangles"});
     std::string badMode = triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}])",
                                        R"({"attributes": {"POSITION": 0}, "mode": 9})");
-    expectImportError("badmesh.glb", glb(triangleJson(kAccessors, kPrimitive, R"([{"mesh": 3}])"), triangleBin()),
+    expectImportError("badmesh.glb", makeGlb(triangleJson(kAccessors, kPrimitive, R"([{"mesh": 3}])"), triangleBin()),
                       {"node 0 references mesh 3 but there are 1"});
-    expectImportError("badmode.glb", glb(badMode, triangleBin()), {"invalid mode 9"});
+    expectImportError("badmode.glb", makeGlb(badMode, triangleBin()), {"invalid mode 9"});
 }
 
 TEST(BadGltf, CorruptDraco)

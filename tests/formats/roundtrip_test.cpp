@@ -326,28 +326,6 @@ TEST(ImportStl, BinaryHeaderStartingWithSolid)
     EXPECT_EQ(scene.mesh.vertexCount(), 3u);
 }
 
-// Builds a GLB from JSON text and a binary payload.
-std::string makeGlb(std::string jsonText, std::string bin)
-{
-    while (jsonText.size() % 4)
-        jsonText += ' ';
-    while (bin.size() % 4)
-        bin += '\0';
-    std::string out;
-    append(out, uint32_t(0x46546C67));
-    append(out, uint32_t(2));
-    append(out, uint32_t(12 + 8 + jsonText.size() + (bin.empty() ? 0 : 8 + bin.size())));
-    append(out, uint32_t(jsonText.size()));
-    append(out, uint32_t(0x4E4F534A));
-    out += jsonText;
-    if (!bin.empty()) {
-        append(out, uint32_t(bin.size()));
-        append(out, uint32_t(0x004E4942));
-        out += bin;
-    }
-    return out;
-}
-
 // One triangle (0,0,0) (1,0,0) (0,1,0), indices as uint16, then 4 corners for a strip.
 std::string triangleBin()
 {

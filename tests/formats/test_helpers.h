@@ -103,4 +103,26 @@ inline std::vector<std::array<float, 9>> canonicalTriangles(const Mesh& mesh)
     return out;
 }
 
+// Builds a GLB from JSON text and a binary payload (no BIN chunk when bin is empty).
+inline std::string makeGlb(std::string jsonText, std::string bin)
+{
+    while (jsonText.size() % 4)
+        jsonText += ' ';
+    while (bin.size() % 4)
+        bin += '\0';
+    std::string out;
+    append(out, uint32_t(0x46546C67));
+    append(out, uint32_t(2));
+    append(out, uint32_t(12 + 8 + jsonText.size() + (bin.empty() ? 0 : 8 + bin.size())));
+    append(out, uint32_t(jsonText.size()));
+    append(out, uint32_t(0x4E4F534A));
+    out += jsonText;
+    if (!bin.empty()) {
+        append(out, uint32_t(bin.size()));
+        append(out, uint32_t(0x004E4942));
+        out += bin;
+    }
+    return out;
+}
+
 } // namespace penumbra::test
