@@ -18,7 +18,7 @@
 #include "config.h"
 #include "shadow_common.glsli"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
 
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
 layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;

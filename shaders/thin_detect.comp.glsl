@@ -23,7 +23,7 @@
 #include "config.h"
 #include "bvh_traversal.glsli"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = PENUMBRA_THIN_DETECT_GROUP_SIZE) in;
 
 layout(set = 0, binding = 0, r32ui) uniform uimage2DArray thinMap;
 
@@ -121,7 +121,7 @@ void main()
 {
     // Groups may be laid out in 2D when the nodes exceed maxComputeWorkGroupCount[0].
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint index = group * 64u + gl_LocalInvocationIndex;
+    uint index = group * PENUMBRA_THIN_DETECT_GROUP_SIZE + gl_LocalInvocationIndex;
     if (index >= push.nodeCount)
         return;
     ModelTable table = ModelTable(push.modelTable);

@@ -82,11 +82,9 @@ void writeImage(const Image& image, const std::string& path)
     checkImagePath(path);
     if (image.width == 0 || image.height == 0 || image.rgba.size() != size_t(image.width) * image.height * 4)
         fail(path, "image is empty or inconsistent");
-    std::string extension = path.substr(path.find_last_of('.') == std::string::npos ? path.size() : path.find_last_of('.'));
+    std::string extension = path.substr(path.find_last_of('.')); // checkImagePath: there is one
     for (char& c : extension)
         c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (extension.empty())
-        fail(path, "no file extension (use .png or .exr)");
     bool floating = extension == ".exr" || extension == ".hdr" || extension == ".tif" || extension == ".tiff";
 
     // OpenImageIO picks the format from the extension, so the temporary name keeps it.

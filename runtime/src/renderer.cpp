@@ -572,7 +572,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     for (vk::Image* image : {&color, &visibility})
         transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);
 
-    const uint32_t groupsX = (width + 7) / 8, groupsY = (height + 7) / 8;
+    const uint32_t groupsX = (width + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE;
+    const uint32_t groupsY = (height + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE;
     const uint32_t pixelCount = width * height;
     // Lights in reverse order, so that the visibility image ends with light 0's (readback).
     for (uint32_t step = 0; step < frameLights.size(); ++step) {
@@ -615,7 +616,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
             vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
             vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectLayout, 0, 1, &thinDetectSet, 0, nullptr);
-            const uint32_t detectGroups = std::max((geometry.nodeCount + 63) / 64, 1u);
+            const uint32_t detectGroups =
+                std::max((geometry.nodeCount + PENUMBRA_THIN_DETECT_GROUP_SIZE - 1) / PENUMBRA_THIN_DETECT_GROUP_SIZE, 1u);
             const uint32_t maxGroupsX = device.properties.limits.maxComputeWorkGroupCount[0];
             const uint32_t groupsXDetect = std::min(detectGroups, maxGroupsX), groupsYDetect = (detectGroups + groupsXDetect - 1) / groupsXDetect;
             // Texel size at depth z: orthographic footprint / size; perspective footprint * z / size, with
