@@ -12,6 +12,10 @@
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
 #define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range
 #define PENUMBRA_THIN_TEXELS 1.5         // thin-triangle pass: triangles narrower than this (texels) are rasterized conservatively
+#define PENUMBRA_MASK_GROUP_SIZE 8       // penumbra_mask.comp: workgroups of 8x8 texels of the coarser level
+#define PENUMBRA_MASK_TARGET_TEXELS 16.0 // penumbra splats are drawn at the mask level where they span at most this many texels
+#define PENUMBRA_AREA_MAX_HALF_FOV 60.0  // area-light shadow maps: widest half field of view (degrees); pixels outside get rays
+#define PENUMBRA_MAX_SAMPLES 256         // soft shadows: most light samples per pixel
 
 // Ray list written by compaction and read by the tracer (std430):
 // uint count; uint dispatch[3] (indirect dispatch of trace.comp); uint pixels[count]
@@ -25,6 +29,7 @@
 #define PENUMBRA_STAT_TRIANGLES 3        // ray/triangle tests
 #define PENUMBRA_STAT_PIP 4              // pixels marked potentially incorrect (srt) or light-facing (frt)
 #define PENUMBRA_STAT_COVERED 5          // covered pixels (counted once per light)
+#define PENUMBRA_STAT_PENUMBRA 6         // pixels whose visibility of an area light is strictly between 0 and 1
 #define PENUMBRA_STAT_COUNT 8
 
 #define PENUMBRA_LIGHT_POINT 0
@@ -54,9 +59,18 @@ PENUMBRA_STRUCT(LightData)
     vec4 positionType;       // xyz position (point-like lights), w = PENUMBRA_LIGHT_* as float
     vec4 directionRange;     // xyz direction light travels, w = range (0 = infinite)
     vec4 colorIntensity;     // rgb colour, w = intensity
-    vec4 spotCosLayers;      // x = cos(inner), y = cos(outer), z = shadow-map layers, w = unused
+    vec4 spotCosLayers;      // x = cos(inner), y = cos(outer), z = shadow-map layers, w = shadow maps of an area light
     vec4 shadowParams;       // x = near, y = far (light-view depth), z = 1 perspective / 0 orthographic,
                              // w = footprint: perspective 2 tan(fov/2) (map width at depth 1), orthographic map width in model units
+    // Area lights (penumbra/light_sampling.h): half-extent vectors; areaU.w = 1 when it emits on one side only (rectangle,
+    // disk: along directionRange.xyz); areaV.w = bounding radius of the shape.
+    vec4 areaU;
+    vec4 areaV;
+    // Area lights: one single-layer perspective shadow map per viewProj[k] (k < spotCosLayers.w): from the centre (k = 0) and
+    // the corners (srt --penumbra-maps 5), or from K points of the light (sm). mapEye: xyz eye, w = near;
+    // mapRange: x = far, y = footprint 2 tan(fov/2), z = 1 when the field of view was capped (geometry outside the map), w unused.
+    vec4 mapEye[6];
+    vec4 mapRange[6];
 };
 
 // Per-frame constants of the shade pass (std140).
@@ -70,7 +84,7 @@ PENUMBRA_STRUCT(FrameData)
 };
 
 #ifdef __cplusplus
-static_assert(sizeof(LightData) == 6 * 64 + 5 * 16, "LightData layout must match std140");
+static_assert(sizeof(LightData) == 6 * 64 + 7 * 16 + 12 * 16, "LightData layout must match std140");
 static_assert(sizeof(FrameData) == 4 * 16 + PENUMBRA_MAX_LIGHTS * sizeof(LightData), "FrameData layout must match std140");
 } // namespace penumbra::gpu
 #endif

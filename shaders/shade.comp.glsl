@@ -4,6 +4,8 @@
 // with the light's visibility from the classify pass (shadow map) or the
 // tracer (srt/frt).
 
+#extension GL_EXT_shader_atomic_int64 : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #include "config.h"
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
@@ -15,6 +17,7 @@ layout(set = 0, binding = 3, r32f) uniform readonly image2D lightVisibility;
 layout(set = 0, binding = 4, std140) uniform Frame { FrameData frame; };
 
 layout(set = 0, binding = 5, std430) readonly buffer Marks { uint marks[]; };
+layout(set = 0, binding = 6, std430) buffer Stats { uint64_t stats[]; };
 
 layout(push_constant) uniform ShadePush {
     uint lightIndex;    // which light of frame.lights
@@ -60,6 +63,9 @@ void main()
             float r = sqrt(dist2) / range;
             attenuation *= clamp(1.0 - r * r * r * r, 0.0, 1.0);
         }
+        // One-sided area emitters (rectangle, disk): Lambertian, cosine at the light.
+        if (light.areaU.w != 0.0)
+            attenuation *= max(dot(-toLight, normalize(light.directionRange.xyz)), 0.0);
         if (type == PENUMBRA_LIGHT_SPOT) {
             float cosAngle = dot(-toLight, normalize(light.directionRange.xyz));
             attenuation *= smoothstep(light.spotCosLayers.y, light.spotCosLayers.x, cosAngle);
@@ -67,6 +73,9 @@ void main()
     }
 
     float visibility = max(imageLoad(lightVisibility, pixel).r, 0.0);
+    bool area = type == PENUMBRA_LIGHT_RECTANGLE || type == PENUMBRA_LIGHT_DISK || type == PENUMBRA_LIGHT_SPHERE;
+    if (area && visibility > 0.0 && visibility < 1.0)
+        atomicAdd(stats[PENUMBRA_STAT_PENUMBRA], uint64_t(1));
     float nDotL = max(dot(n, toLight), 0.0);
     color += albedo * light.colorIntensity.rgb * light.colorIntensity.w * attenuation * nDotL * visibility;
     if (push.debugPip != 0u && marks[pixel.y * size.x + pixel.x] != 0u)

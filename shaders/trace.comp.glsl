@@ -14,6 +14,8 @@
 
 #include "config.h"
 #include "bvh_traversal.glsli"
+#include "shadow_common.glsli"
+#include "penumbra/light_sampling.h"
 
 layout(local_size_x = PENUMBRA_TRACE_GROUP_SIZE) in;
 
@@ -34,7 +36,35 @@ layout(push_constant) uniform Push
     uint64_t modelTable;  // device address of the model table (bvh_traversal.glsli)
     uint lightIndex;      // into frame.lights
     float originOffset;   // model units along the normal
+    uint samples;         // area lights: light samples per pixel (soft shadows); 0: one ray to the light
+    uint pad;
 } push;
+
+// Soft shadows (area lights): the fraction of the pixel's light samples
+// (penumbra/light_sampling.h, seeded by the pixel) that no triangle blocks;
+// samples below the pixel's plane count as blocked and get no ray.
+float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, inout uint rays, inout TraceCounters counters)
+{
+    if (!inFrontOfEmitter(light, p))
+        return 0.0;
+    uint shape = uint(light.positionType.w);
+    uint seed = sampleSeed(uint(pixel.x), uint(pixel.y), push.lightIndex);
+    uint visible = 0u;
+    for (uint i = 0u; i < push.samples; ++i) {
+        vec3 target = areaLightPoint(shape, light.positionType.xyz, light.areaU.xyz, light.areaV.xyz, p,
+                                     stratifiedSample(seed, i, push.samples));
+        vec3 direction = target - p;
+        float distance = length(direction);
+        direction /= max(distance, 1e-30);
+        if (dot(normal, direction) <= 0.0)
+            continue;
+        ++rays;
+        ShadowRay ray = makeShadowRay(p + normal * push.originOffset, direction, distance - push.originOffset);
+        if (!modelOccludes(push.modelTable, ray, counters))
+            ++visible;
+    }
+    return float(visible) / float(push.samples);
+}
 
 // 1 lit, 0 shadowed; counts the ray when one is traced.
 float traceVisibility(uint pixelIndex, inout uint rays, inout TraceCounters counters)
@@ -47,6 +77,8 @@ float traceVisibility(uint pixelIndex, inout uint rays, inout TraceCounters coun
     vec3 normal = imageLoad(normalImage, pixel).xyz;
 
     LightData light = frame.lights[push.lightIndex];
+    if (push.samples != 0u)
+        return traceSoftVisibility(pixel, position.xyz, normal, light, rays, counters);
     uint type = uint(light.positionType.w);
     vec3 direction;
     float tMax;

@@ -1,5 +1,6 @@
 #include "penumbra/scene_file.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -69,6 +70,33 @@ bool setLightProperty(Light& light, const std::string& key, const Json& value, c
 }
 
 } // namespace
+
+bool isAreaLight(const Light& light)
+{
+    return light.type == LightType::Rectangle || light.type == LightType::Disk || light.type == LightType::Sphere;
+}
+
+void areaLightAxes(const Light& light, glm::vec3& u, glm::vec3& v)
+{
+    u = v = glm::vec3(0.0f);
+    if (light.type == LightType::Sphere) {
+        u = glm::vec3(light.radius, 0.0f, 0.0f);
+        return;
+    }
+    if (light.type != LightType::Rectangle && light.type != LightType::Disk)
+        return;
+    glm::vec3 n = glm::normalize(light.direction);
+    glm::vec3 up = light.up - glm::dot(light.up, n) * n;
+    if (glm::length(up) < 1e-6f * std::max(glm::length(light.up), 1e-30f) || glm::length(up) == 0.0f) {
+        glm::vec3 any = std::abs(n.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
+        up = any - glm::dot(any, n) * n;
+    }
+    v = glm::normalize(up);
+    u = glm::normalize(glm::cross(v, n));
+    bool rectangle = light.type == LightType::Rectangle;
+    u *= rectangle ? 0.5f * light.width : light.radius;
+    v *= rectangle ? 0.5f * light.height : light.radius;
+}
 
 void validateLight(const Light& light, const std::string& subject)
 {

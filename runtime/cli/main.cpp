@@ -32,6 +32,9 @@ struct RenderArgs {
     std::vector<std::string> lights;
     std::string shadows = "sm";
     uint32_t shadowMapSize = 2048;
+    uint32_t samples = RenderSettings{}.lightSamples;
+    uint32_t penumbraMaps = RenderSettings{}.penumbraMaps;
+    uint32_t smMaps = RenderSettings{}.softShadowMaps;
     float biasConstant = RenderSettings{}.depthBiasConstant;
     float biasSlope = RenderSettings{}.depthBiasSlope;
     std::string device;
@@ -96,6 +99,9 @@ int runRender(const RenderArgs& args)
     parseSize(args.size, settings);
     settings.shadows = parseShadowMethod(args.shadows);
     settings.shadowMapSize = args.shadowMapSize;
+    settings.lightSamples = args.samples;
+    settings.penumbraMaps = args.penumbraMaps;
+    settings.softShadowMaps = args.smMaps;
     settings.depthBiasConstant = args.biasConstant;
     settings.depthBiasSlope = args.biasSlope;
     settings.debugPip = args.debugImage == "pip";
@@ -396,8 +402,11 @@ int main(int argc, char** argv)
                               "keys position direction up color intensity range inner_cone outer_cone width height radius; "
                               "e.g. --light 'directional direction=-1,-2,-1 intensity=3'");
     renderCommand->add_option("--shadows", render.shadows, "Shadow method: sm (shadow map), srt (selective ray tracing), frt (full ray tracing)")->capture_default_str();
-    renderCommand->add_option("--debug-image", render.debugImage, "pip: tint the pixels given rays red")->check(CLI::IsMember({"pip"}));
+    renderCommand->add_option("--debug-image", render.debugImage, "pip: tint the pixels given rays red (area lights: the penumbra mask)")->check(CLI::IsMember({"pip"}));
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
+    renderCommand->add_option("--samples", render.samples, "Area lights, srt/frt: light samples per pixel (soft shadows)")->capture_default_str()->check(CLI::Range(4, 256));
+    renderCommand->add_option("--penumbra-maps", render.penumbraMaps, "Area lights, srt: shadow maps whose edges mark the penumbra: 1 (centre) or 5 (centre and corners)")->capture_default_str()->check(CLI::IsMember({1, 5}));
+    renderCommand->add_option("--sm-maps", render.smMaps, "Area lights, sm: point-light shadow maps averaged over the light")->capture_default_str()->check(CLI::Range(1, 6));
     renderCommand->add_option("--bias-constant", render.biasConstant, "Shadow-map depth bias, constant factor")->capture_default_str();
     renderCommand->add_option("--bias-slope", render.biasSlope, "Shadow-map depth bias, slope factor")->capture_default_str();
     renderCommand->add_option("--device", render.device, "Vulkan device: index or part of its name (see 'penumbra devices')");

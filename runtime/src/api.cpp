@@ -133,6 +133,10 @@ std::string summaryLine(const FrameStats& stats)
                       (unsigned long long)stats.rays, (unsigned long long)stats.nodesVisited);
         line += buffer;
     }
+    if (stats.lightSamples) {
+        std::snprintf(buffer, sizeof(buffer), " | samples %u | penumbra %.2f%%", stats.lightSamples, stats.penumbraFraction * 100.0);
+        line += buffer;
+    }
     for (const PassTiming& pass : stats.passes) {
         std::snprintf(buffer, sizeof(buffer), " | %s %.2f ms", pass.name.c_str(), pass.gpuMs);
         line += buffer;
@@ -158,6 +162,9 @@ std::string statsJson(const FrameStats& stats)
     json["bvh_nodes_visited"] = stats.nodesVisited;
     json["leaves_visited"] = stats.leavesVisited;
     json["triangle_tests"] = stats.triangleTests;
+    json["light_samples"] = stats.lightSamples;
+    json["penumbra_pixels"] = stats.penumbraPixels;
+    json["penumbra_fraction"] = stats.penumbraFraction;
     json["ray_offset"] = stats.rayOffset;
     nlohmann::ordered_json passes = nlohmann::ordered_json::object();
     for (const PassTiming& pass : stats.passes)

@@ -5,6 +5,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "config.h"
 #include "penumbra/error.h"
 
 namespace penumbra {
@@ -135,6 +136,38 @@ LightProjection lightProjection(const Light& light, const Bounds& bounds)
         result.viewProj[face] =
             vulkanClip(glm::perspectiveRH_ZO(glm::radians(90.0f), 1.0f, result.nearPlane, result.farPlane)) * view;
     }
+    return result;
+}
+
+AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up, const Bounds& bounds)
+{
+    AreaMapProjection result;
+    glm::vec3 forward = glm::length(axis) > 0.0f ? glm::normalize(axis) : glm::vec3(0, -1, 0);
+    glm::mat4 view = glm::lookAtRH(eye, eye + forward, stableUp(forward, up));
+    float diagonal = std::max(glm::length(bounds.extent()), 1e-6f);
+    float maxTan = 0.0f, nearest = 1e30f, farthest = 0.0f;
+    bool behind = false;
+    for (int i = 0; i < 8; ++i) {
+        glm::vec3 v = glm::vec3(view * glm::vec4(corner(bounds, i), 1.0f));
+        float depth = -v.z;
+        farthest = std::max(farthest, depth);
+        if (depth <= 1e-6f * diagonal) {
+            behind = true;
+            continue;
+        }
+        nearest = std::min(nearest, depth);
+        maxTan = std::max(maxTan, std::max(std::abs(v.x), std::abs(v.y)) / depth);
+    }
+    const float capTan = std::tan(glm::radians(float(PENUMBRA_AREA_MAX_HALF_FOV)));
+    float halfTan = maxTan * 1.02f + 1e-4f;
+    result.capped = behind || halfTan > capTan;
+    halfTan = result.capped ? capTan : halfTan;
+    result.farPlane = std::max(farthest * 1.01f, 1e-3f);
+    result.nearPlane = behind ? result.farPlane * 1e-4f : std::max(nearest * 0.99f, result.farPlane * 1e-4f);
+    if (!(result.farPlane > result.nearPlane))
+        result.farPlane = result.nearPlane * 2.0f;
+    result.footprint = 2.0f * halfTan;
+    result.viewProj = vulkanClip(glm::perspectiveRH_ZO(2.0f * std::atan(halfTan), 1.0f, result.nearPlane, result.farPlane)) * view;
     return result;
 }
 

@@ -18,8 +18,7 @@ struct ViewProjection {
 ViewProjection cameraViewProjection(const Camera& camera, const Bounds& bounds, float aspect);
 
 // Shadow-map projection of a light: 1 layer for directional and spot lights,
-// 6 (+X,-X,+Y,-Y,+Z,-Z) for point and area lights (area lights are shadowed
-// from their centre for now).
+// 6 (+X,-X,+Y,-Y,+Z,-Z) for point lights. Area lights: areaMapProjection.
 struct LightProjection {
     glm::mat4 viewProj[6];
     uint32_t layers = 1;
@@ -28,5 +27,17 @@ struct LightProjection {
     float footprint = 1;               // perspective: 2 tan(fov/2); orthographic: map width in model units
 };
 LightProjection lightProjection(const Light& light, const Bounds& bounds);
+
+// Shadow map of an area light from one of its points (soft shadows): a single
+// perspective map looking along axis, its field of view fitted to the scene
+// bounds and capped at PENUMBRA_AREA_MAX_HALF_FOV (capped: some of the scene
+// lies outside; pixels there are ray traced).
+struct AreaMapProjection {
+    glm::mat4 viewProj{1.0f};
+    float nearPlane = 0, farPlane = 1;
+    float footprint = 2;   // 2 tan(fov / 2)
+    bool capped = false;
+};
+AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up, const Bounds& bounds);
 
 } // namespace penumbra

@@ -23,8 +23,10 @@ struct TracePush {
     VkDeviceAddress modelTable;
     uint32_t lightIndex;
     float originOffset;
+    uint32_t samples; // area lights: light samples per pixel; 0: hard shadows
+    uint32_t pad;
 };
-static_assert(sizeof(TracePush) == 16);
+static_assert(sizeof(TracePush) == 24);
 
 // The model table (layout documented in shaders/bvh_traversal.glsli).
 struct ModelTableHeader {
@@ -142,14 +144,14 @@ void bindRayTracerTargets(vk::Device& device, RayTracer& tracer, const TraceBind
     tracer.rayList = bindings.rayList;
 }
 
-void recordTrace(VkCommandBuffer cmd, RayTracer& tracer, uint32_t lightIndex, float originOffset)
+void recordTrace(VkCommandBuffer cmd, RayTracer& tracer, uint32_t lightIndex, float originOffset, uint32_t samples)
 {
     if (!tracer.modelTableAddress || !tracer.rayList)
         fail("ray tracer", "recordTrace before bindRayTracerModel and bindRayTracerTargets");
     if (lightIndex >= PENUMBRA_MAX_LIGHTS)
         fail("ray tracer", "light index " + std::to_string(lightIndex) + " out of range (at most " +
                                std::to_string(PENUMBRA_MAX_LIGHTS) + " lights)");
-    TracePush push{tracer.modelTableAddress, lightIndex, originOffset};
+    TracePush push{tracer.modelTableAddress, lightIndex, originOffset, samples, 0};
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, tracer.pipeline);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, tracer.layout, 0, 1, &tracer.set, 0, nullptr);
     vkCmdPushConstants(cmd, tracer.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);

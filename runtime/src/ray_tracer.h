@@ -31,7 +31,7 @@ void bindRayTracerModel(vk::Device& device, RayTracer& tracer, const GpuGeometry
 struct TraceBindings {
     VkImageView position = VK_NULL_HANDLE;   // rgba32f G-buffer world position (GENERAL)
     VkImageView normal = VK_NULL_HANDLE;     // rgba32f G-buffer normal facing the camera (GENERAL)
-    VkImageView visibility = VK_NULL_HANDLE; // r32f: the tracer writes 0 or 1 for every listed pixel (GENERAL)
+    VkImageView visibility = VK_NULL_HANDLE; // r32f: the tracer writes the visibility of every listed pixel (GENERAL)
     VkBuffer frameUniforms = VK_NULL_HANDLE; // gpu::FrameData (lights)
     VkBuffer rayList = VK_NULL_HANDLE;       // PENUMBRA_RAY_LIST_HEADER_UINTS header + pixel indices
     VkBuffer stats = VK_NULL_HANDLE;         // uint[PENUMBRA_STAT_COUNT], accumulated
@@ -43,6 +43,8 @@ void bindRayTracerTargets(vk::Device& device, RayTracer& tracer, const TraceBind
 // (vkCmdDispatchIndirect on the list header). Shadow-ray origins are moved
 // originOffset along the normal turned toward the light. The caller orders
 // the writes of the ray list and G-buffer before, and the visibility reads after.
-void recordTrace(VkCommandBuffer cmd, RayTracer& tracer, uint32_t lightIndex, float originOffset);
+// samples > 0 (area lights): that many light samples per pixel, visibility is
+// the unblocked fraction (soft shadows).
+void recordTrace(VkCommandBuffer cmd, RayTracer& tracer, uint32_t lightIndex, float originOffset, uint32_t samples = 0);
 
 } // namespace penumbra

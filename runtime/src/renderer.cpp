@@ -1,7 +1,9 @@
 // Renderer: one command buffer per frame. Camera G-buffer pass, then per light:
 // shadow map (slope-scaled depth bias), thin-triangle detection and thin map
 // (srt), classify (shadow-map visibility, PIP marks), compaction and trace
-// (srt/frt), shade; then readback.
+// (srt/frt), shade; then readback. Area lights (soft shadows): per shadow map
+// of the light, the map, thin triangles and the penumbra mask (srt), then
+// classify_soft; compaction and the trace of the light samples; shade.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -15,6 +17,7 @@
 #include "model_geometry.h"
 #include "pipelines.h"
 #include "penumbra/preprocess.h"
+#include "penumbra/light_sampling.h"
 #include "penumbra/penumbra.h"
 #include "ray_tracer.h"
 #include "resources.h"
@@ -39,11 +42,14 @@ constexpr VkFormat kColorFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat kVisibilityFormat = VK_FORMAT_R32_SFLOAT;
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
 constexpr VkFormat kThinFormat = VK_FORMAT_R32_UINT; // float bits of the nearest thin depth (imageAtomicMin)
-constexpr uint32_t kMaxTimestamps = 64;
+constexpr uint32_t kMaxTimestamps = 256;
 
 // Named passes, in the order stats report them.
-enum Pass : uint32_t { PassCamera, PassShadowMap, PassThinTriangles, PassClassify, PassCompact, PassTrace, PassShade, PassReadback, PassCount };
-constexpr const char* kPassNames[PassCount] = {"camera", "shadow_map", "thin_triangles", "classify", "compact", "trace", "shade", "readback"};
+enum Pass : uint32_t {
+    PassCamera, PassShadowMap, PassThinTriangles, PassPenumbraMask, PassClassify, PassCompact, PassTrace, PassShade, PassReadback, PassCount
+};
+constexpr const char* kPassNames[PassCount] = {"camera",  "shadow_map", "thin_triangles", "penumbra_mask", "classify",
+                                               "compact", "trace",      "shade",          "readback"};
 
 struct GraphicsPipelineDesc {
     std::string vertexShader;                 // registry name; ".float" is appended for the reference encoding
@@ -162,6 +168,50 @@ struct ClassifyPush {
     uint32_t mode; // 0 sm, 1 srt, 2 frt
 };
 
+struct ClassifySoftPush {
+    uint32_t lightIndex;
+    uint32_t slot;
+    uint32_t mode;   // 0 sm, 1 corner-map mask, 2 srt, 3 frt (classify_soft.comp.glsl)
+    uint32_t first;
+    float weight;
+    uint32_t mapSize;
+    uint32_t topLevel;
+    uint32_t pad;
+};
+
+struct MaskPush {
+    glm::mat4 invViewProj;
+    uint32_t lightIndex;
+    uint32_t slot;
+    uint32_t level;
+    uint32_t mapSize;
+    uint32_t topLevel;
+    uint32_t useThin;
+    float edgeDelta;
+    float pad;
+};
+static_assert(sizeof(MaskPush) == 96);
+
+// Levels of the penumbra mask over an S x S map: 0 .. top, where the level is 1 texel.
+uint32_t maskTopLevel(uint32_t size)
+{
+    uint32_t top = 0;
+    while (((size + (1u << top) - 1u) >> top) > 1u)
+        ++top;
+    return top;
+}
+
+// Texels of levels 0 .. top together.
+uint64_t maskTexels(uint32_t size)
+{
+    uint64_t total = 0;
+    for (uint32_t level = 0; level <= maskTopLevel(size); ++level) {
+        uint64_t side = (uint64_t(size) + (1u << level) - 1u) >> level;
+        total += side * side;
+    }
+    return total;
+}
+
 struct CompactPush {
     uint32_t pixelCount;
     uint32_t phase;
@@ -174,26 +224,90 @@ struct ShadePush {
     uint32_t pad;
 };
 
-gpu::LightData packLight(const Light& light, const Bounds& bounds)
+// Area lights: the points their shadow maps are taken from. srt: the centre,
+// then (penumbraMaps 5) four points on the rim: the rectangle's corners, the
+// ends of the disk's axes, or of the sphere's axes across the map direction.
+// frt: the centre (its map is not drawn). sm: the centres of K strata of the
+// light (penumbra/light_sampling.h), seen from the middle of the scene.
+std::vector<glm::vec3> areaMapEyes(const Light& light, glm::vec3 axis, const Bounds& bounds, const RenderSettings& settings)
+{
+    glm::vec3 u, v;
+    areaLightAxes(light, u, v);
+    if (light.type == LightType::Sphere) {
+        glm::vec3 side = std::abs(axis.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
+        u = glm::normalize(glm::cross(axis, side)) * light.radius;
+        v = glm::normalize(glm::cross(axis, u)) * light.radius;
+    }
+    std::vector<glm::vec3> eyes;
+    if (settings.shadows == ShadowMethod::ShadowMap) {
+        glm::vec3 su, sv;
+        areaLightAxes(light, su, sv);
+        uint32_t k = settings.softShadowMaps;
+        uint32_t columns = uint32_t(std::ceil(std::sqrt(float(k))));
+        uint32_t rows = (k + columns - 1) / columns;
+        for (uint32_t i = 0; i < k; ++i) {
+            glm::vec2 cell((float(i % columns) + 0.5f) / float(columns), (float(i / columns) + 0.5f) / float(rows));
+            eyes.push_back(sampling::areaLightPoint(uint32_t(light.type == LightType::Rectangle ? PENUMBRA_LIGHT_RECTANGLE
+                                                             : light.type == LightType::Disk ? PENUMBRA_LIGHT_DISK
+                                                                                              : PENUMBRA_LIGHT_SPHERE),
+                                                    light.position, su, sv, bounds.center(), cell));
+        }
+        return eyes;
+    }
+    eyes.push_back(light.position);
+    if (settings.shadows == ShadowMethod::Selective && settings.penumbraMaps == 5) {
+        if (light.type == LightType::Rectangle)
+            for (glm::vec2 c : {glm::vec2(1, 1), glm::vec2(-1, 1), glm::vec2(-1, -1), glm::vec2(1, -1)})
+                eyes.push_back(light.position + c.x * u + c.y * v);
+        else
+            for (glm::vec3 d : {u, -u, v, -v})
+                eyes.push_back(light.position + d);
+    }
+    return eyes;
+}
+
+gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings)
 {
     gpu::LightData data{};
-    LightProjection projection = lightProjection(light, bounds);
-    std::copy(std::begin(projection.viewProj), std::end(projection.viewProj), std::begin(data.viewProj));
-    data.shadowParams = glm::vec4(projection.nearPlane, projection.farPlane, projection.perspective ? 1.0f : 0.0f, projection.footprint);
+    if (isAreaLight(light)) {
+        glm::vec3 u, v;
+        areaLightAxes(light, u, v);
+        bool oneSided = light.type != LightType::Sphere;
+        float radius = light.type == LightType::Rectangle ? glm::length(u + v) : light.radius;
+        data.areaU = glm::vec4(u, oneSided ? 1.0f : 0.0f);
+        data.areaV = glm::vec4(v, radius);
+        glm::vec3 axis = oneSided ? glm::normalize(light.direction) : bounds.center() - light.position;
+        axis = glm::length(axis) > 0.0f ? glm::normalize(axis) : glm::vec3(0, -1, 0);
+        std::vector<glm::vec3> eyes = areaMapEyes(light, axis, bounds, settings);
+        for (size_t k = 0; k < eyes.size(); ++k) {
+            AreaMapProjection map = areaMapProjection(eyes[k], axis, light.up, bounds);
+            data.viewProj[k] = map.viewProj;
+            data.mapEye[k] = glm::vec4(eyes[k], map.nearPlane);
+            data.mapRange[k] = glm::vec4(map.farPlane, map.footprint, map.capped ? 1.0f : 0.0f, 0.0f);
+            if (k == 0)
+                data.shadowParams = glm::vec4(map.nearPlane, map.farPlane, 1.0f, map.footprint);
+        }
+        data.spotCosLayers = glm::vec4(1.0f, 1.0f, 1.0f, float(eyes.size()));
+    } else {
+        LightProjection projection = lightProjection(light, bounds);
+        std::copy(std::begin(projection.viewProj), std::end(projection.viewProj), std::begin(data.viewProj));
+        data.shadowParams = glm::vec4(projection.nearPlane, projection.farPlane, projection.perspective ? 1.0f : 0.0f, projection.footprint);
+        data.spotCosLayers = glm::vec4(std::cos(glm::radians(light.innerConeDegrees)), std::cos(glm::radians(light.outerConeDegrees)),
+                                       float(projection.layers), 0.0f);
+    }
     uint32_t type = 0;
     switch (light.type) {
     case LightType::Point: type = PENUMBRA_LIGHT_POINT; break;
     case LightType::Spot: type = PENUMBRA_LIGHT_SPOT; break;
     case LightType::Directional: type = PENUMBRA_LIGHT_DIRECTIONAL; break;
-    // Area lights are point-shadowed from their centre until soft shadows land.
-    case LightType::Rectangle: case LightType::Disk: case LightType::Sphere: type = PENUMBRA_LIGHT_POINT; break;
+    case LightType::Rectangle: type = PENUMBRA_LIGHT_RECTANGLE; break;
+    case LightType::Disk: type = PENUMBRA_LIGHT_DISK; break;
+    case LightType::Sphere: type = PENUMBRA_LIGHT_SPHERE; break;
     }
     data.positionType = glm::vec4(light.position, float(type));
     glm::vec3 direction = glm::length(light.direction) > 0.0f ? glm::normalize(light.direction) : glm::vec3(0, -1, 0);
     data.directionRange = glm::vec4(direction, light.range);
     data.colorIntensity = glm::vec4(light.color, light.intensity);
-    data.spotCosLayers = glm::vec4(std::cos(glm::radians(light.innerConeDegrees)), std::cos(glm::radians(light.outerConeDegrees)),
-                                   float(projection.layers), 0.0f);
     return data;
 }
 
@@ -208,7 +322,10 @@ struct Renderer::Impl {
     std::vector<Light> lights;
     // Pipelines
     VkDescriptorSetLayout classifySetLayout = VK_NULL_HANDLE, compactSetLayout = VK_NULL_HANDLE, shadeSetLayout = VK_NULL_HANDLE;
-    VkDescriptorSetLayout thinDetectSetLayout = VK_NULL_HANDLE;
+    VkDescriptorSetLayout thinDetectSetLayout = VK_NULL_HANDLE, maskSetLayout = VK_NULL_HANDLE;
+    VkPipelineLayout classifySoftLayout = VK_NULL_HANDLE, maskLayout = VK_NULL_HANDLE;
+    VkPipeline classifySoftPipeline = VK_NULL_HANDLE, maskPipeline = VK_NULL_HANDLE;
+    VkDescriptorSet maskSet = VK_NULL_HANDLE;
     VkPipelineLayout gbufferLayout = VK_NULL_HANDLE, shadowLayout = VK_NULL_HANDLE;
     VkPipelineLayout classifyLayout = VK_NULL_HANDLE, compactLayout = VK_NULL_HANDLE, shadeLayout = VK_NULL_HANDLE;
     VkPipelineLayout thinDetectLayout = VK_NULL_HANDLE;
@@ -227,6 +344,7 @@ struct Renderer::Impl {
     uint32_t width = 0, height = 0, shadowSize = 0, shadowLayers = 0;
     vk::Image position, normal, depth, color, visibility, shadowMap, thinMap;
     vk::Buffer frameUniforms, stats, readbackStats, marks, rayList;
+    vk::Buffer penumbraMask, penumbraPyramid; // per shadow-map size: penumbra mask and nearest-edge pyramid (penumbra_mask.comp.glsl)
     vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
 
     explicit Impl(const RendererOptions& options)
@@ -244,15 +362,18 @@ struct Renderer::Impl {
     void createPipelines()
     {
         const VkShaderStageFlags compute = VK_SHADER_STAGE_COMPUTE_BIT;
-        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kStorageImage, kStorageImage, kUniform, kStorage, kStorage}, compute);
+        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage}, compute);
+        maskSetLayout = createSetLayout(device, {kSampled, kStorageImage, kUniform, kStorage, kStorage}, compute);
         thinDetectSetLayout = createSetLayout(device, {kStorageImage}, compute);
         compactSetLayout = createSetLayout(device, {kStorage, kStorage}, compute);
-        shadeSetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage}, compute);
+        shadeSetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage}, compute);
 
         gbufferLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(CameraPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
         shadowLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(glm::mat4), VK_SHADER_STAGE_VERTEX_BIT);
         thinDetectLayout = createPipelineLayout(device, thinDetectSetLayout, sizeof(ThinDetectPush), compute);
         classifyLayout = createPipelineLayout(device, classifySetLayout, sizeof(ClassifyPush), compute);
+        classifySoftLayout = createPipelineLayout(device, classifySetLayout, sizeof(ClassifySoftPush), compute);
+        maskLayout = createPipelineLayout(device, maskSetLayout, sizeof(MaskPush), compute);
         compactLayout = createPipelineLayout(device, compactSetLayout, sizeof(CompactPush), compute);
         shadeLayout = createPipelineLayout(device, shadeSetLayout, sizeof(ShadePush), compute);
 
@@ -274,6 +395,8 @@ struct Renderer::Impl {
         }
         thinDetectPipeline = createComputePipeline(device, "thin_detect.comp", thinDetectLayout);
         classifyPipeline = createComputePipeline(device, "classify.comp", classifyLayout);
+        classifySoftPipeline = createComputePipeline(device, "classify_soft.comp", classifySoftLayout);
+        maskPipeline = createComputePipeline(device, "penumbra_mask.comp", maskLayout);
         compactPipeline = createComputePipeline(device, "compact.comp", compactLayout);
         shadePipeline = createComputePipeline(device, "shade.comp", shadeLayout);
         createRayTracer(device, tracer);
@@ -283,23 +406,24 @@ struct Renderer::Impl {
         samplerInfo.addressModeU = samplerInfo.addressModeV = samplerInfo.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
         VK_CHECK(vkCreateSampler(device.device, &samplerInfo, nullptr, &nearestSampler));
 
-        VkDescriptorPoolSize poolSizes[4] = {{kStorageImage, 16}, {kSampled, 4}, {kUniform, 4}, {kStorage, 10}};
+        VkDescriptorPoolSize poolSizes[4] = {{kStorageImage, 20}, {kSampled, 4}, {kUniform, 4}, {kStorage, 16}};
         VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-        poolInfo.maxSets = 4;
+        poolInfo.maxSets = 5;
         poolInfo.poolSizeCount = 4;
         poolInfo.pPoolSizes = poolSizes;
         VK_CHECK(vkCreateDescriptorPool(device.device, &poolInfo, nullptr, &descriptorPool));
-        VkDescriptorSetLayout layouts[4] = {classifySetLayout, compactSetLayout, shadeSetLayout, thinDetectSetLayout};
-        VkDescriptorSet sets[4];
+        VkDescriptorSetLayout layouts[5] = {classifySetLayout, compactSetLayout, shadeSetLayout, thinDetectSetLayout, maskSetLayout};
+        VkDescriptorSet sets[5];
         VkDescriptorSetAllocateInfo allocInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
         allocInfo.descriptorPool = descriptorPool;
-        allocInfo.descriptorSetCount = 4;
+        allocInfo.descriptorSetCount = 5;
         allocInfo.pSetLayouts = layouts;
         VK_CHECK(vkAllocateDescriptorSets(device.device, &allocInfo, sets));
         classifySet = sets[0];
         compactSet = sets[1];
         shadeSet = sets[2];
         thinDetectSet = sets[3];
+        maskSet = sets[4];
 
         VkQueryPoolCreateInfo queryInfo{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
         queryInfo.queryType = VK_QUERY_TYPE_TIMESTAMP;
@@ -342,6 +466,8 @@ struct Renderer::Impl {
         destroyTargets();
         vk::destroyImage(device, shadowMap);
         vk::destroyImage(device, thinMap);
+        vk::destroyBuffer(device, penumbraMask);
+        vk::destroyBuffer(device, penumbraPyramid);
         destroyGeometry(device, geometry);
         destroyRayTracer(device, tracer);
         vk::destroyBuffer(device, frameUniforms);
@@ -353,11 +479,12 @@ struct Renderer::Impl {
         if (descriptorPool) vkDestroyDescriptorPool(d, descriptorPool, nullptr);
         if (nearestSampler) vkDestroySampler(d, nearestSampler, nullptr);
         for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1],
-                             thinDetectPipeline, classifyPipeline, compactPipeline, shadePipeline})
+                             thinDetectPipeline, classifyPipeline, compactPipeline, shadePipeline, classifySoftPipeline, maskPipeline})
             if (p) vkDestroyPipeline(d, p, nullptr);
-        for (VkPipelineLayout l : {gbufferLayout, shadowLayout, thinDetectLayout, classifyLayout, compactLayout, shadeLayout})
+        for (VkPipelineLayout l : {gbufferLayout, shadowLayout, thinDetectLayout, classifyLayout, compactLayout, shadeLayout,
+                                   classifySoftLayout, maskLayout})
             if (l) vkDestroyPipelineLayout(d, l, nullptr);
-        for (VkDescriptorSetLayout l : {classifySetLayout, compactSetLayout, shadeSetLayout, thinDetectSetLayout})
+        for (VkDescriptorSetLayout l : {classifySetLayout, compactSetLayout, shadeSetLayout, thinDetectSetLayout, maskSetLayout})
             if (l) vkDestroyDescriptorSetLayout(d, l, nullptr);
         vk::destroyDevice(device);
     }
@@ -378,7 +505,8 @@ struct Renderer::Impl {
             color = vk::createImage(device, w, h, 1, kColorFormat, storage);
             visibility = vk::createImage(device, w, h, 1, kVisibilityFormat, storage);
             VkDeviceSize pixels = VkDeviceSize(w) * h;
-            marks = vk::createBuffer(device, pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
+            marks = vk::createBuffer(device, pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                     vk::MemoryUse::DeviceLocal);
             rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4,
                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                        vk::MemoryUse::DeviceLocal);
@@ -393,7 +521,14 @@ struct Renderer::Impl {
         if (shadowResized) {
             vk::destroyImage(device, shadowMap);
             vk::destroyImage(device, thinMap);
+            vk::destroyBuffer(device, penumbraMask);
+            vk::destroyBuffer(device, penumbraPyramid);
             shadowSize = shadowLayers = 0; // stays 0 if a creation below throws
+            uint64_t maskLevels = maskTexels(smSize);
+            penumbraMask = vk::createBuffer(device, (1 + maskLevels) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                            vk::MemoryUse::DeviceLocal);
+            penumbraPyramid = vk::createBuffer(device, std::max<uint64_t>(maskLevels - uint64_t(smSize) * smSize, 1) * 4,
+                                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
             shadowMap = vk::createImage(device, smSize, smSize, smLayers, kDepthFormat,
                                         VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT, true);
             // The thin map stays in GENERAL: written in srt frames, read (cleared to "nothing thin") otherwise.
@@ -415,12 +550,16 @@ struct Renderer::Impl {
                                        {kSampled, shadowMap.view, nearestSampler, {}, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
                                        {kStorageImage, thinMap.view},
                                        {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
-                                       {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer}});
+                                       {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer},
+                                       {kStorage, {}, {}, penumbraMask.buffer}});
         writeSet(device, thinDetectSet, {{kStorageImage, thinMap.view}});
+        writeSet(device, maskSet, {{kSampled, shadowMap.view, nearestSampler, {}, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+                                   {kStorageImage, thinMap.view}, {kUniform, {}, {}, frameUniforms.buffer},
+                                   {kStorage, {}, {}, penumbraPyramid.buffer}, {kStorage, {}, {}, penumbraMask.buffer}});
         writeSet(device, compactSet, {{kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, rayList.buffer}});
         writeSet(device, shadeSet, {{kStorageImage, position.view}, {kStorageImage, normal.view}, {kStorageImage, color.view},
                                     {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
-                                    {kStorage, {}, {}, marks.buffer}});
+                                    {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer}});
         TraceBindings trace;
         trace.position = position.view;
         trace.normal = normal.view;
@@ -475,6 +614,12 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     if (pixelBytes > device.maxAllocationSize || pixelBytes / 4 + 16 > device.properties.limits.maxStorageBufferRange)
         fail("render", std::to_string(settings.width) + "x" + std::to_string(settings.height) +
                            " exceeds this device's buffer limits (one RGBA32F image must fit one allocation and the ray list one storage binding)");
+    if (settings.lightSamples < 4 || settings.lightSamples > PENUMBRA_MAX_SAMPLES)
+        fail("render", "light samples must be 4.." + std::to_string(PENUMBRA_MAX_SAMPLES));
+    if (settings.penumbraMaps != 1 && settings.penumbraMaps != 5)
+        fail("render", "penumbra maps must be 1 (the light's centre) or 5 (centre and corners)");
+    if (settings.softShadowMaps < 1 || settings.softShadowMaps > 6)
+        fail("render", "soft shadow maps (sm) must be 1..6");
     if (settings.shadows != ShadowMethod::ShadowMap && geometry.encoding != GeometryEncoding::Compressed)
         fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
     auto cpuStart = std::chrono::steady_clock::now();
@@ -495,7 +640,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     frameData.pip = glm::vec4(float(PENUMBRA_PIP_DELTA_FRACTION), 0.0f, 0.0f, 0.0f);
     uint32_t maxLayers = 1;
     for (size_t i = 0; i < frameLights.size(); ++i) {
-        frameData.lights[i] = packLight(frameLights[i], bounds);
+        frameData.lights[i] = packLight(frameLights[i], bounds, settings);
         maxLayers = std::max(maxLayers, uint32_t(frameData.lights[i].spotCosLayers.z));
     }
     ensureTargets(settings.width, settings.height, settings.shadowMapSize, maxLayers);
@@ -576,109 +721,202 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     const uint32_t groupsY = (height + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE;
     const uint32_t pixelCount = width * height;
     // Lights in reverse order, so that the visibility image ends with light 0's (readback).
+    // Draws the model into shadow-map layer `layer` from viewProj.
+    auto drawShadowMap = [&](const glm::mat4& viewProj, uint32_t layer) {
+        VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+        depthAttachment.imageView = shadowMap.layerViews[layer];
+        depthAttachment.imageLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
+        depthAttachment.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+        depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+        depthAttachment.clearValue.depthStencil = {1.0f, 0};
+        VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
+        rendering.renderArea = {{0, 0}, {shadowSize, shadowSize}};
+        rendering.layerCount = 1;
+        rendering.pDepthAttachment = &depthAttachment;
+        vkCmdBeginRendering(cmd, &rendering);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipelines[int(geometry.encoding)]);
+        setViewport(cmd, shadowSize, shadowSize);
+        vkCmdSetDepthBias(cmd, settings.depthBiasConstant, 0.0f, settings.depthBiasSlope);
+        vkCmdPushConstants(cmd, shadowLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &viewProj);
+        drawGeometry(cmd, geometry);
+        vkCmdEndRendering(cmd);
+    };
+    auto beginShadowMaps = [&] {
+        transition(cmd, shadowMap, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, kCompute, 0,
+                   kDepthTests, VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
+    };
+    auto endShadowMaps = [&] {
+        transition(cmd, shadowMap, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, kDepthTests,
+                   VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
+        timestamp(PassShadowMap);
+    };
+    // Thin triangles, rasterized conservatively (srt only): a compute pass over
+    // the model's leaves writes the nearest depth of the thin triangles'
+    // conservative rectangles into layer `layer` of the thin map. Texel size at
+    // depth z: orthographic footprint / size; perspective footprint * z / size,
+    // with z >= distance * depthPerDistance (the cosine of half the frustum's
+    // diagonal angle: 1/sqrt(3) for cube faces, cos(outer) for spots).
+    auto detectThinTriangles = [&](const glm::mat4& viewProj, uint32_t layer, glm::vec3 eye, bool perspective, float depthPerDistance,
+                                   float footprint) {
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectLayout, 0, 1, &thinDetectSet, 0, nullptr);
+        const uint32_t detectGroups =
+            std::max((geometry.nodeCount + PENUMBRA_THIN_DETECT_GROUP_SIZE - 1) / PENUMBRA_THIN_DETECT_GROUP_SIZE, 1u);
+        const uint32_t maxGroupsX = device.properties.limits.maxComputeWorkGroupCount[0];
+        const uint32_t groupsXDetect = std::min(detectGroups, maxGroupsX), groupsYDetect = (detectGroups + groupsXDetect - 1) / groupsXDetect;
+        ThinDetectPush detect{viewProj,
+                              glm::vec2(float(shadowSize)),
+                              geometry.nodeCount,
+                              layer,
+                              tracer.modelTableAddress,
+                              geometry.leafAltitudes.buffer ? vk::bufferAddress(device, geometry.leafAltitudes) : 0,
+                              glm::vec4(eye, perspective ? depthPerDistance : 0.0f),
+                              footprint / float(shadowSize),
+                              {}};
+        vkCmdPushConstants(cmd, thinDetectLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(detect), &detect);
+        vkCmdDispatch(cmd, groupsXDetect, groupsYDetect, 1);
+    };
+    auto clearThin = [&] {
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+        clearThinMap(cmd);
+        vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+    };
+    // Compaction into a dense ray list, the indirect dispatch size, and the trace.
+    auto compactAndTrace = [&](uint32_t lightIndex, uint32_t samples) {
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compactPipeline);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compactLayout, 0, 1, &compactSet, 0, nullptr);
+        CompactPush compact{pixelCount, 0};
+        vkCmdPushConstants(cmd, compactLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(compact), &compact);
+        const uint32_t groups = (pixelCount + PENUMBRA_COMPACT_GROUP_SIZE - 1) / PENUMBRA_COMPACT_GROUP_SIZE;
+        const uint32_t groupsPerRow = std::min(groups, 65535u);
+        vkCmdDispatch(cmd, groupsPerRow, (groups + groupsPerRow - 1) / groupsPerRow, 1);
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
+        compact.phase = 1;
+        vkCmdPushConstants(cmd, compactLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(compact), &compact);
+        vkCmdDispatch(cmd, 1, 1, 1);
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                          kStorageRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+        timestamp(PassCompact);
+
+        recordTrace(cmd, tracer, lightIndex, rayOffset, samples);
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
+        timestamp(PassTrace);
+    };
+    const uint32_t maskTop = maskTopLevel(shadowSize);
+    auto classifySoft = [&](uint32_t lightIndex, uint32_t slot, uint32_t mode, bool first, float weight) {
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, classifySoftPipeline);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, classifySoftLayout, 0, 1, &classifySet, 0, nullptr);
+        ClassifySoftPush push{lightIndex, slot, mode, first ? 1u : 0u, weight, shadowSize, maskTop, 0};
+        vkCmdPushConstants(cmd, classifySoftLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+        vkCmdDispatch(cmd, groupsX, groupsY, 1);
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
+    };
+    // Penumbra mask of map `slot` of an area light (penumbra_mask.comp.glsl): the
+    // edge pass, then one reduction per level.
+    auto buildPenumbraMask = [&](uint32_t lightIndex, uint32_t slot, bool useThin) {
+        const gpu::LightData& light = frameData.lights[lightIndex];
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+        vkCmdFillBuffer(cmd, penumbraMask.buffer, 0, 4, 0);
+        vkCmdFillBuffer(cmd, penumbraMask.buffer, 4, VK_WHOLE_SIZE, 0x7F800000u); // +inf: no receiver depth reached
+        vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, maskPipeline);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, maskLayout, 0, 1, &maskSet, 0, nullptr);
+        float range = light.mapRange[slot].x - light.mapEye[slot].w;
+        MaskPush push{glm::inverse(light.viewProj[slot]), lightIndex, slot, 0, shadowSize, maskTop, useThin ? 1u : 0u,
+                      float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0.0f};
+        for (uint32_t level = 0; level < maskTop; ++level) {
+            push.level = level;
+            uint32_t parentSize = (shadowSize + (2u << level) - 1u) >> (level + 1);
+            uint32_t groups = (parentSize + PENUMBRA_MASK_GROUP_SIZE - 1) / PENUMBRA_MASK_GROUP_SIZE;
+            vkCmdPushConstants(cmd, maskLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+            vkCmdDispatch(cmd, groups, groups, 1);
+            vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute, kStorageRW);
+        }
+        timestamp(PassPenumbraMask);
+    };
+
     for (uint32_t step = 0; step < frameLights.size(); ++step) {
         const uint32_t lightIndex = uint32_t(frameLights.size()) - 1 - step;
         const gpu::LightData& light = frameData.lights[lightIndex];
         const uint32_t layers = uint32_t(light.spotCosLayers.z);
+        bool lightTraced = traced;
 
-        // Shadow map from the light, every frame (moving light).
-        transition(cmd, shadowMap, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, kCompute, 0,
-                   kDepthTests, VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
-        for (uint32_t layer = 0; layer < layers; ++layer) {
-            VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-            depthAttachment.imageView = shadowMap.layerViews[layer];
-            depthAttachment.imageLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
-            depthAttachment.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-            depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-            depthAttachment.clearValue.depthStencil = {1.0f, 0};
-            VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
-            rendering.renderArea = {{0, 0}, {shadowSize, shadowSize}};
-            rendering.layerCount = 1;
-            rendering.pDepthAttachment = &depthAttachment;
-            vkCmdBeginRendering(cmd, &rendering);
-            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipelines[int(geometry.encoding)]);
-            setViewport(cmd, shadowSize, shadowSize);
-            vkCmdSetDepthBias(cmd, settings.depthBiasConstant, 0.0f, settings.depthBiasSlope);
-            vkCmdPushConstants(cmd, shadowLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &light.viewProj[layer]);
-            drawGeometry(cmd, geometry);
-            vkCmdEndRendering(cmd);
-        }
-        transition(cmd, shadowMap, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, kDepthTests,
-                   VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
-        timestamp(PassShadowMap);
-
-        // Thin triangles, rasterized conservatively (srt only): per layer, a
-        // compute pass over the model's leaves writes the nearest depth of the
-        // thin triangles' conservative rectangles into the thin map.
-        if (selective) {
-            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT);
-            clearThinMap(cmd);
-            vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
-            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
-            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectLayout, 0, 1, &thinDetectSet, 0, nullptr);
-            const uint32_t detectGroups =
-                std::max((geometry.nodeCount + PENUMBRA_THIN_DETECT_GROUP_SIZE - 1) / PENUMBRA_THIN_DETECT_GROUP_SIZE, 1u);
-            const uint32_t maxGroupsX = device.properties.limits.maxComputeWorkGroupCount[0];
-            const uint32_t groupsXDetect = std::min(detectGroups, maxGroupsX), groupsYDetect = (detectGroups + groupsXDetect - 1) / groupsXDetect;
-            // Texel size at depth z: orthographic footprint / size; perspective footprint * z / size, with
-            // z >= distance * cos(half the frustum's diagonal angle): 1/sqrt(3) for cube faces, cos(outer) for spots.
-            const bool perspective = light.shadowParams.z != 0.0f;
-            const float depthPerDistance = uint32_t(light.positionType.w) == PENUMBRA_LIGHT_SPOT ? light.spotCosLayers.y : 0.57735f;
-            for (uint32_t layer = 0; layer < layers; ++layer) {
-                ThinDetectPush detect{light.viewProj[layer],
-                                      glm::vec2(float(shadowSize)),
-                                      geometry.nodeCount,
-                                      layer,
-                                      tracer.modelTableAddress,
-                                      geometry.leafAltitudes.buffer ? vk::bufferAddress(device, geometry.leafAltitudes) : 0,
-                                      glm::vec4(glm::vec3(light.positionType), perspective ? depthPerDistance : 0.0f),
-                                      light.shadowParams.w / float(shadowSize),
-                                      {}};
-                vkCmdPushConstants(cmd, thinDetectLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(detect), &detect);
-                vkCmdDispatch(cmd, groupsXDetect, groupsYDetect, 1);
+        if (isAreaLight(frameLights[lightIndex])) {
+            // Soft shadows: per map of the light, the map (and in srt its thin
+            // triangles and penumbra mask), then the pixels' classification.
+            const uint32_t maps = uint32_t(light.spotCosLayers.w);
+            const bool full = settings.shadows == ShadowMethod::FullRayTrace;
+            if (selective) {
+                vkCmdFillBuffer(cmd, marks.buffer, 0, VK_WHOLE_SIZE, 0);
+                vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
             }
-            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
-            timestamp(PassThinTriangles);
-        }
+            // Corner maps first; the centre map (slot 0) last, its depths decide umbra and lit.
+            for (uint32_t m = 0; m < maps; ++m) {
+                const uint32_t slot = maps - 1 - m;
+                if (!full) {
+                    beginShadowMaps();
+                    drawShadowMap(light.viewProj[slot], 0);
+                    endShadowMaps();
+                }
+                if (selective) {
+                    clearThin();
+                    float halfTan = 0.5f * light.mapRange[slot].y;
+                    detectThinTriangles(light.viewProj[slot], 0, glm::vec3(light.mapEye[slot]), true,
+                                        1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan), light.mapRange[slot].y);
+                    vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+                    timestamp(PassThinTriangles);
+                    buildPenumbraMask(lightIndex, slot, true);
+                }
+                if (traced && m == 0) {
+                    vkCmdFillBuffer(cmd, rayList.buffer, 0, PENUMBRA_RAY_LIST_HEADER_UINTS * 4, 0);
+                    vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+                }
+                if (settings.shadows == ShadowMethod::ShadowMap)
+                    classifySoft(lightIndex, slot, 0, m == 0, 1.0f / float(maps));
+                else
+                    classifySoft(lightIndex, slot, full ? 3 : slot == 0 ? 2 : 1, false, 1.0f);
+                timestamp(PassClassify);
+            }
+            if (traced)
+                compactAndTrace(lightIndex, settings.lightSamples);
+        } else {
+            // Shadow map from the light, every frame (moving light).
+            beginShadowMaps();
+            for (uint32_t layer = 0; layer < layers; ++layer)
+                drawShadowMap(light.viewProj[layer], layer);
+            endShadowMaps();
 
-        // Visibility from the shadow map, and the pixels that get rays.
-        if (traced) {
-            vkCmdFillBuffer(cmd, rayList.buffer, 0, PENUMBRA_RAY_LIST_HEADER_UINTS * 4, 0);
-            vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
-        }
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, classifyPipeline);
-        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, classifyLayout, 0, 1, &classifySet, 0, nullptr);
-        ClassifyPush classify{lightIndex, uint32_t(settings.shadows)};
-        vkCmdPushConstants(cmd, classifyLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(classify), &classify);
-        vkCmdDispatch(cmd, groupsX, groupsY, 1);
-        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
-        timestamp(PassClassify);
+            if (selective) {
+                clearThin();
+                const bool perspective = light.shadowParams.z != 0.0f;
+                const float depthPerDistance = uint32_t(light.positionType.w) == PENUMBRA_LIGHT_SPOT ? light.spotCosLayers.y : 0.57735f;
+                for (uint32_t layer = 0; layer < layers; ++layer)
+                    detectThinTriangles(light.viewProj[layer], layer, glm::vec3(light.positionType), perspective, depthPerDistance,
+                                        light.shadowParams.w);
+                vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+                timestamp(PassThinTriangles);
+            }
 
-        if (traced) {
-            // Compaction into a dense ray list, then the indirect dispatch size.
-            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compactPipeline);
-            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compactLayout, 0, 1, &compactSet, 0, nullptr);
-            CompactPush compact{pixelCount, 0};
-            vkCmdPushConstants(cmd, compactLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(compact), &compact);
-            const uint32_t groups = (pixelCount + PENUMBRA_COMPACT_GROUP_SIZE - 1) / PENUMBRA_COMPACT_GROUP_SIZE;
-            const uint32_t groupsPerRow = std::min(groups, 65535u);
-            vkCmdDispatch(cmd, groupsPerRow, (groups + groupsPerRow - 1) / groupsPerRow, 1);
+            // Visibility from the shadow map, and the pixels that get rays.
+            if (traced) {
+                vkCmdFillBuffer(cmd, rayList.buffer, 0, PENUMBRA_RAY_LIST_HEADER_UINTS * 4, 0);
+                vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+            }
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, classifyPipeline);
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, classifyLayout, 0, 1, &classifySet, 0, nullptr);
+            ClassifyPush classify{lightIndex, uint32_t(settings.shadows)};
+            vkCmdPushConstants(cmd, classifyLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(classify), &classify);
+            vkCmdDispatch(cmd, groupsX, groupsY, 1);
             vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
-            compact.phase = 1;
-            vkCmdPushConstants(cmd, compactLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(compact), &compact);
-            vkCmdDispatch(cmd, 1, 1, 1);
-            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                              kStorageRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-            timestamp(PassCompact);
+            timestamp(PassClassify);
 
-            recordTrace(cmd, tracer, lightIndex, rayOffset);
-            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, kStorageRW);
-            timestamp(PassTrace);
+            if (traced)
+                compactAndTrace(lightIndex, 0);
         }
 
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadeLayout, 0, 1, &shadeSet, 0, nullptr);
-        ShadePush shade{lightIndex, step == 0 ? 1u : 0u, settings.debugPip && traced ? 1u : 0u, 0u};
+        ShadePush shade{lightIndex, step == 0 ? 1u : 0u, settings.debugPip && lightTraced ? 1u : 0u, 0u};
         vkCmdPushConstants(cmd, shadeLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(shade), &shade);
         vkCmdDispatch(cmd, groupsX, groupsY, 1);
         // The next light's passes read the accumulated colour, rewrite visibility and marks, and clear
@@ -755,6 +993,10 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     out.nodesVisited = counters[PENUMBRA_STAT_NODES];
     out.leavesVisited = counters[PENUMBRA_STAT_LEAVES];
     out.triangleTests = counters[PENUMBRA_STAT_TRIANGLES];
+    out.penumbraPixels = counters[PENUMBRA_STAT_PENUMBRA];
+    uint32_t areaLights = uint32_t(std::count_if(frameLights.begin(), frameLights.end(), [](const Light& l) { return isAreaLight(l); }));
+    out.penumbraFraction = out.coveredPixels && areaLights ? double(out.penumbraPixels) / (double(out.coveredPixels) * areaLights) : 0.0;
+    out.lightSamples = areaLights && traced ? settings.lightSamples : areaLights ? settings.softShadowMaps : 0;
     out.rayOffset = traced ? rayOffset : 0.0f;
     out.device = device.info;
     for (uint32_t pass = 0; pass < PassCount; ++pass)

@@ -37,6 +37,16 @@ Light parseLightSpec(const std::string& spec);
 // sizes, spot cones within 0..90 degrees). Throws Error("<subject>: <problem>").
 void validateLight(const Light& light, const std::string& subject);
 
+// Area lights (rectangle, disk, sphere): true for those types.
+bool isAreaLight(const Light& light);
+
+// Half-extent vectors of an area light as penumbra/light_sampling.h takes
+// them. Rectangle and disk face along direction; V is the part of up across
+// that direction (height axis), U = V x direction (width axis). Rectangle:
+// |U| = width / 2, |V| = height / 2; disk: both the radius; sphere:
+// U = (radius, 0, 0), V = 0. Point-like lights: both zero.
+void areaLightAxes(const Light& light, glm::vec3& u, glm::vec3& v);
+
 // Parses "x,y,z". Throws Error naming what.
 glm::vec3 parseVec3(const std::string& text, const std::string& what);
 

@@ -22,6 +22,14 @@ namespace penumbra {
 // the pixel, thin triangles rasterized conservatively); frt: a ray for every
 // light-facing pixel. srt and frt use the same GPU ray tracer over the
 // shared BVH.
+//
+// Area lights (rectangle, disk, sphere) cast soft shadows (section 3.2): sm
+// averages K point-light shadow maps over the light; srt traces light samples
+// only for the pixels in the penumbra mask (edges of a shadow map from the
+// light's centre, and optionally its corners, splatted with the light's
+// projected shape) and takes umbra or lit from the centre's shadow map
+// elsewhere; frt traces the samples for every pixel. srt and frt use the same
+// stratified samples, seeded by the pixel (penumbra/light_sampling.h).
 enum class ShadowMethod { ShadowMap, Selective, FullRayTrace };
 
 const char* shadowMethodName(ShadowMethod method);
@@ -63,6 +71,10 @@ struct RenderSettings {
     // Shadow-ray origins move this far along the light-facing normal (model
     // units); 0: shadowRayOffset of the model.
     float rayOffset = 0.0f;
+    // Soft shadows (area lights).
+    uint32_t lightSamples = 16;         // srt/frt: light samples per pixel, 4..256
+    uint32_t penumbraMaps = 1;          // srt: shadow maps whose masks mark the penumbra: 1 (centre) or 5 (centre and corners)
+    uint32_t softShadowMaps = 4;        // sm: point-light shadow maps averaged over the light, 1..6
 };
 
 // Linear-light RGBA float image, row-major, top row first.
@@ -89,6 +101,9 @@ struct FrameStats {
     uint64_t nodesVisited = 0;    // BVH nodes tested by the tracer
     uint64_t leavesVisited = 0;   // strip-range leaves tested
     uint64_t triangleTests = 0;   // ray/triangle tests
+    uint64_t penumbraPixels = 0;  // pixels whose visibility of an area light is strictly between 0 and 1 (summed over lights)
+    double penumbraFraction = 0;  // penumbraPixels / (coveredPixels * area lights)
+    uint32_t lightSamples = 0;    // samples per pixel of area lights (0: no area light)
     float rayOffset = 0;          // shadow-ray origin offset used
     DeviceInfo device;
     std::vector<PassTiming> passes;

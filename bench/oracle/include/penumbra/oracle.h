@@ -38,6 +38,16 @@ public:
     std::vector<float> hardShadowVisibility(const std::vector<float>& positions, const std::vector<float>& normals, const Light& light,
                                             const OracleOptions& options = {}) const;
 
+    // Soft shadows of an area light: per covered pixel the fraction of
+    // `samples` light samples (penumbra/light_sampling.h, seeded by the pixel
+    // x = i % width, y = i / width and lightIndex, as the GPU tracer does)
+    // that no triangle blocks; samples below the pixel's plane count as
+    // blocked. kVisibilityBackFacing where no sample is above the plane or the
+    // pixel is behind a one-sided emitter.
+    std::vector<float> softShadowVisibility(const std::vector<float>& positions, const std::vector<float>& normals, uint32_t width,
+                                            const Light& light, uint32_t lightIndex, uint32_t samples,
+                                            const OracleOptions& options = {}) const;
+
     uint64_t raysTraced() const { return rays; }
 
 private:

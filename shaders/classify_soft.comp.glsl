@@ -1,0 +1,131 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_atomic_int64 : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+// Soft shadows of an area light (Lauterbach et al. 2009, 3.2), per camera pixel:
+//  mode 0 (sm): visibility += weight x the depth test in map `slot`, a point-light
+//    shadow map from one point of the light (sm soft averages K of them);
+//  mode 1 (penumbra mask of a corner map, srt --penumbra-maps 5): mark pixels
+//    inside the mask of map `slot` (penumbra_mask.comp.glsl; OR into the marks);
+//  mode 2 (srt, the centre map): mark pixels inside the centre map's mask, outside
+//    the map, or whose plane cuts the light (self-shadowing terminator), and give
+//    every other pixel the centre shadow map's umbra or lit;
+//  mode 3 (frt): mark every pixel with a light sample above its plane.
+// Pixels with no light sample above their plane, or behind a one-sided emitter,
+// get visibility 0 and no rays.
+
+#include "config.h"
+#include "shadow_common.glsli"
+#include "penumbra_mask.glsli"
+
+layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
+
+layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
+layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
+layout(set = 0, binding = 2) uniform sampler2DArray shadowMap;
+layout(set = 0, binding = 4, r32f) uniform image2D outVisibility;
+layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 6, std430) buffer Marks { uint marks[]; };
+layout(set = 0, binding = 7, std430) buffer Stats { uint64_t stats[]; };
+layout(set = 0, binding = 8, std430) readonly buffer Mask { uint mask[]; }; // penumbra_mask.comp.glsl
+
+layout(push_constant) uniform ClassifySoftPush {
+    uint lightIndex;
+    uint slot;       // map of the light
+    uint mode;       // see above
+    uint first;      // mode 0: 1 for the first map (writes instead of adding; counts pixels)
+    float weight;    // mode 0: 1 / K
+    uint mapSize;
+    uint topLevel;
+    uint pad;
+} push;
+
+// In the penumbra mask of the map: some splat over the pixel's texel reaches its depth.
+bool inMask(LightData light, ShadowLookup s)
+{
+    if ((mask[0] & 1u) != 0u)
+        return true;
+    float depth = areaMapLinearDepth(light, push.slot, s.depth) * (1.0 + 1e-3);
+    uint S = push.mapSize;
+    uvec2 t = uvec2(s.texel);
+    uint offset = 0u;
+    for (uint level = 0u; level <= push.topLevel; ++level) {
+        uint size = maskLevelSize(S, level);
+        uvec2 c = t >> level;
+        if (depth >= uintBitsToFloat(mask[1u + offset + c.y * size + c.x]))
+            return true;
+        offset += size * size;
+    }
+    return false;
+}
+
+shared uint groupCovered, groupMarked;
+
+uvec2 classifyPixel()
+{
+    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 imageSizeXY = imageSize(outVisibility);
+    if (any(greaterThanEqual(pixel, imageSizeXY)))
+        return uvec2(0u);
+    uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
+    vec4 position = imageLoad(gPosition, pixel);
+    if (position.w == 0.0) {
+        imageStore(outVisibility, pixel, vec4(-1.0));
+        marks[index] = 0u;
+        return uvec2(0u);
+    }
+    LightData light = frame.lights[push.lightIndex];
+    vec3 p = position.xyz;
+    vec3 n = imageLoad(gNormal, pixel).xyz;
+    vec2 heights = areaLightHeightRange(light, p, n);
+    bool reached = heights.y > 0.0 && inFrontOfEmitter(light, p);
+    ivec2 size = textureSize(shadowMap, 0).xy;
+    ShadowLookup s = projectToAreaMap(light, push.slot, p, size);
+
+    if (push.mode == 0u) {
+        // One point-light shadow map of K: the point must be above the pixel's plane.
+        vec3 eye = light.mapEye[push.slot].xyz;
+        bool lit = reached && dot(n, eye - p) > 0.0 && s.inside && s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r;
+        float previous = push.first != 0u ? 0.0 : imageLoad(outVisibility, pixel).r;
+        imageStore(outVisibility, pixel, vec4(previous + (lit ? push.weight : 0.0)));
+        if (push.first != 0u)
+            marks[index] = 0u;
+        return uvec2(push.first, 0u);
+    }
+    if (push.mode == 1u) {
+        if (reached && (!s.inside || inMask(light, s)))
+            marks[index] = 1u;
+        return uvec2(0u);
+    }
+    bool mark;
+    float visibility = 0.0;
+    if (push.mode == 3u)
+        mark = reached;
+    else {
+        mark = reached && (marks[index] != 0u || heights.x <= 0.0 || !s.inside || inMask(light, s));
+        if (reached && !mark)
+            visibility = s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r ? 1.0 : 0.0;
+    }
+    imageStore(outVisibility, pixel, vec4(visibility));
+    marks[index] = mark ? 1u : 0u;
+    return uvec2(1u, mark ? 1u : 0u);
+}
+
+void main()
+{
+    if (gl_LocalInvocationIndex == 0u) {
+        groupCovered = 0u;
+        groupMarked = 0u;
+    }
+    barrier();
+    uvec2 counts = classifyPixel();
+    if (counts.x != 0u)
+        atomicAdd(groupCovered, counts.x);
+    if (counts.y != 0u)
+        atomicAdd(groupMarked, counts.y);
+    barrier();
+    if (gl_LocalInvocationIndex == 0u) {
+        atomicAdd(stats[PENUMBRA_STAT_COVERED], uint64_t(groupCovered));
+        atomicAdd(stats[PENUMBRA_STAT_PIP], uint64_t(groupMarked));
+    }
+}

@@ -1,0 +1,291 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// Penumbra mask of an area light (Lauterbach et al. 2009, 3.2): edge texels of
+// a shadow map from a point of the light, found as for hard shadows (depth
+// discontinuity over the 3x3 neighbourhood, or a thin triangle in front), are
+// splatted with the light's projected shape into a mask; camera pixels that
+// project into the mask, behind the splat's occluder far enough for the
+// splat to reach them, get light samples traced; the others are umbra or lit
+// by the shadow map.
+//
+// Splat of an edge at occluder point E (relative to the map's eye, e): a
+// receiver P is in the penumbra of that edge when E lies on a segment from P
+// to a light point S, so P's direction is that of e - k s', s' = S - eye,
+// k = 1 - depth(E - eye, s') / depth(P - eye, s') in [0, kmax],
+// kmax = (far - z) / (far - Rbig) with z the edge's depth and Rbig the
+// farthest light point from the eye. The light shape contains the eye's point
+// (centre or corner), so the union over k is the convex polygon e - kmax (shape
+// - eye), projected into the map exactly (rectangle: 4 corners; disk: the
+// octagon around it; sphere: the octagon around its silhouette).
+//
+// Cost is kept bounded with a min-depth pyramid: the splat of a block of
+// texels at the nearest depth in it covers every edge of the block (nearer
+// edges splat wider, and the block's extent is added as dilation). An edge
+// splats at level 0 when its splat is under 4 texels in radius, otherwise its
+// level-L block does when that block's splat is 2..4 level-L texels (the top
+// level: 2 or more). Each splat is written at the mask level where it spans at
+// most PENUMBRA_MASK_TARGET_TEXELS texels.
+//
+// The mask is receiver-aware: the splat for receivers at depth d is the
+// polygon scaled by k(d) / kmax about e's texel (k grows with d), so each mask
+// texel keeps the smallest receiver depth any splat reaches it at (atomicMin
+// on the float bits): lambda, the smallest scale at which the dilated polygon
+// touches the texel, from the separating axes; then with k = lambda kmax,
+// d >= (z - k Rbig) / (1 - k). A pixel is in the mask when its depth in the
+// map is at least the value of its texel on some level.
+//
+// level == 0: edge pass, one invocation per level-1 texel (its 2x2 children);
+// writes the level-1 minimum. level >= 1: the children at `level` of one
+// level+1 texel; writes the level+1 minimum (and splats the top level).
+
+#include "config.h"
+#include "shadow_common.glsli"
+#include "penumbra_mask.glsli"
+
+layout(local_size_x = PENUMBRA_MASK_GROUP_SIZE, local_size_y = PENUMBRA_MASK_GROUP_SIZE) in;
+
+layout(set = 0, binding = 0) uniform sampler2DArray shadowMap;
+layout(set = 0, binding = 1, r32ui) uniform readonly uimage2DArray thinMap;
+layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 3, std430) buffer Pyramid { float pyramid[]; }; // min occluder depth, levels 1..top
+layout(set = 0, binding = 4, std430) buffer Mask { uint mask[]; };        // word 0: flags; then per texel of levels 0..top the
+                                                                          // float bits of the nearest receiver depth reached
+
+layout(push_constant) uniform MaskPush {
+    mat4 invViewProj;  // inverse of the map's viewProj
+    uint lightIndex;
+    uint slot;         // which map of the light (viewProj[slot], mapEye[slot])
+    uint level;        // 0: edge pass; else the source level of this reduction
+    uint mapSize;      // texels per side
+    uint topLevel;     // level of size 1
+    uint useThin;      // 1: thin triangles (thin map) are edges too
+    float edgeDelta;   // depth discontinuity threshold, model units
+    float pad;
+} push;
+
+const float kNoEdge = 3.0e38;
+
+LightData gLight;
+float gNear, gFar, gRbig, gTexelAngle;
+
+float kMax(float z)
+{
+    return clamp((gFar - z) / max(gFar - gRbig, 1e-6 * gFar), 0.0, 1.0);
+}
+
+// Splat radius in level-L texels (map-centre texel angle; monotone in z, all the level choice needs).
+float splatRadius(float z, uint level)
+{
+    return kMax(z) * gRbig / max(z, 1e-30) / (gTexelAngle * float(1u << level));
+}
+
+void setReceiverDepth(uint texel, float depth)
+{
+    atomicMin(mask[1u + texel], floatBitsToUint(max(depth, 0.0)));
+}
+
+void markWholeMap()
+{
+    atomicOr(mask[0], 1u);
+}
+
+// Splats the block c of `level` whose nearest edge lies at light-view depth z.
+// Level 0: c is the occluder's texel.
+void splat(uvec2 c, uint level, float z)
+{
+    uint S = push.mapSize;
+    float blockSize = float(1u << level);
+    vec2 lo = vec2(c) * blockSize;
+    vec2 hi = min(lo + blockSize, vec2(float(S)));
+    vec2 centreTexel = 0.5 * (lo + hi);
+    // The occluder lies within the block; the margin covers the splat's departure from a projected polygon.
+    float dilation = 0.5 * max(hi.x - lo.x, hi.y - lo.y) + (level == 0u ? 0.25 : 1.0);
+    if (z <= gRbig * 1.0001) {
+        markWholeMap(); // an occluder within the light's reach: its penumbra can cover anything
+        return;
+    }
+    vec3 eye = gLight.mapEye[push.slot].xyz;
+    float ndcZ = gFar * (z - gNear) / (z * (gFar - gNear));
+    vec4 world = push.invViewProj * vec4(centreTexel / float(S) * 2.0 - 1.0, ndcZ, 1.0);
+    vec3 e = world.xyz / world.w - eye;
+    float k = kMax(z);
+    vec3 toCentre = gLight.positionType.xyz - eye;
+    uint type = uint(gLight.positionType.w);
+
+    vec3 corners[8];
+    uint count = 8u;
+    const float octagon = 1.0823922; // 1 / cos(pi / 8): the octagon around the unit circle
+    if (type == PENUMBRA_LIGHT_RECTANGLE) {
+        count = 4u;
+        vec3 u = gLight.areaU.xyz, v = gLight.areaV.xyz;
+        corners[0] = e - k * (toCentre + u + v);
+        corners[1] = e - k * (toCentre - u + v);
+        corners[2] = e - k * (toCentre - u - v);
+        corners[3] = e - k * (toCentre + u - v);
+    } else if (type == PENUMBRA_LIGHT_DISK) {
+        for (uint j = 0u; j < 8u; ++j) {
+            float angle = float(j) * 0.78539816;
+            corners[j] = e - k * (toCentre + octagon * (cos(angle) * gLight.areaU.xyz + sin(angle) * gLight.areaV.xyz));
+        }
+    } else {
+        // The ball e - k (toCentre + s), |s| <= R, seen from the eye: its silhouette disk.
+        vec3 ballCentre = e - k * toCentre;
+        float radius = k * gLight.areaU.x;
+        float d = length(ballCentre);
+        if (d <= radius * 1.0001) {
+            markWholeMap();
+            return;
+        }
+        float silhouette = radius * d / sqrt(d * d - radius * radius);
+        vec3 w = ballCentre / d;
+        vec3 b1 = normalize(abs(w.x) < 0.9 ? cross(w, vec3(1, 0, 0)) : cross(w, vec3(0, 1, 0)));
+        vec3 b2 = cross(w, b1);
+        for (uint j = 0u; j < 8u; ++j) {
+            float angle = float(j) * 0.78539816;
+            corners[j] = ballCentre + octagon * silhouette * (cos(angle) * b1 + sin(angle) * b2);
+        }
+    }
+
+    SplatPolygon polygon;
+    polygon.count = count;
+    for (uint j = 0u; j < count; ++j) {
+        vec4 clip = gLight.viewProj[push.slot] * vec4(eye + corners[j], 1.0);
+        if (clip.w <= 1e-6 * gNear) {
+            markWholeMap(); // reaches behind the eye: unbounded in the map
+            return;
+        }
+        polygon.points[j] = (clip.xy / clip.w * 0.5 + 0.5) * float(S);
+    }
+    preparePolygon(polygon);
+    vec4 centreClip = gLight.viewProj[push.slot] * vec4(eye + e, 1.0);
+    vec2 centre = (centreClip.xy / centreClip.w * 0.5 + 0.5) * float(S);
+    // The polygon's interval on each axis relative to the centre (scales linearly).
+    vec2 relative[8];
+    for (uint j = 0u; j < count; ++j)
+        relative[j] = polygon.range[j] - dot(centre, polygon.axes[j]);
+    vec2 relativeLo = polygon.lo - centre, relativeHi = polygon.hi - centre;
+    vec2 boxMin = max(polygon.lo - dilation, vec2(0.0));
+    vec2 boxMax = min(polygon.hi + dilation, vec2(float(S)));
+    if (any(greaterThanEqual(boxMin, boxMax)))
+        return;
+    float extent = max(boxMax.x - boxMin.x, boxMax.y - boxMin.y);
+    uint target = uint(clamp(ceil(log2(max(extent / PENUMBRA_MASK_TARGET_TEXELS, 1.0))), 0.0, float(push.topLevel)));
+    float targetSize = float(1u << target);
+    uint size = maskLevelSize(S, target);
+    uvec2 first = uvec2(boxMin / targetSize);
+    uvec2 last = min(uvec2(max(ceil(boxMax / targetSize) - 1.0, vec2(0.0))), uvec2(size - 1u));
+    uint base = maskLevelOffset(S, target);
+    for (uint y = first.y; y <= last.y; ++y)
+        for (uint x = first.x; x <= last.x; ++x) {
+            vec2 texelLo = vec2(x, y) * targetSize - dilation;
+            vec2 texelHi = vec2(x + 1u, y + 1u) * targetSize + dilation;
+            if (!polygonOverlapsBox(polygon, texelLo, texelHi))
+                continue;
+            // Smallest scale of the polygon about the centre that reaches the texel.
+            float lambda = 0.0;
+            for (uint a = 0u; a < 2u; ++a) {
+                float lo = texelLo[a] - centre[a], hi = texelHi[a] - centre[a];
+                if (lo > 0.0)
+                    lambda = max(lambda, lo / max(relativeHi[a], 1e-30));
+                if (hi < 0.0)
+                    lambda = max(lambda, hi / min(relativeLo[a], -1e-30));
+            }
+            vec2 texelCentre = 0.5 * (texelLo + texelHi), texelHalf = 0.5 * (texelHi - texelLo);
+            for (uint j = 0u; j < count; ++j) {
+                float c = dot(texelCentre - centre, polygon.axes[j]);
+                float r = dot(texelHalf, abs(polygon.axes[j]));
+                if (c - r > 0.0)
+                    lambda = max(lambda, (c - r) / max(relative[j].y, 1e-30));
+                if (c + r < 0.0)
+                    lambda = max(lambda, (c + r) / min(relative[j].x, -1e-30));
+            }
+            // 10% slack for the projection's departure from a uniform scaling.
+            float kReach = min(lambda * 0.9, 1.0) * k;
+            float receiver = kReach >= 1.0 ? 3.0e38 : (z - kReach * gRbig) / (1.0 - kReach);
+            setReceiverDepth(base + y * size + x, receiver);
+        }
+}
+
+float linearDepth(float ndc)
+{
+    return gFar * gNear / (gFar - ndc * (gFar - gNear));
+}
+
+// Level 0: the depth of texel t when it is the near side of an edge (it
+// occludes, so it splats), else kNoEdge. An edge is a depth discontinuity: a
+// neighbour of the 3x3 neighbourhood deeper by more than the threshold, where
+// the depths are not the slope of one plane. NDC depth is affine in the texel
+// coordinates over a plane, so its second difference along each of the four
+// lines through the centre vanishes there (receivers seen at grazing angles
+// are no edges); it is scaled back to model units with the derivative of
+// linear depth by NDC depth at the centre. The far side of an edge does not
+// splat: its occluder is the neighbour, which does.
+float edgeDepth(ivec2 t)
+{
+    int S = int(push.mapSize);
+    float d[9];
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            ivec2 n = clamp(t + ivec2(dx, dy), ivec2(0), ivec2(S - 1));
+            d[(dy + 1) * 3 + dx + 1] = texelFetch(shadowMap, ivec3(n, 0), 0).r;
+        }
+    float centre = d[4];
+    float zc = linearDepth(centre);
+    float deeper = 0.0;
+    for (int i = 0; i < 9; ++i)
+        deeper = max(deeper, linearDepth(d[i]) - zc);
+    float scale = zc * zc * (gFar - gNear) / (gFar * gNear);
+    float bend = max(max(abs(d[3] + d[5] - 2.0 * centre), abs(d[1] + d[7] - 2.0 * centre)),
+                     max(abs(d[0] + d[8] - 2.0 * centre), abs(d[2] + d[6] - 2.0 * centre)));
+    if (deeper > push.edgeDelta && bend * scale > push.edgeDelta)
+        return zc;
+    // A thin triangle is an edge where it lies in front of everything the map
+    // sampled around it: an occluder the rasterizer dropped (slivers of
+    // surfaces seen at grazing angles are in the map's neighbourhood).
+    if (push.useThin != 0u) {
+        float thin = linearDepth(uintBitsToFloat(imageLoad(thinMap, ivec3(t, 0)).r));
+        float nearest = zc;
+        for (int i = 0; i < 9; ++i)
+            nearest = min(nearest, linearDepth(d[i]));
+        if (thin < nearest - push.edgeDelta)
+            return thin;
+    }
+    return kNoEdge;
+}
+
+void main()
+{
+    gLight = frame.lights[push.lightIndex];
+    gNear = gLight.mapEye[push.slot].w;
+    gFar = gLight.mapRange[push.slot].x;
+    gRbig = length(gLight.positionType.xyz - gLight.mapEye[push.slot].xyz) + gLight.areaV.w;
+    gTexelAngle = gLight.mapRange[push.slot].y / float(push.mapSize);
+
+    uint S = push.mapSize;
+    uint parentLevel = push.level + 1u;
+    uint parentSize = maskLevelSize(S, parentLevel);
+    uvec2 p = gl_GlobalInvocationID.xy;
+    if (p.x >= parentSize || p.y >= parentSize)
+        return;
+    uint childSize = maskLevelSize(S, push.level);
+    float nearest = kNoEdge;
+    for (uint j = 0u; j < 4u; ++j) {
+        uvec2 c = p * 2u + uvec2(j & 1u, j >> 1u);
+        if (c.x >= childSize || c.y >= childSize)
+            continue;
+        float z;
+        if (push.level == 0u)
+            z = edgeDepth(ivec2(c));
+        else
+            z = pyramid[pyramidIndex(S, push.level, c)];
+        if (z >= kNoEdge)
+            continue;
+        nearest = min(nearest, z);
+        float r = splatRadius(z, push.level);
+        if (push.level == 0u ? r < 4.0 : (r >= 2.0 && r < 4.0))
+            splat(c, push.level, z);
+    }
+    pyramid[pyramidIndex(S, parentLevel, p)] = nearest;
+    if (parentLevel == push.topLevel && nearest < kNoEdge && splatRadius(nearest, parentLevel) >= 2.0)
+        splat(p, parentLevel, nearest);
+}

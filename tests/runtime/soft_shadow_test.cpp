@@ -1,0 +1,218 @@
+// Soft shadows from area lights (Lauterbach et al. 2009, 3.2): selective
+// tracing of the penumbra mask against full tracing with the same samples,
+// full tracing against the Embree oracle with the same samples, and the
+// shadow-map baseline against both.
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+#include <gtest/gtest.h>
+
+#include "penumbra/generate.h"
+#include "penumbra/oracle.h"
+#include "penumbra/penumbra.h"
+#include "test_scenes.h"
+
+namespace penumbra {
+namespace {
+
+struct SoftCase {
+    const char* name;
+    Mesh mesh;
+    Camera camera;
+    Light light;
+};
+
+Frame renderSoft(Renderer& renderer, ShadowMethod method, uint32_t size, uint32_t samples = 16, uint32_t penumbraMaps = 1)
+{
+    RenderSettings settings;
+    settings.width = settings.height = size;
+    settings.shadows = method;
+    settings.lightSamples = samples;
+    settings.penumbraMaps = penumbraMaps;
+    settings.readbackGBuffer = true;
+    Frame frame = renderer.render(settings);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+    return frame;
+}
+
+// Visibility differences over the pixels the reference covers; values < 0
+// other than background (no light sample above the pixel's plane) count as 0.
+struct SoftComparison {
+    size_t compared = 0;
+    double sumAbs = 0;
+    size_t over = 0;     // pixels differing by more than the threshold
+    double meanAbs() const { return compared ? sumAbs / double(compared) : 1.0; }
+    double overFraction() const { return compared ? double(over) / double(compared) : 1.0; }
+};
+
+SoftComparison compareSoft(const std::vector<float>& reference, const std::vector<float>& other, float threshold)
+{
+    SoftComparison c;
+    for (size_t i = 0; i < reference.size(); ++i) {
+        if (reference[i] == -1.0f)
+            continue;
+        float a = std::max(reference[i], 0.0f), b = std::max(other[i], 0.0f);
+        ++c.compared;
+        c.sumAbs += std::abs(a - b);
+        c.over += std::abs(a - b) > threshold;
+    }
+    return c;
+}
+
+Light rectangleLight(glm::vec3 position, float width, float height)
+{
+    Light light;
+    light.type = LightType::Rectangle;
+    light.position = position;
+    light.direction = {0.1f, -1.0f, 0.05f};
+    light.up = {0, 0, 1};
+    light.width = width;
+    light.height = height;
+    light.intensity = 40.0f;
+    return light;
+}
+
+std::vector<SoftCase> softCases()
+{
+    std::vector<SoftCase> cases;
+    Camera camera;
+    camera.position = {5.0f, 6.0f, 7.0f};
+    camera.target = {0.0f, 1.0f, 0.0f};
+    cases.push_back({"cube, rectangle light", test::cubeOverFloor(0.5f), camera, rectangleLight({0.5f, 7.0f, 0.3f}, 2.0f, 1.0f)});
+
+    Light disk = rectangleLight({-1.0f, 6.0f, 0.5f}, 1.0f, 1.0f);
+    disk.type = LightType::Disk;
+    disk.radius = 0.8f;
+    cases.push_back({"cube, disk light", test::cubeOverFloor(0.3f), camera, disk});
+
+    Light sphere;
+    sphere.type = LightType::Sphere;
+    sphere.position = {1.5f, 6.5f, -1.0f};
+    sphere.radius = 0.6f;
+    sphere.intensity = 40.0f;
+    cases.push_back({"cube, sphere light", test::cubeOverFloor(0.7f), camera, sphere});
+
+    GenerateOptions options;
+    options.triangles = 60'000;
+    Scene city = generateScene("city", options);
+    Light cityLight = rectangleLight(city.lights.empty() ? glm::vec3(0, 50, 0) : glm::vec3(0, 0, 0), 8.0f, 4.0f);
+    Bounds b = computeBounds(city.mesh);
+    cityLight.position = b.center() + glm::vec3(0.2f, 0.9f, 0.1f) * glm::length(b.extent());
+    cases.push_back({"city, rectangle light", std::move(city.mesh), defaultCamera(b), cityLight});
+    return cases;
+}
+
+TEST(SoftShadows, SelectiveAgreesWithFullRayTracingOnIdenticalSamples)
+{
+    for (SoftCase& c : softCases()) {
+        SCOPED_TRACE(c.name);
+        Renderer renderer;
+        renderer.loadModel(c.mesh);
+        renderer.setCamera(c.camera);
+        renderer.setLights({c.light});
+        Frame full = renderSoft(renderer, ShadowMethod::FullRayTrace, 256);
+        Frame selective = renderSoft(renderer, ShadowMethod::Selective, 256);
+        SoftComparison diff = compareSoft(full.visibility, selective.visibility, 1.0f / 16.0f);
+        std::printf("%s: srt vs frt mean |dv| %.5f, %.4f%% pixels off by > 1/16, PIP %.1f%%, penumbra %.1f%%\n", c.name, diff.meanAbs(),
+                    diff.overFraction() * 100.0, selective.stats.pipFraction * 100.0, full.stats.penumbraFraction * 100.0);
+        std::printf("  srt rays %llu pip %llu | frt rays %llu pip %llu\n", (unsigned long long)selective.stats.rays,
+                    (unsigned long long)selective.stats.pipPixels, (unsigned long long)full.stats.rays, (unsigned long long)full.stats.pipPixels);
+        EXPECT_GT(diff.compared, 10'000u);
+        EXPECT_LE(diff.meanAbs(), 0.002);
+        EXPECT_LE(diff.overFraction(), 0.001);
+        // The scene has a penumbra, and srt traced far fewer pixels than frt.
+        EXPECT_GT(full.stats.penumbraPixels, 100u);
+        EXPECT_LT(selective.stats.rays, full.stats.rays / 2);
+    }
+}
+
+TEST(SoftShadows, FullRayTracingAgreesWithTheOracleOnIdenticalSamples)
+{
+    for (SoftCase& c : softCases()) {
+        SCOPED_TRACE(c.name);
+        Renderer renderer;
+        renderer.loadModel(c.mesh);
+        renderer.setCamera(c.camera);
+        renderer.setLights({c.light});
+        const uint32_t samples = 16;
+        Frame full = renderSoft(renderer, ShadowMethod::FullRayTrace, 256, samples);
+        EmbreeOracle oracle(c.mesh);
+        OracleOptions options;
+        options.originOffset = full.stats.rayOffset;
+        std::vector<float> reference = oracle.softShadowVisibility(full.positions, full.normals, 256, c.light, 0, samples, options);
+        // Samples that disagree, at least: per pixel the difference of visible counts.
+        double differing = 0, total = 0;
+        for (size_t i = 0; i < reference.size(); ++i) {
+            if (reference[i] == -1.0f)
+                continue;
+            total += samples;
+            differing += std::round(std::abs(std::max(reference[i], 0.0f) - std::max(full.visibility[i], 0.0f)) * float(samples));
+        }
+        std::printf("%s: frt vs oracle, %.0f of %.0f samples differ\n", c.name, differing, total);
+        EXPECT_GT(total, 10'000.0 * samples);
+        EXPECT_LE(differing, 0.001 * total);
+    }
+}
+
+TEST(SoftShadows, ShadowMapBaselineAveragesPointShadowMaps)
+{
+    SoftCase c = std::move(softCases()[0]);
+    Renderer renderer;
+    renderer.loadModel(c.mesh);
+    renderer.setCamera(c.camera);
+    renderer.setLights({c.light});
+    RenderSettings settings;
+    settings.width = settings.height = 256;
+    settings.readbackGBuffer = true;
+    settings.softShadowMaps = 4;
+    Frame sm = renderer.render(settings);
+    Frame full = renderSoft(renderer, ShadowMethod::FullRayTrace, 256, 64);
+    // Four maps: every visibility is a multiple of 1/4, some pixels are in between.
+    size_t between = 0;
+    for (float v : sm.visibility) {
+        if (v < 0.0f)
+            continue;
+        EXPECT_FLOAT_EQ(v * 4.0f, std::round(v * 4.0f));
+        between += v > 0.0f && v < 1.0f;
+    }
+    EXPECT_GT(between, 100u);
+    SoftComparison diff = compareSoft(full.visibility, sm.visibility, 0.3f);
+    std::printf("sm (4 maps) vs frt (64 samples): mean |dv| %.4f\n", diff.meanAbs());
+    EXPECT_LT(diff.meanAbs(), 0.05);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+}
+
+TEST(SoftShadows, CornerMapsOnlyAddPixels)
+{
+    SoftCase c = std::move(softCases()[0]);
+    Renderer renderer;
+    renderer.loadModel(c.mesh);
+    renderer.setCamera(c.camera);
+    renderer.setLights({c.light});
+    Frame one = renderSoft(renderer, ShadowMethod::Selective, 256, 16, 1);
+    Frame five = renderSoft(renderer, ShadowMethod::Selective, 256, 16, 5);
+    EXPECT_GE(five.stats.pipPixels, one.stats.pipPixels);
+    Frame full = renderSoft(renderer, ShadowMethod::FullRayTrace, 256);
+    SoftComparison diff = compareSoft(full.visibility, five.visibility, 1.0f / 16.0f);
+    EXPECT_LE(diff.meanAbs(), 0.002);
+}
+
+TEST(SoftShadows, RejectsBadSettings)
+{
+    Renderer renderer;
+    renderer.loadModel(test::cubeOverFloor(0.0f));
+    RenderSettings settings;
+    settings.width = settings.height = 64;
+    settings.lightSamples = 2;
+    EXPECT_THROW(renderer.render(settings), Error);
+    settings.lightSamples = 16;
+    settings.penumbraMaps = 3;
+    EXPECT_THROW(renderer.render(settings), Error);
+    settings.penumbraMaps = 1;
+    settings.softShadowMaps = 0;
+    EXPECT_THROW(renderer.render(settings), Error);
+}
+
+} // namespace
+} // namespace penumbra
