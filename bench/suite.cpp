@@ -174,7 +174,10 @@ public:
 
     SuiteResults run()
     {
-        std::filesystem::create_directories(std::filesystem::path(options.outDir) / "images");
+        std::error_code error;
+        std::filesystem::create_directories(std::filesystem::path(options.outDir) / "images", error);
+        if (error)
+            fail(options.outDir, "cannot create the results folder: " + error.message());
         for (const BenchScene& scene : options.scenes)
             runMethods(scene);
         runScalability();
