@@ -65,6 +65,13 @@ std::vector<double> stageTimes(const Record& r)
     return times;
 }
 
+// Compaction + trace (lavapipe's timestamps split them unreliably).
+double srtTraceMs(const Record& r)
+{
+    std::vector<double> times = stageTimes(r);
+    return times[2] + times[3];
+}
+
 bool isGpuMethod(const Record& r)
 {
     return r.method != "oracle";
@@ -146,6 +153,7 @@ std::string recordsJson(const SuiteResults& results)
     root["frames"] = results.options.frames;
     root["light_samples"] = results.options.lightSamples;
     root["penumbra_maps"] = results.options.penumbraMaps;
+    root["soft_shadow_maps"] = results.options.softShadowMaps;
     root["records"] = nlohmann::json::array();
     for (const Record& r : results.records) {
         nlohmann::json j;
@@ -310,7 +318,7 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
     std::vector<double> levels = levelsOf(records);
     if (!levels.empty()) {
         std::ostringstream data;
-        data << "# triangles sm srt frt oracle (median ms) srt_nodes_per_ray frt_nodes_per_ray\n";
+        data << "# triangles sm srt frt oracle (median ms) srt_nodes_per_ray frt_nodes_per_ray srt_trace_ms (compaction + trace)\n";
         for (double level : levels) {
             const Record* any = findRecord(records, "scalability", "scan", "sm", ShadowKind::Hard, level);
             if (!any)
@@ -324,6 +332,8 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
                 const Record* r = findRecord(records, "scalability", "scan", method, ShadowKind::Hard, level);
                 data << ' ' << (r && r->rays ? number(double(r->nodesVisited) / double(r->rays), "%.3f") : "?");
             }
+            const Record* srt = findRecord(records, "scalability", "scan", "srt", ShadowKind::Hard, level);
+            data << ' ' << (srt ? number(srtTraceMs(*srt), "%.3f", "?") : "?");
             data << '\n';
         }
         writeFile(dir / "scalability.dat", data.str());
@@ -331,7 +341,8 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
                   header + "set output 'scalability.png'\nset title 'scan: time per simplification level (log-log), " + title +
                       "'\nset logscale xy\nset grid xtics ytics mxtics mytics\nset xlabel 'triangles'\nset ylabel 'ms per frame'\n"
                       "plot 'scalability.dat' using 1:2 with linespoints title 'sm', '' using 1:3 with linespoints title 'srt', "
-                      "'' using 1:4 with linespoints title 'frt', '' using 1:5 with linespoints title 'Embree oracle (CPU)'\n"
+                      "'' using 1:4 with linespoints title 'frt', '' using 1:5 with linespoints title 'Embree oracle (CPU)', "
+                      "'' using 1:8 with linespoints dashtype 2 title 'srt compaction + trace'\n"
                       "set output 'scalability_nodes.png'\nset title 'scan: BVH nodes visited per shadow ray, " + title +
                       "'\nunset logscale y\nset ylabel 'nodes per ray'\n"
                       "plot 'scalability.dat' using 1:6 with linespoints title 'srt', '' using 1:7 with linespoints title 'frt'\n");
@@ -491,8 +502,8 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
     if (!levels.empty()) {
         md << "\n## Scalability over simplification levels (Figure 7, left)\n\nOne `scan` model, each level simplified from "
               "the next larger one with meshoptimizer, hard shadows, median ms per frame.\n\n";
-        md << "| level | triangles | B/tri | sm | srt | frt | oracle | srt PIP | srt nodes/ray | frt nodes/ray | srt error |\n"
-              "|---|---|---|---|---|---|---|---|---|---|---|\n";
+        md << "| level | triangles | B/tri | sm | srt | frt | oracle | srt compaction + trace | srt PIP | srt nodes/ray | "
+              "frt nodes/ray | srt error |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         std::map<std::string, std::vector<std::pair<double, double>>> series;
         for (double level : levels) {
             const Record* sm = findRecord(records, "scalability", "scan", "sm", ShadowKind::Hard, level);
@@ -508,17 +519,21 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
             }
             const Record* srt = findRecord(records, "scalability", "scan", "srt", ShadowKind::Hard, level);
             const Record* frt = findRecord(records, "scalability", "scan", "frt", ShadowKind::Hard, level);
-            md << percent(srt ? srt->pipFraction : kNoValue) << " | "
+            if (srt && srt->available && srtTraceMs(*srt) > 0)
+                series["srt compaction + trace"].push_back({double(srt->triangles), srtTraceMs(*srt)});
+            if (srt && srt->nodesVisited)
+                series["srt nodes/ray"].push_back({double(srt->triangles), double(srt->nodesVisited) / double(srt->rays)});
+            md << (srt ? ms(srtTraceMs(*srt)) : "–") << " | " << percent(srt ? srt->pipFraction : kNoValue) << " | "
                << number(srt && srt->rays ? double(srt->nodesVisited) / double(srt->rays) : kNoValue, "%.1f", "–") << " | "
                << number(frt && frt->rays ? double(frt->nodesVisited) / double(frt->rays) : kNoValue, "%.1f", "–") << " | "
                << percent(srt ? srt->error : kNoValue) << " |\n";
         }
-        md << "\nGrowth: least-squares slope of log(time) against log(triangles) (1 = linear in the triangle count, 0 = "
+        md << "\nGrowth: least-squares slope of log(value) against log(triangles) (1 = linear in the triangle count, 0 = "
               "flat; logarithmic growth shows as a small slope that shrinks with size):";
-        for (const char* method : kMethodOrder)
+        for (const char* method : {"sm", "srt", "frt", "oracle", "srt compaction + trace", "srt nodes/ray"})
             md << " " << method << " " << number(logLogSlope(series[method]), "%.2f", "–") << ";";
-        md << " time ratio largest / smallest level:";
-        for (const char* method : kMethodOrder) {
+        md << " ratio largest / smallest level:";
+        for (const char* method : {"sm", "srt", "frt", "oracle", "srt compaction + trace", "srt nodes/ray"}) {
             const auto& s = series[method];
             md << " " << method << " " << (s.size() >= 2 ? number(s.back().second / s.front().second, "%.2fx") : "–") << ";";
         }

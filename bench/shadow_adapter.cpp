@@ -1,8 +1,9 @@
 // Hard- and soft-shadow calls of the benchmark suite (see shadow_adapter.h).
 // Soft shadows are not in this build yet: the soft functions say so. Once
-// RenderSettings has the soft-shadow settings, FrameStats::penumbraFraction
-// and the oracle a soft-visibility function, fill in the four places marked
-// "soft shadows (#5)" and make softShadowsAvailable() return true.
+// RenderSettings has lightSamples / penumbraMaps / softShadowMaps, FrameStats
+// penumbraFraction and the oracle a soft-visibility function, fill in the
+// places marked "soft shadows (#5)" and make softShadowsAvailable() return
+// true; nothing else in bench/ changes.
 #include "shadow_adapter.h"
 
 namespace penumbra::bench {
@@ -20,14 +21,14 @@ bool softShadowsAvailable()
 
 Frame renderHardShadows(Renderer& renderer, const RenderSettings& settings)
 {
-    // Soft shadows (#5): set the soft switch of settings off here if it is on by default.
+    // The suite sets only point-like or directional lights for hard cases (area lights cast soft shadows).
     return renderer.render(settings);
 }
 
 Frame renderSoftShadows(Renderer& renderer, const RenderSettings& settings, const SoftShadowParams& params)
 {
-    // Soft shadows (#5): copy settings, switch soft shadows on, set lightSamples = params.lightSamples and
-    // penumbraMaps = params.penumbraMaps, and return renderer.render(copy).
+    // Soft shadows (#5): copy settings, set lightSamples = params.lightSamples, penumbraMaps = params.penumbraMaps
+    // and softShadowMaps = params.softShadowMaps (and a soft switch, if there is one), return renderer.render(copy).
     (void)renderer;
     (void)settings;
     (void)params;

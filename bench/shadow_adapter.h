@@ -20,19 +20,20 @@ const char* shadowKindName(ShadowKind kind); // "hard", "soft"
 // Soft-shadow parameters, shared by the renderer and the oracle so that both
 // integrate the same light samples.
 struct SoftShadowParams {
-    uint32_t lightSamples = 16; // samples over the area light per pixel
-    uint32_t penumbraMaps = 1;  // shadow maps for the penumbra classification: 1 or 5
+    uint32_t lightSamples = 16;  // srt, frt and the oracle: samples over the area light per pixel
+    uint32_t penumbraMaps = 1;   // srt: shadow maps whose masks mark the penumbra, 1 (centre) or 5 (centre and corners)
+    uint32_t softShadowMaps = 4; // sm: point-light shadow maps averaged over the light
 };
 
 // True when renderSoftShadows and oracleSoftVisibility compute soft shadows.
 bool softShadowsAvailable();
 
-// One frame of hard shadows from the lights set on the renderer, with
-// settings.shadows choosing sm, srt or frt.
+// One frame of hard shadows from the point-like or directional lights set on
+// the renderer, with settings.shadows choosing sm, srt or frt.
 Frame renderHardShadows(Renderer& renderer, const RenderSettings& settings);
 
-// One frame of soft shadows from the area light set on the renderer (light
-// 0), settings.shadows choosing the method. Frame::visibility (with
+// One frame of soft shadows from the area light (rectangle, disk or sphere)
+// set on the renderer as light 0, settings.shadows choosing the method. Frame::visibility (with
 // readbackGBuffer) is the lit fraction of light 0 in [0, 1], -1 background.
 // Throws Error when !softShadowsAvailable().
 Frame renderSoftShadows(Renderer& renderer, const RenderSettings& settings, const SoftShadowParams& params);

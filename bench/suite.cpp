@@ -77,6 +77,16 @@ double visibilityError(const std::vector<float>& oracle, const std::vector<float
     return compared ? sum / double(compared) : 0.0;
 }
 
+// The hard-shadow light: an area light shrinks to a point at its centre
+// (area lights cast soft shadows).
+Light hardLightFor(const Light& light)
+{
+    Light hard = light;
+    if (light.type == LightType::Rectangle || light.type == LightType::Disk || light.type == LightType::Sphere)
+        hard.type = LightType::Point;
+    return hard;
+}
+
 // A scene generated, preprocessed and uploaded.
 struct LoadedScene {
     std::string name;
@@ -99,7 +109,7 @@ void loadInto(Renderer& renderer, LoadedScene& loaded)
     loaded.deviceBytes = renderer.modelDeviceBytes();
     loaded.bounds = computeBounds(loaded.scene.mesh);
     loaded.camera = loaded.scene.cameras.empty() ? defaultCamera(loaded.bounds) : loaded.scene.cameras[0];
-    loaded.light = loaded.scene.lights.empty() ? defaultLight() : loaded.scene.lights[0];
+    loaded.light = hardLightFor(loaded.scene.lights.empty() ? defaultLight() : loaded.scene.lights[0]);
     renderer.setCamera(loaded.camera);
 }
 
@@ -168,6 +178,7 @@ public:
         results.date = date;
         soft.lightSamples = options.lightSamples;
         soft.penumbraMaps = options.penumbraMaps;
+        soft.softShadowMaps = options.softShadowMaps;
         // Steps for the progress bar: 4 per scene and kind, 4 per level, 4 per light radius.
         totalSteps = options.scenes.size() * 2 * 4 + options.levels.size() * 4 + options.lightRadii.size() * 4;
     }
@@ -479,7 +490,7 @@ private:
         image.rgba.assign(size_t(image.width) * image.height * 4, 1.0f);
         for (size_t i = 0; i < size_t(image.width) * image.height; ++i) {
             float* out = &image.rgba[i * 4];
-            out[0] = out[1] = out[2] = frame.positions[i * 4 + 3] != 0.0f ? 0.05f : 0.0f;
+            out[0] = out[1] = out[2] = frame.positions[i * 4 + 3] != 0.0f ? 0.01f : 0.0f;
             if (oracle[i] < 0.0f)
                 continue;
             float d = std::clamp(frame.visibility[i], 0.0f, 1.0f) - oracle[i];
@@ -542,8 +553,10 @@ void checkOptions(const SuiteOptions& options)
     for (float radius : options.lightRadii)
         if (!(radius > 0.0f && radius < 1.0f))
             fail("bench", "light radii must be in (0, 1) of the scene diagonal");
-    if (options.lightSamples < 1 || options.lightSamples > 1024)
-        fail("bench", "light samples must be 1..1024");
+    if (options.lightSamples < 4 || options.lightSamples > 256)
+        fail("bench", "light samples must be 4..256");
+    if (options.softShadowMaps < 1 || options.softShadowMaps > 6)
+        fail("bench", "soft shadow maps must be 1..6");
     if (options.penumbraMaps != 1 && options.penumbraMaps != 5)
         fail("bench", "penumbra maps must be 1 or 5");
 }

@@ -32,7 +32,8 @@ struct SuiteOptions {
     std::vector<float> lightRadii;       // light-size sweep: sphere-light radius, fraction of the scene diagonal
     float softLightRadius = 0.01f;       // soft cases of the method comparison: radius, fraction of the diagonal
     uint32_t lightSamples = 16;          // soft shadows: light samples per pixel (renderer and oracle alike)
-    uint32_t penumbraMaps = 1;           // soft shadows: 1 or 5 shadow maps
+    uint32_t penumbraMaps = 1;           // soft shadows, srt: 1 or 5 shadow maps mark the penumbra
+    uint32_t softShadowMaps = 4;         // soft shadows, sm: point-light shadow maps averaged over the light, 1..6
     bool progress = true;                // progress bar on stderr when it is a terminal
     bool plots = true;                   // run gnuplot on the generated scripts when it is installed
 };
