@@ -94,19 +94,21 @@ std::string shortCount(uint64_t n)
 std::string recordsCsv(const std::vector<Record>& records, const std::string& section)
 {
     std::ostringstream out;
-    out << "section,scene,triangles,level,light_radius,method,shadow,available,note,width,height,frames,median_ms,best_ms,"
+    out << "section,scene,triangles,level,light_radius,method,shadow,available,note,width,height,frames,median_ms,best_"
+           "ms,"
            "cpu_median_ms,pip_fraction,penumbra_fraction,rays,nodes_visited,nodes_per_ray,error,bytes_per_triangle,"
            "simplify_error,device_bytes,peak_rss_bytes,device,driver\n";
     for (const Record& r : records) {
         if (r.section != section)
             continue;
-        out << r.section << ',' << r.scene << ',' << r.triangles << ',' << number(r.level) << ',' << number(r.lightRadius) << ','
-            << r.method << ',' << shadowKindName(r.kind) << ',' << (r.available ? 1 : 0) << ',' << csvText(r.note) << ',' << r.width
-            << ',' << r.height << ',' << r.frames << ',' << number(r.medianMs) << ',' << number(r.bestMs) << ','
-            << number(r.cpuMedianMs) << ',' << number(r.pipFraction) << ',' << number(r.penumbraFraction) << ',' << r.rays << ','
-            << r.nodesVisited << ',' << number(r.rays ? double(r.nodesVisited) / double(r.rays) : kNoValue) << ','
-            << number(r.error) << ',' << number(r.bytesPerTriangle) << ',' << number(r.simplifyError) << ',' << r.deviceBytes
-            << ',' << r.peakRssBytes << ',' << csvText(r.device) << ',' << csvText(r.driver) << '\n';
+        out << r.section << ',' << r.scene << ',' << r.triangles << ',' << number(r.level) << ','
+            << number(r.lightRadius) << ',' << r.method << ',' << shadowKindName(r.kind) << ',' << (r.available ? 1 : 0)
+            << ',' << csvText(r.note) << ',' << r.width << ',' << r.height << ',' << r.frames << ','
+            << number(r.medianMs) << ',' << number(r.bestMs) << ',' << number(r.cpuMedianMs) << ','
+            << number(r.pipFraction) << ',' << number(r.penumbraFraction) << ',' << r.rays << ',' << r.nodesVisited
+            << ',' << number(r.rays ? double(r.nodesVisited) / double(r.rays) : kNoValue) << ',' << number(r.error)
+            << ',' << number(r.bytesPerTriangle) << ',' << number(r.simplifyError) << ',' << r.deviceBytes << ','
+            << r.peakRssBytes << ',' << csvText(r.device) << ',' << csvText(r.driver) << '\n';
     }
     return out.str();
 }
@@ -131,7 +133,8 @@ std::string stagesCsv(const std::vector<Record>& records)
         std::string passes;
         for (const PassSummary& pass : r.passes)
             passes += (passes.empty() ? "" : " ") + pass.name + "=" + number(pass.medianMs, "%.3f");
-        out << ',' << number(total) << ',' << csvText(passes) << ',' << csvText(r.device) << ',' << csvText(r.driver) << '\n';
+        out << ',' << number(total) << ',' << csvText(passes) << ',' << csvText(r.device) << ',' << csvText(r.driver)
+            << '\n';
     }
     return out.str();
 }
@@ -263,8 +266,9 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
     const std::vector<Record>& records = results.records;
     std::vector<Plot> pngs;
     std::string title = results.device.name + ", " + results.device.driver;
-    std::string header = "set terminal pngcairo size 1100,650 noenhanced font ',10'\nset datafile missing '?'\nset key outside right\n"
-                         "set grid ytics\n";
+    std::string header =
+        "set terminal pngcairo size 1100,650 noenhanced font ',10'\nset datafile missing '?'\nset key outside right\n"
+        "set grid ytics\n";
 
     // Figure 8: median frame time per method and scene.
     {
@@ -280,11 +284,13 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
             data << '\n';
         }
         writeFile(dir / "methods.dat", data.str());
-        writeFile(dir / "methods.gp", header + "set output 'methods.png'\nset title 'Hard shadows per method (median ms per frame), " +
-                                          title + "'\nset style data histogram\nset style histogram cluster gap 1\n"
-                                                  "set style fill solid 0.8 border -1\nset logscale y\nset ylabel 'ms'\n"
-                                                  "plot 'methods.dat' using 2:xtic(1) title 'sm', '' using 3 title 'srt', "
-                                                  "'' using 4 title 'frt', '' using 5 title 'Embree oracle (CPU)'\n");
+        writeFile(dir / "methods.gp",
+                  header + "set output 'methods.png'\nset title 'Hard shadows per method (median ms per frame), " +
+                      title +
+                      "'\nset style data histogram\nset style histogram cluster gap 1\n"
+                      "set style fill solid 0.8 border -1\nset logscale y\nset ylabel 'ms'\n"
+                      "plot 'methods.dat' using 2:xtic(1) title 'sm', '' using 3 title 'srt', "
+                      "'' using 4 title 'frt', '' using 5 title 'Embree oracle (CPU)'\n");
         pngs.push_back({"methods.gp", "methods.png"});
     }
 
@@ -307,10 +313,12 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
         std::string plot = "plot 'stages.dat' using 2:xtic(1) title '" + std::string(kStageGroups[0]) + "'";
         for (size_t g = 1; g < kStageGroupCount; ++g)
             plot += ", '' using " + std::to_string(g + 2) + " title '" + kStageGroups[g] + "'";
-        writeFile(dir / "stages.gp", header + "set output 'stages.png'\nset title 'Time per stage (median GPU ms), " + title +
-                                         "'\nset style data histogram\nset style histogram rowstacked\n"
-                                         "set style fill solid 0.8 border -1\nset boxwidth 0.7\nset xtics rotate by -45\n"
-                                         "set ylabel 'ms'\n" + plot + "\n");
+        writeFile(dir / "stages.gp",
+                  header + "set output 'stages.png'\nset title 'Time per stage (median GPU ms), " + title +
+                      "'\nset style data histogram\nset style histogram rowstacked\n"
+                      "set style fill solid 0.8 border -1\nset boxwidth 0.7\nset xtics rotate by -45\n"
+                      "set ylabel 'ms'\n" +
+                      plot + "\n");
         pngs.push_back({"stages.gp", "stages.png"});
     }
 
@@ -318,7 +326,8 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
     std::vector<double> levels = levelsOf(records);
     if (!levels.empty()) {
         std::ostringstream data;
-        data << "# triangles sm srt frt oracle (median ms) srt_nodes_per_ray frt_nodes_per_ray srt_trace_ms (compaction + trace)\n";
+        data << "# triangles sm srt frt oracle (median ms) srt_nodes_per_ray frt_nodes_per_ray srt_trace_ms "
+                "(compaction + trace)\n";
         for (double level : levels) {
             const Record* any = findRecord(records, "scalability", "scan", "sm", ShadowKind::Hard, level);
             if (!any)
@@ -337,15 +346,21 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
             data << '\n';
         }
         writeFile(dir / "scalability.dat", data.str());
-        writeFile(dir / "scalability.gp",
-                  header + "set output 'scalability.png'\nset title 'scan: time per simplification level (log-log), " + title +
-                      "'\nset logscale xy\nset grid xtics ytics mxtics mytics\nset xlabel 'triangles'\nset ylabel 'ms per frame'\n"
-                      "plot 'scalability.dat' using 1:2 with linespoints title 'sm', '' using 1:3 with linespoints title 'srt', "
-                      "'' using 1:4 with linespoints title 'frt', '' using 1:5 with linespoints title 'Embree oracle (CPU)', "
-                      "'' using 1:8 with linespoints dashtype 2 title 'srt compaction + trace'\n"
-                      "set output 'scalability_nodes.png'\nset title 'scan: BVH nodes visited per shadow ray, " + title +
-                      "'\nunset logscale y\nset ylabel 'nodes per ray'\n"
-                      "plot 'scalability.dat' using 1:6 with linespoints title 'srt', '' using 1:7 with linespoints title 'frt'\n");
+        writeFile(
+            dir / "scalability.gp",
+            header + "set output 'scalability.png'\nset title 'scan: time per simplification level (log-log), " +
+                title +
+                "'\nset logscale xy\nset grid xtics ytics mxtics mytics\nset xlabel 'triangles'\nset ylabel 'ms per "
+                "frame'\n"
+                "plot 'scalability.dat' using 1:2 with linespoints title 'sm', '' using 1:3 with linespoints title "
+                "'srt', "
+                "'' using 1:4 with linespoints title 'frt', '' using 1:5 with linespoints title 'Embree oracle (CPU)', "
+                "'' using 1:8 with linespoints dashtype 2 title 'srt compaction + trace'\n"
+                "set output 'scalability_nodes.png'\nset title 'scan: BVH nodes visited per shadow ray, " +
+                title +
+                "'\nunset logscale y\nset ylabel 'nodes per ray'\n"
+                "plot 'scalability.dat' using 1:6 with linespoints title 'srt', '' using 1:7 with linespoints title "
+                "'frt'\n");
         pngs.push_back({"scalability.gp", "scalability.png"});
         pngs.push_back({"scalability.gp", "scalability_nodes.png"});
     }
@@ -369,14 +384,18 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
             data << '\n';
         }
         writeFile(dir / "light_size.dat", data.str());
-        writeFile(dir / "light_size.gp",
-                  header + "set output 'light_size.png'\nset title '" + scene + ": soft shadows against light radius, " + title +
-                      "'\nset logscale x\nset xlabel 'light radius (fraction of the scene diagonal)'\nset ylabel 'ms per frame'\n"
-                      "set y2label 'penumbra fraction'\nset y2tics\nset ytics nomirror\n"
-                      "plot 'light_size.dat' using 1:2 with linespoints title 'sm', '' using 1:3 with linespoints title 'srt', "
-                      "'' using 1:4 with linespoints title 'frt', '' using 1:5 with linespoints title 'Embree oracle (CPU)', "
-                      "'' using 1:6 axes x1y2 with lines dashtype 2 title 'srt penumbra fraction', "
-                      "'' using 1:7 axes x1y2 with lines dashtype 3 title 'oracle penumbra fraction'\n");
+        writeFile(
+            dir / "light_size.gp",
+            header + "set output 'light_size.png'\nset title '" + scene + ": soft shadows against light radius, " +
+                title +
+                "'\nset logscale x\nset xlabel 'light radius (fraction of the scene diagonal)'\nset ylabel 'ms per "
+                "frame'\n"
+                "set y2label 'penumbra fraction'\nset y2tics\nset ytics nomirror\n"
+                "plot 'light_size.dat' using 1:2 with linespoints title 'sm', '' using 1:3 with linespoints title "
+                "'srt', "
+                "'' using 1:4 with linespoints title 'frt', '' using 1:5 with linespoints title 'Embree oracle (CPU)', "
+                "'' using 1:6 axes x1y2 with lines dashtype 2 title 'srt penumbra fraction', "
+                "'' using 1:7 axes x1y2 with lines dashtype 3 title 'oracle penumbra fraction'\n");
         pngs.push_back({"light_size.gp", "light_size.png"});
     }
     return pngs;
@@ -424,7 +443,8 @@ std::string percent(double fraction)
     return std::isnan(fraction) ? "–" : number(fraction * 100.0, "%.3f") + "%";
 }
 
-std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::string>& plots, const std::string& plotNote)
+std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::string>& plots,
+                            const std::string& plotNote)
 {
     const std::vector<Record>& records = results.records;
     const SuiteOptions& o = results.options;
@@ -434,36 +454,41 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
     md << "- device: " << results.device.name << " (" << results.device.type << "), driver " << results.device.driver
        << ", Vulkan " << results.device.apiVersion << "\n";
     md << "- image " << o.size << "x" << o.size << ", " << o.frames
-       << " timed frame(s) per case after one warm-up frame; GPU times from timestamp queries, the Embree oracle's on the CPU\n";
-    md << "- command: `penumbra bench " << o.suite << " --out " << o.outDir << " --size " << o.size << " --frames " << o.frames
-       << "`\n";
+       << " timed frame(s) per case after one warm-up frame; GPU times from timestamp queries, the Embree oracle's on "
+          "the CPU\n";
+    md << "- command: `penumbra bench " << o.suite << " --out " << o.outDir << " --size " << o.size << " --frames "
+       << o.frames << "`\n";
     for (const std::string& note : results.notes)
         md << "- " << note << "\n";
     md << "- " << plotNote << "\n\n";
 
-    md << "## Methods (Figure 8)\n\nMedian (best) ms per frame. Error: share of light-facing pixels whose visibility differs "
-          "from the Embree oracle on the same G-buffer (soft: mean absolute difference). PIP: pixels given rays / covered "
+    md << "## Methods (Figure 8)\n\nMedian (best) ms per frame. Error: share of light-facing pixels whose visibility "
+          "differs "
+          "from the Embree oracle on the same G-buffer (soft: mean absolute difference). PIP: pixels given rays / "
+          "covered "
           "pixels.\n\n";
-    md << "| scene | triangles | B/tri | shadow | method | median ms | best ms | PIP | penumbra | rays | nodes/ray | error | "
+    md << "| scene | triangles | B/tri | shadow | method | median ms | best ms | PIP | penumbra | rays | nodes/ray | "
+          "error | "
           "device MB | peak RSS MB |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Record& r : records) {
         if (r.section != "methods")
             continue;
-        md << "| " << r.scene << " | " << shortCount(r.triangles) << " | " << number(r.bytesPerTriangle, "%.2f", "–") << " | "
-           << shadowKindName(r.kind) << " | " << r.method << " | ";
+        md << "| " << r.scene << " | " << shortCount(r.triangles) << " | " << number(r.bytesPerTriangle, "%.2f", "–")
+           << " | " << shadowKindName(r.kind) << " | " << r.method << " | ";
         if (!r.available) {
             md << r.note << " | | | | | | | | | |\n";
             continue;
         }
-        md << ms(r.medianMs) << " | " << ms(r.bestMs) << " | " << percent(isGpuMethod(r) ? r.pipFraction : kNoValue) << " | "
-           << percent(r.penumbraFraction) << " | " << r.rays << " | "
+        md << ms(r.medianMs) << " | " << ms(r.bestMs) << " | " << percent(isGpuMethod(r) ? r.pipFraction : kNoValue)
+           << " | " << percent(r.penumbraFraction) << " | " << r.rays << " | "
            << number(r.nodesVisited ? double(r.nodesVisited) / double(r.rays) : kNoValue, "%.1f", "–") << " | "
            << (isGpuMethod(r) ? percent(r.error) : "reference") << " | "
            << (isGpuMethod(r) ? number(double(r.deviceBytes) / 1048576.0, "%.1f") : "–") << " | "
            << number(double(r.peakRssBytes) / 1048576.0, "%.0f") << " |\n";
     }
 
-    md << "\n### Speed-ups (hard shadows, median)\n\n| scene | sm | srt | frt | oracle | frt / srt |\n|---|---|---|---|---|---|\n";
+    md << "\n### Speed-ups (hard shadows, median)\n\n| scene | sm | srt | frt | oracle | frt / srt "
+          "|\n|---|---|---|---|---|---|\n";
     for (const std::string& scene : scenesOf(records, "methods")) {
         md << "| " << scene;
         double values[4];
@@ -475,9 +500,12 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << " | " << number(values[2] / values[1], "%.2fx", "–") << " |\n";
     }
 
-    md << "\n## Time per stage (Figure 9)\n\nMedian GPU ms per stage: raster = camera + shadow_map, PIP = thin_triangles + "
-          "classify, compaction = compact, trace, shading = shade, transfers = readback to the CPU. On lavapipe the "
-          "timestamp after compaction sometimes lands after the trace dispatch: read compaction + trace as one sum.\n\n";
+    md << "\n## Time per stage (Figure 9)\n\nMedian GPU ms per stage: raster = camera + shadow_map, PIP = "
+          "thin_triangles + "
+          "penumbra_mask (soft) + classify, compaction = compact, trace, shading = shade, transfers = readback to the "
+          "CPU. On lavapipe the "
+          "timestamp after compaction sometimes lands after the trace dispatch: read compaction + trace as one "
+          "sum.\n\n";
     md << "| scene | shadow | method";
     for (const char* group : kStageGroups)
         md << " | " << group;
@@ -500,9 +528,11 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
 
     std::vector<double> levels = levelsOf(records);
     if (!levels.empty()) {
-        md << "\n## Scalability over simplification levels (Figure 7, left)\n\nOne `scan` model, each level simplified from "
+        md << "\n## Scalability over simplification levels (Figure 7, left)\n\nOne `scan` model, each level simplified "
+              "from "
               "the next larger one with meshoptimizer, hard shadows, median ms per frame.\n\n";
-        md << "| level | triangles | B/tri | sm | srt | frt | oracle | srt compaction + trace | srt PIP | srt nodes/ray | "
+        md << "| level | triangles | B/tri | sm | srt | frt | oracle | srt compaction + trace | srt PIP | srt "
+              "nodes/ray | "
               "frt nodes/ray | srt error |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         std::map<std::string, std::vector<std::pair<double, double>>> series;
         for (double level : levels) {
@@ -522,22 +552,27 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
             if (srt && srt->available && srtTraceMs(*srt) > 0)
                 series["srt compaction + trace"].push_back({double(srt->triangles), srtTraceMs(*srt)});
             if (srt && srt->nodesVisited)
-                series["srt nodes/ray"].push_back({double(srt->triangles), double(srt->nodesVisited) / double(srt->rays)});
+                series["srt nodes/ray"].push_back(
+                    {double(srt->triangles), double(srt->nodesVisited) / double(srt->rays)});
             md << (srt ? ms(srtTraceMs(*srt)) : "–") << " | " << percent(srt ? srt->pipFraction : kNoValue) << " | "
-               << number(srt && srt->rays ? double(srt->nodesVisited) / double(srt->rays) : kNoValue, "%.1f", "–") << " | "
-               << number(frt && frt->rays ? double(frt->nodesVisited) / double(frt->rays) : kNoValue, "%.1f", "–") << " | "
-               << percent(srt ? srt->error : kNoValue) << " |\n";
+               << number(srt && srt->rays ? double(srt->nodesVisited) / double(srt->rays) : kNoValue, "%.1f", "–")
+               << " | "
+               << number(frt && frt->rays ? double(frt->nodesVisited) / double(frt->rays) : kNoValue, "%.1f", "–")
+               << " | " << percent(srt ? srt->error : kNoValue) << " |\n";
         }
-        md << "\nGrowth: least-squares slope of log(value) against log(triangles) (1 = linear in the triangle count, 0 = "
+        md << "\nGrowth: least-squares slope of log(value) against log(triangles) (1 = linear in the triangle count, 0 "
+              "= "
               "flat; logarithmic growth shows as a small slope that shrinks with size):";
         for (const char* method : {"sm", "srt", "frt", "oracle", "srt compaction + trace", "srt nodes/ray"})
             md << " " << method << " " << number(logLogSlope(series[method]), "%.2f", "–") << ";";
         md << " ratio largest / smallest level:";
         for (const char* method : {"sm", "srt", "frt", "oracle", "srt compaction + trace", "srt nodes/ray"}) {
             const auto& s = series[method];
-            md << " " << method << " " << (s.size() >= 2 ? number(s.back().second / s.front().second, "%.2fx") : "–") << ";";
+            md << " " << method << " " << (s.size() >= 2 ? number(s.back().second / s.front().second, "%.2fx") : "–")
+               << ";";
         }
-        md << " for " << (series["sm"].size() >= 2 ? number(series["sm"].back().first / series["sm"].front().first, "%.0fx") : "–")
+        md << " for "
+           << (series["sm"].size() >= 2 ? number(series["sm"].back().first / series["sm"].front().first, "%.0fx") : "–")
            << " the triangles.\n";
     }
 
@@ -550,18 +585,23 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << "— soft: not available in this build (see light_size.csv; radius-0 rows are the hard-shadow records).\n";
     } else {
         md << "Scene `" << o.sweepScene << "`, " << o.lightSamples << " light samples, " << o.penumbraMaps
-           << " penumbra map(s); median ms per frame and penumbra fraction (covered pixels with 0 < visibility < 1).\n\n";
-        md << "| radius | sm | srt | frt | oracle | srt penumbra | oracle penumbra | srt error |\n|---|---|---|---|---|---|---|---|\n";
+           << " penumbra map(s); median ms per frame and penumbra fraction (covered pixels with 0 < visibility < "
+              "1).\n\n";
+        md << "| radius | sm | srt | frt | oracle | srt penumbra | oracle penumbra | srt error "
+              "|\n|---|---|---|---|---|---|---|---|\n";
         for (double radius : radii) {
             md << "| " << number(radius);
             for (const char* method : kMethodOrder) {
-                const Record* r = findRecord(records, "light_size", o.sweepScene, method, ShadowKind::Soft, 1.0, radius);
+                const Record* r =
+                    findRecord(records, "light_size", o.sweepScene, method, ShadowKind::Soft, 1.0, radius);
                 md << " | " << (r ? ms(r->medianMs) : "–");
             }
             const Record* srt = findRecord(records, "light_size", o.sweepScene, "srt", ShadowKind::Soft, 1.0, radius);
-            const Record* oracle = findRecord(records, "light_size", o.sweepScene, "oracle", ShadowKind::Soft, 1.0, radius);
+            const Record* oracle =
+                findRecord(records, "light_size", o.sweepScene, "oracle", ShadowKind::Soft, 1.0, radius);
             md << " | " << percent(srt ? srt->penumbraFraction : kNoValue) << " | "
-               << percent(oracle ? oracle->penumbraFraction : kNoValue) << " | " << percent(srt ? srt->error : kNoValue) << " |\n";
+               << percent(oracle ? oracle->penumbraFraction : kNoValue) << " | " << percent(srt ? srt->error : kNoValue)
+               << " |\n";
         }
     }
 
@@ -570,8 +610,10 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         for (const std::string& plot : plots)
             md << "![" << plot << "](" << plot << ")\n\n";
     }
-    md << "\n## Images\n\nPer scene: `-shadows.png` is sm | srt | frt | oracle (N·L times visibility of the light), `-diff.png` "
-          "is sm | srt | frt against the oracle (red: lit but the oracle shadows it; blue: the reverse), `-color.png` the "
+    md << "\n## Images\n\nPer scene: `-shadows.png` is sm | srt | frt | oracle (N·L times visibility of the light), "
+          "`-diff.png` "
+          "is sm | srt | frt against the oracle (red: lit but the oracle shadows it; blue: the reverse), `-color.png` "
+          "the "
           "rendered frames sm | srt | frt.\n\n";
     for (const std::string& image : results.images)
         md << "- [" << image << "](" << image << ")\n";
@@ -624,7 +666,8 @@ std::string writeReport(SuiteResults& results)
         if (!gnuplotFound)
             plotNote = "plots skipped: gnuplot is not installed (data and *.gp scripts written)";
         else
-            plotNote = "plots: " + std::to_string(plots.size()) + " of " + std::to_string(scripted.size()) + " made with gnuplot";
+            plotNote = "plots: " + std::to_string(plots.size()) + " of " + std::to_string(scripted.size()) +
+                       " made with gnuplot";
     }
     if (radiiOf(records).empty())
         plotNote += "; no light-size plot (no soft-shadow data)";

@@ -43,15 +43,16 @@ double penumbraFraction(const Frame& frame, ShadowKind kind)
     return 0.0;
 }
 
-std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light, float rayOffset)
+std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
+                                        float rayOffset)
 {
     OracleOptions options;
     options.originOffset = rayOffset;
     return oracle.hardShadowVisibility(frame.positions, frame.normals, light, options);
 }
 
-std::vector<float> oracleSoftVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light, float rayOffset,
-                                        const SoftShadowParams& params)
+std::vector<float> oracleSoftVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
+                                        float rayOffset, const SoftShadowParams& params)
 {
     // Soft shadows (#5): call the oracle's soft-visibility function on frame.positions and frame.normals with
     // originOffset = rayOffset and the same params.lightSamples as the renderer.

@@ -46,9 +46,10 @@ double penumbraFraction(const Frame& frame, ShadowKind kind);
 // normals), rays offset by the frame's ray offset (or the fallback when the
 // frame traced nothing): 1 lit, 0 shadowed, fractions in the penumbra for
 // soft, kVisibilityBackground and kVisibilityBackFacing as in oracle.h.
-std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light, float rayOffset);
+std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
+                                        float rayOffset);
 // Throws Error when !softShadowsAvailable().
-std::vector<float> oracleSoftVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light, float rayOffset,
-                                        const SoftShadowParams& params);
+std::vector<float> oracleSoftVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
+                                        float rayOffset, const SoftShadowParams& params);
 
 } // namespace penumbra::bench

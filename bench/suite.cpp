@@ -93,8 +93,8 @@ struct LoadedScene {
     Scene scene;
     Bounds bounds;
     Camera camera;
-    Light light;                // hard shadows: the generator's suggested light
-    uint64_t triangles = 0;     // stored
+    Light light;            // hard shadows: the generator's suggested light
+    uint64_t triangles = 0; // stored
     double bytesPerTriangle = 0;
     uint64_t deviceBytes = 0;
 };
@@ -143,16 +143,18 @@ Light areaLightFor(const Light& light, const Bounds& bounds, double radiusFracti
 }
 
 struct Measurement {
-    Frame gbuffer;                  // the warm-up frame, with positions, normals and visibility
-    std::vector<FrameStats> timed;  // the timed frames, without G-buffer readback
+    Frame gbuffer;                 // the warm-up frame, with positions, normals and visibility
+    std::vector<FrameStats> timed; // the timed frames, without G-buffer readback
 };
 
 Frame renderShadows(Renderer& renderer, const RenderSettings& settings, ShadowKind kind, const SoftShadowParams& params)
 {
-    return kind == ShadowKind::Hard ? renderHardShadows(renderer, settings) : renderSoftShadows(renderer, settings, params);
+    return kind == ShadowKind::Hard ? renderHardShadows(renderer, settings)
+                                    : renderSoftShadows(renderer, settings, params);
 }
 
-Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind, const SoftShadowParams& params, uint32_t frames)
+Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind, const SoftShadowParams& params,
+                    uint32_t frames)
 {
     Measurement m;
     settings.readbackGBuffer = true;
@@ -164,7 +166,7 @@ Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind
 }
 
 class SuiteRunner {
-public:
+  public:
     explicit SuiteRunner(const SuiteOptions& options) : options(options), progressBar(options.progress)
     {
         RendererOptions rendererOptions;
@@ -195,11 +197,12 @@ public:
         runLightSweep();
         progressBar.finish();
         if (!softShadowsAvailable())
-            results.notes.push_back("Soft shadows are not available in this build: every soft case is recorded as not available.");
+            results.notes.push_back(
+                "Soft shadows are not available in this build: every soft case is recorded as not available.");
         return std::move(results);
     }
 
-private:
+  private:
     void step(const std::string& label)
     {
         progressBar.update(label, double(doneSteps) / double(std::max<size_t>(totalSteps, 1)));
@@ -218,7 +221,8 @@ private:
         return settings;
     }
 
-    Record baseRecord(const std::string& section, const LoadedScene& loaded, const std::string& method, ShadowKind kind) const
+    Record baseRecord(const std::string& section, const LoadedScene& loaded, const std::string& method,
+                      ShadowKind kind) const
     {
         Record r;
         r.section = section;
@@ -239,12 +243,13 @@ private:
     {
         progressBar.finish();
         if (!r.available) {
-            std::printf("%-11s %-9s %10llu %-6s %-4s %s\n", r.section.c_str(), r.scene.c_str(), (unsigned long long)r.triangles,
-                        r.method.c_str(), shadowKindName(r.kind), r.note.c_str());
+            std::printf("%-11s %-9s %10llu %-6s %-4s %s\n", r.section.c_str(), r.scene.c_str(),
+                        (unsigned long long)r.triangles, r.method.c_str(), shadowKindName(r.kind), r.note.c_str());
         } else {
-            std::printf("%-11s %-9s %10llu %-6s %-4s %9.1f ms (best %.1f) | PIP %5.2f%% | rays %9llu | err %.4f%%", r.section.c_str(),
-                        r.scene.c_str(), (unsigned long long)r.triangles, r.method.c_str(), shadowKindName(r.kind), r.medianMs,
-                        r.bestMs, r.method == kOracleName ? 100.0 : r.pipFraction * 100.0, (unsigned long long)r.rays,
+            std::printf("%-11s %-9s %10llu %-6s %-4s %9.1f ms (best %.1f) | PIP %5.2f%% | rays %9llu | err %.4f%%",
+                        r.section.c_str(), r.scene.c_str(), (unsigned long long)r.triangles, r.method.c_str(),
+                        shadowKindName(r.kind), r.medianMs, r.bestMs,
+                        r.method == kOracleName ? 100.0 : r.pipFraction * 100.0, (unsigned long long)r.rays,
                         std::isnan(r.error) ? 0.0 : r.error * 100.0);
             if (r.kind == ShadowKind::Soft)
                 std::printf(" | radius %.4g | penumbra %.2f%%", r.lightRadius, r.penumbraFraction * 100.0);
@@ -306,8 +311,8 @@ private:
     // sm, srt, frt and the oracle on one loaded scene with the light already
     // set; errors against the oracle; images when imagePrefix is not empty.
     // Returns the records (also added to the results).
-    void measureAllMethods(const std::string& section, const LoadedScene& loaded, ShadowKind kind, const Light& light, double radius,
-                           double level, double simplifyError, const std::string& imagePrefix)
+    void measureAllMethods(const std::string& section, const LoadedScene& loaded, ShadowKind kind, const Light& light,
+                           double radius, double level, double simplifyError, const std::string& imagePrefix)
     {
         std::string label = section + " " + loaded.name;
         Measurement measured[3];
@@ -329,8 +334,9 @@ private:
         uint64_t oracleRays = 0;
         for (uint32_t i = 0; i < std::max(options.frames, 1u); ++i) {
             auto start = std::chrono::steady_clock::now();
-            oracleVisibility = kind == ShadowKind::Hard ? oracleHardVisibility(oracle, reference, light, rayOffset)
-                                                        : oracleSoftVisibility(oracle, reference, light, rayOffset, soft);
+            oracleVisibility = kind == ShadowKind::Hard
+                                   ? oracleHardVisibility(oracle, reference, light, rayOffset)
+                                   : oracleSoftVisibility(oracle, reference, light, rayOffset, soft);
             times.push_back(msSince(start));
             oracleRays = oracle.raysTraced();
         }
@@ -384,7 +390,8 @@ private:
         }
         Light area = areaLightFor(loaded.light, loaded.bounds, options.softLightRadius);
         renderer->setLights({area});
-        measureAllMethods("methods", loaded, ShadowKind::Soft, area, options.softLightRadius, 1.0, kNoValue, prefix + "-soft");
+        measureAllMethods("methods", loaded, ShadowKind::Soft, area, options.softLightRadius, 1.0, kNoValue,
+                          prefix + "-soft");
     }
 
     // Figure 7 (left): one scan model, simplified level by level (each level
@@ -471,7 +478,8 @@ private:
             float value = 0.04f;
             if (p[3] != 0.0f) {
                 glm::vec3 n(frame.normals[i * 4], frame.normals[i * 4 + 1], frame.normals[i * 4 + 2]);
-                glm::vec3 toLight = directional ? towardSun : glm::normalize(light.position - glm::vec3(p[0], p[1], p[2]));
+                glm::vec3 toLight =
+                    directional ? towardSun : glm::normalize(light.position - glm::vec3(p[0], p[1], p[2]));
                 float lit = std::max(glm::dot(n, toLight), 0.0f) * std::clamp(visibility[i], 0.0f, 1.0f);
                 value = 0.12f + 0.8f * lit;
             }
@@ -505,7 +513,8 @@ private:
         return image;
     }
 
-    void writeImages(const std::string& prefix, const Measurement (&measured)[3], const std::vector<float>& oracle, const Light& light)
+    void writeImages(const std::string& prefix, const Measurement (&measured)[3], const std::vector<float>& oracle,
+                     const Light& light)
     {
         std::vector<Image> shadows, differences, colors;
         for (const Measurement& m : measured) {
@@ -567,9 +576,9 @@ namespace bench {
 
 size_t stageGroupOf(const std::string& passName)
 {
-    static const std::map<std::string, size_t> groups = {
-        {"camera", 0}, {"shadow_map", 0}, {"thin_triangles", 1}, {"classify", 1}, {"compact", 2},
-        {"trace", 3},  {"shade", 4},      {"readback", 5}};
+    static const std::map<std::string, size_t> groups = {{"camera", 0},        {"shadow_map", 0}, {"thin_triangles", 1},
+                                                         {"penumbra_mask", 1}, {"classify", 1},   {"compact", 2},
+                                                         {"trace", 3},         {"shade", 4},      {"readback", 5}};
     auto it = groups.find(passName);
     return it == groups.end() ? kStageGroupCount - 1 : it->second;
 }
@@ -596,7 +605,7 @@ SuiteOptions suiteOptions(const std::string& suite)
     } else if (suite == "quick") {
         // Under 5 minutes on 2 cores with lavapipe.
         o.size = 512;
-        o.frames = 3;
+        o.frames = 5;
         o.scenes = {{"city", 250'000}, {"interior", 250'000}, {"plant", 250'000}, {"scan", 250'000}};
         o.scanTriangles = 1'000'000;
         o.levels = {1.0 / 256, 1.0 / 64, 1.0 / 16, 1.0 / 4, 1.0};

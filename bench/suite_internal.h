@@ -16,21 +16,21 @@ namespace penumbra::bench {
 inline constexpr double kNoValue = std::numeric_limits<double>::quiet_NaN();
 
 struct PassSummary {
-    std::string name;  // FrameStats pass name: camera, shadow_map, thin_triangles, ...
+    std::string name; // FrameStats pass name: camera, shadow_map, thin_triangles, ...
     double medianMs = 0;
     double bestMs = 0;
 };
 
 // One measured case (or one that could not run in this build).
 struct Record {
-    std::string section;           // "methods", "scalability" or "light_size"
-    std::string scene;             // generator name
-    uint64_t triangles = 0;        // triangles stored in the model
-    double level = 1.0;            // scalability: triangle ratio of the simplification level
-    double lightRadius = 0.0;      // soft: sphere-light radius as a fraction of the scene diagonal; 0 for hard
-    std::string method;            // "sm", "srt", "frt" or "oracle"
+    std::string section;      // "methods", "scalability" or "light_size"
+    std::string scene;        // generator name
+    uint64_t triangles = 0;   // triangles stored in the model
+    double level = 1.0;       // scalability: triangle ratio of the simplification level
+    double lightRadius = 0.0; // soft: sphere-light radius as a fraction of the scene diagonal; 0 for hard
+    std::string method;       // "sm", "srt", "frt" or "oracle"
     ShadowKind kind = ShadowKind::Hard;
-    bool available = true;         // false: not run; note says why
+    bool available = true; // false: not run; note says why
     std::string note;
     uint32_t width = 0, height = 0;
     uint32_t frames = 0;           // timed frames (after one warm-up)
@@ -53,17 +53,17 @@ struct Record {
 // Per-stage groups of Figure 9, from FrameStats pass names.
 inline constexpr const char* kStageGroups[] = {"raster", "pip", "compaction", "trace", "shading", "transfers", "other"};
 inline constexpr size_t kStageGroupCount = sizeof(kStageGroups) / sizeof(kStageGroups[0]);
-// Index into kStageGroups: camera and shadow_map are raster, thin_triangles and classify PIP, compact compaction,
-// trace trace, shade shading, readback transfers; anything else (passes added later) other.
+// Index into kStageGroups: camera and shadow_map are raster; thin_triangles, penumbra_mask (soft shadows) and
+// classify PIP; compact compaction; trace trace; shade shading; readback transfers; any other pass other.
 size_t stageGroupOf(const std::string& passName);
 
 struct SuiteResults {
     SuiteOptions options;
-    std::string date;          // UTC, ISO 8601
+    std::string date; // UTC, ISO 8601
     DeviceInfo device;
     std::vector<Record> records;
-    std::vector<std::string> images;   // written images, relative to the results folder
-    std::vector<std::string> notes;    // one line each, for the summary
+    std::vector<std::string> images; // written images, relative to the results folder
+    std::vector<std::string> notes;  // one line each, for the summary
 };
 
 // Writes methods.csv, methods.json, scalability.csv, light_size.csv,

@@ -20,22 +20,22 @@ struct BenchScene {
 };
 
 struct SuiteOptions {
-    std::string suite;                   // "smoke", "quick" or "full" (see suiteOptions)
-    std::string outDir;                  // results folder; created, files in it replaced
-    std::string device;                  // Vulkan device: index or part of its name; empty: default
-    uint32_t size = 512;                 // image width and height
-    uint32_t frames = 3;                 // timed frames per case after one warm-up frame
-    std::vector<BenchScene> scenes;      // method comparison and per-stage breakdown
-    uint64_t scanTriangles = 1'000'000;  // scalability: the full-resolution scan model
-    std::vector<double> levels;          // scalability: triangle ratios, ascending, last 1
-    std::string sweepScene = "city";     // light-size sweep: this scene of `scenes`
-    std::vector<float> lightRadii;       // light-size sweep: sphere-light radius, fraction of the scene diagonal
-    float softLightRadius = 0.01f;       // soft cases of the method comparison: radius, fraction of the diagonal
-    uint32_t lightSamples = 16;          // soft shadows: light samples per pixel (renderer and oracle alike)
-    uint32_t penumbraMaps = 1;           // soft shadows, srt: 1 or 5 shadow maps mark the penumbra
-    uint32_t softShadowMaps = 4;         // soft shadows, sm: point-light shadow maps averaged over the light, 1..6
-    bool progress = true;                // progress bar on stderr when it is a terminal
-    bool plots = true;                   // run gnuplot on the generated scripts when it is installed
+    std::string suite;                  // "smoke", "quick" or "full" (see suiteOptions)
+    std::string outDir;                 // results folder; created, files in it replaced
+    std::string device;                 // Vulkan device: index or part of its name; empty: default
+    uint32_t size = 512;                // image width and height
+    uint32_t frames = 3;                // timed frames per case after one warm-up frame
+    std::vector<BenchScene> scenes;     // method comparison and per-stage breakdown
+    uint64_t scanTriangles = 1'000'000; // scalability: the full-resolution scan model
+    std::vector<double> levels;         // scalability: triangle ratios in (0, 1], any order
+    std::string sweepScene = "city";    // light-size sweep: this scene of `scenes`
+    std::vector<float> lightRadii;      // light-size sweep: sphere-light radius, fraction of the scene diagonal
+    float softLightRadius = 0.01f;      // soft cases of the method comparison: radius, fraction of the diagonal
+    uint32_t lightSamples = 16;         // soft shadows: light samples per pixel (renderer and oracle alike)
+    uint32_t penumbraMaps = 1;          // soft shadows, srt: 1 or 5 shadow maps mark the penumbra
+    uint32_t softShadowMaps = 4;        // soft shadows, sm: point-light shadow maps averaged over the light, 1..6
+    bool progress = true;               // progress bar on stderr when it is a terminal
+    bool plots = true;                  // run gnuplot on the generated scripts when it is installed
 };
 
 // Names accepted by suiteOptions, fastest first: smoke (CI, well under a

@@ -14,7 +14,7 @@
 namespace penumbra {
 
 class ProgressBar {
-public:
+  public:
     explicit ProgressBar(bool enabled) : enabled(enabled && isatty(STDERR_FILENO)) {}
     ~ProgressBar() { finish(); }
     ProgressBar(const ProgressBar&) = delete;
@@ -45,7 +45,7 @@ public:
         drawn = false;
     }
 
-private:
+  private:
     static constexpr int kWidth = 40;
     bool enabled;
     bool drawn = false;
