@@ -157,6 +157,14 @@ std::string recordsJson(const SuiteResults& results)
     root["light_samples"] = results.options.lightSamples;
     root["penumbra_maps"] = results.options.penumbraMaps;
     root["soft_shadow_maps"] = results.options.softShadowMaps;
+    root["soft_light_radius"] = results.options.softLightRadius;
+    root["scenes"] = nlohmann::json::array();
+    for (const BenchScene& scene : results.options.scenes)
+        root["scenes"].push_back({{"name", scene.name}, {"triangles", scene.triangles}});
+    root["scan_triangles"] = results.options.scanTriangles;
+    root["levels"] = results.options.levels;
+    root["sweep_scene"] = results.options.sweepScene;
+    root["light_radii"] = results.options.lightRadii;
     root["records"] = nlohmann::json::array();
     for (const Record& r : results.records) {
         nlohmann::json j;
@@ -457,7 +465,8 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
        << " timed frame(s) per case after one warm-up frame; GPU times from timestamp queries, the Embree oracle's on "
           "the CPU\n";
     md << "- command: `penumbra bench " << o.suite << " --out " << o.outDir << " --size " << o.size << " --frames "
-       << o.frames << "`\n";
+       << o.frames << " --scan-triangles " << o.scanTriangles << " --light-samples " << o.lightSamples
+       << " --penumbra-maps " << o.penumbraMaps << " --soft-shadow-maps " << o.softShadowMaps << "`\n";
     for (const std::string& note : results.notes)
         md << "- " << note << "\n";
     md << "- " << plotNote << "\n\n";
@@ -487,8 +496,9 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
            << number(double(r.peakRssBytes) / 1048576.0, "%.0f") << " |\n";
     }
 
-    md << "\n### Speed-ups (hard shadows, median)\n\n| scene | sm | srt | frt | oracle | frt / srt "
-          "|\n|---|---|---|---|---|---|\n";
+    md << "\n### Frame times and rates (hard shadows, median ms, frames per second)\n\n| scene | sm | srt | frt | "
+          "oracle | "
+          "frt / srt |\n|---|---|---|---|---|---|\n";
     for (const std::string& scene : scenesOf(records, "methods")) {
         md << "| " << scene;
         double values[4];
@@ -496,6 +506,8 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
             const Record* r = findRecord(records, "methods", scene, kMethodOrder[m], ShadowKind::Hard);
             values[m] = r ? r->medianMs : kNoValue;
             md << " | " << ms(values[m]);
+            if (m < 3)
+                md << " (" << number(1000.0 / values[m], "%.2f", "–") << " fps)";
         }
         md << " | " << number(values[2] / values[1], "%.2fx", "–") << " |\n";
     }
@@ -580,7 +592,7 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
     std::vector<double> radii = radiiOf(records);
     if (radii.empty()) {
         md << "Scene `" << o.sweepScene << "`, sphere-light radius as a fraction of the scene diagonal: ";
-        for (float radius : o.lightRadii)
+        for (double radius : o.lightRadii)
             md << number(radius) << " ";
         md << "— soft: not available in this build (see light_size.csv; radius-0 rows are the hard-shadow records).\n";
     } else {

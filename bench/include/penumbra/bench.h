@@ -29,8 +29,8 @@ struct SuiteOptions {
     uint64_t scanTriangles = 1'000'000; // scalability: the full-resolution scan model
     std::vector<double> levels;         // scalability: triangle ratios in (0, 1], any order
     std::string sweepScene = "city";    // light-size sweep: this scene of `scenes`
-    std::vector<float> lightRadii;      // light-size sweep: sphere-light radius, fraction of the scene diagonal
-    float softLightRadius = 0.01f;      // soft cases of the method comparison: radius, fraction of the diagonal
+    std::vector<double> lightRadii;     // light-size sweep: sphere-light radius, fraction of the scene diagonal
+    double softLightRadius = 0.01;      // soft cases of the method comparison: radius, fraction of the diagonal
     uint32_t lightSamples = 16;         // soft shadows: light samples per pixel (renderer and oracle alike)
     uint32_t penumbraMaps = 1;          // soft shadows, srt: 1 or 5 shadow maps mark the penumbra
     uint32_t softShadowMaps = 4;        // soft shadows, sm: point-light shadow maps averaged over the light, 1..6
