@@ -94,10 +94,9 @@ std::string shortCount(uint64_t n)
 std::string recordsCsv(const std::vector<Record>& records, const std::string& section)
 {
     std::ostringstream out;
-    out << "section,scene,triangles,level,light_radius,method,shadow,available,note,width,height,frames,median_ms,best_"
-           "ms,"
-           "cpu_median_ms,pip_fraction,penumbra_fraction,rays,nodes_visited,nodes_per_ray,error,bytes_per_triangle,"
-           "simplify_error,device_bytes,peak_rss_bytes,device,driver\n";
+    out << "section,scene,triangles,level,light_radius,method,shadow,available,note,width,height,frames,"
+           "median_ms,best_ms,cpu_median_ms,pip_fraction,penumbra_fraction,rays,nodes_visited,nodes_per_ray,error,"
+           "bytes_per_triangle,simplify_error,device_bytes,peak_rss_bytes,device,driver\n";
     for (const Record& r : records) {
         if (r.section != section)
             continue;
@@ -354,21 +353,22 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
             data << '\n';
         }
         writeFile(dir / "scalability.dat", data.str());
-        writeFile(
-            dir / "scalability.gp",
-            header + "set output 'scalability.png'\nset title 'scan: time per simplification level (log-log), " +
-                title +
-                "'\nset logscale xy\nset grid xtics ytics mxtics mytics\nset xlabel 'triangles'\nset ylabel 'ms per "
-                "frame'\n"
-                "plot 'scalability.dat' using 1:2 with linespoints title 'sm', '' using 1:3 with linespoints title "
-                "'srt', "
-                "'' using 1:4 with linespoints title 'frt', '' using 1:5 with linespoints title 'Embree oracle (CPU)', "
-                "'' using 1:8 with linespoints dashtype 2 title 'srt compaction + trace'\n"
-                "set output 'scalability_nodes.png'\nset title 'scan: BVH nodes visited per shadow ray, " +
-                title +
-                "'\nunset logscale y\nset ylabel 'nodes per ray'\n"
-                "plot 'scalability.dat' using 1:6 with linespoints title 'srt', '' using 1:7 with linespoints title "
-                "'frt'\n");
+        std::string script = header;
+        script += "set output 'scalability.png'\n";
+        script += "set title 'scan: time per simplification level (log-log), " + title + "'\n";
+        script += "set logscale xy\nset grid xtics ytics mxtics mytics\n";
+        script += "set xlabel 'triangles'\nset ylabel 'ms per frame'\n";
+        script += "plot 'scalability.dat' using 1:2 with linespoints title 'sm', "
+                  "'' using 1:3 with linespoints title 'srt', "
+                  "'' using 1:4 with linespoints title 'frt', "
+                  "'' using 1:5 with linespoints title 'Embree oracle (CPU)', "
+                  "'' using 1:8 with linespoints dashtype 2 title 'srt compaction + trace'\n";
+        script += "set output 'scalability_nodes.png'\n";
+        script += "set title 'scan: BVH nodes visited per shadow ray, " + title + "'\n";
+        script += "unset logscale y\nset ylabel 'nodes per ray'\n";
+        script += "plot 'scalability.dat' using 1:6 with linespoints title 'srt', "
+                  "'' using 1:7 with linespoints title 'frt'\n";
+        writeFile(dir / "scalability.gp", script);
         pngs.push_back({"scalability.gp", "scalability.png"});
         pngs.push_back({"scalability.gp", "scalability_nodes.png"});
     }
@@ -392,18 +392,18 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
             data << '\n';
         }
         writeFile(dir / "light_size.dat", data.str());
-        writeFile(
-            dir / "light_size.gp",
-            header + "set output 'light_size.png'\nset title '" + scene + ": soft shadows against light radius, " +
-                title +
-                "'\nset logscale x\nset xlabel 'light radius (fraction of the scene diagonal)'\nset ylabel 'ms per "
-                "frame'\n"
-                "set y2label 'penumbra fraction'\nset y2tics\nset ytics nomirror\n"
-                "plot 'light_size.dat' using 1:2 with linespoints title 'sm', '' using 1:3 with linespoints title "
-                "'srt', "
-                "'' using 1:4 with linespoints title 'frt', '' using 1:5 with linespoints title 'Embree oracle (CPU)', "
-                "'' using 1:6 axes x1y2 with lines dashtype 2 title 'srt penumbra fraction', "
-                "'' using 1:7 axes x1y2 with lines dashtype 3 title 'oracle penumbra fraction'\n");
+        std::string script = header;
+        script += "set output 'light_size.png'\n";
+        script += "set title '" + scene + ": soft shadows against light radius, " + title + "'\n";
+        script += "set logscale x\nset xlabel 'light radius (fraction of the scene diagonal)'\n";
+        script += "set ylabel 'ms per frame'\nset y2label 'penumbra fraction'\nset y2tics\nset ytics nomirror\n";
+        script += "plot 'light_size.dat' using 1:2 with linespoints title 'sm', "
+                  "'' using 1:3 with linespoints title 'srt', "
+                  "'' using 1:4 with linespoints title 'frt', "
+                  "'' using 1:5 with linespoints title 'Embree oracle (CPU)', "
+                  "'' using 1:6 axes x1y2 with lines dashtype 2 title 'srt penumbra fraction', "
+                  "'' using 1:7 axes x1y2 with lines dashtype 3 title 'oracle penumbra fraction'\n";
+        writeFile(dir / "light_size.gp", script);
         pngs.push_back({"light_size.gp", "light_size.png"});
     }
     return pngs;
@@ -471,14 +471,12 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << "- " << note << "\n";
     md << "- " << plotNote << "\n\n";
 
-    md << "## Methods (Figure 8)\n\nMedian (best) ms per frame. Error: share of light-facing pixels whose visibility "
-          "differs "
-          "from the Embree oracle on the same G-buffer (soft: mean absolute difference). PIP: pixels given rays / "
-          "covered "
-          "pixels.\n\n";
-    md << "| scene | triangles | B/tri | shadow | method | median ms | best ms | PIP | penumbra | rays | nodes/ray | "
-          "error | "
-          "device MB | peak RSS MB |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    md << "## Methods (Figure 8)\n\n"
+          "Median (best) ms per frame. Error: share of light-facing pixels whose visibility differs from the Embree "
+          "oracle on the same G-buffer (soft: mean absolute difference). PIP: pixels given rays / covered pixels.\n\n";
+    md << "| scene | triangles | B/tri | shadow | method | median ms | best ms | PIP | penumbra | rays | nodes/ray "
+          "| error | device MB | peak RSS MB |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Record& r : records) {
         if (r.section != "methods")
             continue;
@@ -496,9 +494,8 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
            << number(double(r.peakRssBytes) / 1048576.0, "%.0f") << " |\n";
     }
 
-    md << "\n### Frame times and rates (hard shadows, median ms, frames per second)\n\n| scene | sm | srt | frt | "
-          "oracle | "
-          "frt / srt |\n|---|---|---|---|---|---|\n";
+    md << "\n### Frame times and rates (hard shadows, median ms, frames per second)\n\n"
+          "| scene | sm | srt | frt | oracle | frt / srt |\n|---|---|---|---|---|---|\n";
     for (const std::string& scene : scenesOf(records, "methods")) {
         md << "| " << scene;
         double values[4];
@@ -512,13 +509,11 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << " | " << number(values[2] / values[1], "%.2fx", "–") << " |\n";
     }
 
-    md << "\n## Time per stage (Figure 9)\n\nMedian GPU ms per stage: raster = camera + shadow_map, PIP = "
-          "thin_triangles + "
-          "penumbra_mask (soft) + classify, compaction = compact, trace, shading = shade, transfers = readback to the "
-          "CPU. "
-          "On lavapipe the timestamp after compaction sometimes lands after the trace dispatch: read compaction + "
-          "trace as "
-          "one sum. Total is the sum of the stage medians, so it can differ from the median frame time above.\n\n";
+    md << "\n## Time per stage (Figure 9)\n\n"
+          "Median GPU ms per stage: raster = camera + shadow_map, PIP = thin_triangles + penumbra_mask (soft) + "
+          "classify, compaction = compact, trace, shading = shade, transfers = readback to the CPU. On lavapipe the "
+          "timestamp after compaction sometimes lands after the trace dispatch: read compaction + trace as one sum. "
+          "Total is the sum of the stage medians, so it can differ from the median frame time above.\n\n";
     md << "| scene | shadow | method";
     for (const char* group : kStageGroups)
         md << " | " << group;
@@ -541,12 +536,12 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
 
     std::vector<double> levels = levelsOf(records);
     if (!levels.empty()) {
-        md << "\n## Scalability over simplification levels (Figure 7, left)\n\nOne `scan` model, each level simplified "
-              "from "
-              "the next larger one with meshoptimizer, hard shadows, median ms per frame.\n\n";
-        md << "| level | triangles | B/tri | sm | srt | frt | oracle | srt compaction + trace | srt PIP | srt "
-              "nodes/ray | "
-              "frt nodes/ray | srt error |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        md << "\n## Scalability over simplification levels (Figure 7, left)\n\n"
+              "One `scan` model, each level simplified from the next larger one with meshoptimizer, hard shadows, "
+              "median ms per frame.\n\n";
+        md << "| level | triangles | B/tri | sm | srt | frt | oracle | srt compaction + trace | srt PIP "
+              "| srt nodes/ray | frt nodes/ray | srt error |\n"
+              "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         std::map<std::string, std::vector<std::pair<double, double>>> series;
         for (double level : levels) {
             const Record* sm = findRecord(records, "scalability", "scan", "sm", ShadowKind::Hard, level);
@@ -573,9 +568,8 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
                << number(frt && frt->rays ? double(frt->nodesVisited) / double(frt->rays) : kNoValue, "%.1f", "–")
                << " | " << percent(srt ? srt->error : kNoValue) << " |\n";
         }
-        md << "\nGrowth: least-squares slope of log(value) against log(triangles) (1 = linear in the triangle count, 0 "
-              "= "
-              "flat; logarithmic growth shows as a small slope that shrinks with size):";
+        md << "\nGrowth: least-squares slope of log(value) against log(triangles) (1 = linear in the triangle "
+              "count, 0 = flat; logarithmic growth shows as a small slope that shrinks with size):";
         for (const char* method : {"sm", "srt", "frt", "oracle", "srt compaction + trace", "srt nodes/ray"})
             md << " " << method << " " << number(logLogSlope(series[method]), "%.2f", "–") << ";";
         md << " ratio largest / smallest level:";
@@ -598,10 +592,10 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << "— soft: not available in this build (see light_size.csv; radius-0 rows are the hard-shadow records).\n";
     } else {
         md << "Scene `" << o.sweepScene << "`, " << o.lightSamples << " light samples, " << o.penumbraMaps
-           << " penumbra map(s); median ms per frame and penumbra fraction (covered pixels with 0 < visibility < "
-              "1).\n\n";
-        md << "| radius | sm | srt | frt | oracle | srt penumbra | oracle penumbra | srt error "
-              "|\n|---|---|---|---|---|---|---|---|\n";
+           << " penumbra map(s); median ms per frame and penumbra fraction (covered pixels with 0 < visibility "
+              "< 1).\n\n";
+        md << "| radius | sm | srt | frt | oracle | srt penumbra | oracle penumbra | srt error |\n"
+              "|---|---|---|---|---|---|---|---|\n";
         for (double radius : radii) {
             md << "| " << number(radius);
             for (const char* method : kMethodOrder) {
@@ -623,11 +617,10 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         for (const std::string& plot : plots)
             md << "![" << plot << "](" << plot << ")\n\n";
     }
-    md << "\n## Images\n\nPer scene: `-shadows.png` is sm | srt | frt | oracle (N·L times visibility of the light), "
-          "`-diff.png` "
-          "is sm | srt | frt against the oracle (red: lit but the oracle shadows it; blue: the reverse), `-color.png` "
-          "the "
-          "rendered frames sm | srt | frt.\n\n";
+    md << "\n## Images\n\n"
+          "Per scene: `-shadows.png` is sm | srt | frt | oracle (N·L times visibility of the light), `-diff.png` is "
+          "sm | srt | frt against the oracle (red: lit but the oracle shadows it; blue: the reverse), `-color.png` "
+          "the rendered frames sm | srt | frt.\n\n";
     for (const std::string& image : results.images)
         md << "- [" << image << "](" << image << ")\n";
     md << "\n## Files\n\nmethods.csv / methods.json (every record of every section, with per-pass times in the JSON), "
