@@ -397,6 +397,7 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
         script += "set title '" + scene + ": soft shadows against light radius, " + title + "'\n";
         script += "set logscale x\nset xlabel 'light radius (fraction of the scene diagonal)'\n";
         script += "set ylabel 'ms per frame'\nset y2label 'penumbra fraction'\nset y2tics\nset ytics nomirror\n";
+        script += "set yrange [0:*]\nset y2range [0:*]\n";
         script += "plot 'light_size.dat' using 1:2 with linespoints title 'sm', "
                   "'' using 1:3 with linespoints title 'srt', "
                   "'' using 1:4 with linespoints title 'frt', "
