@@ -9,7 +9,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include "penumbra/bench.h"
 #include "penumbra/generate.h"
+#include "penumbra/progress_bar.h"
 #include "penumbra/preprocess.h"
 #include "penumbra/penumbra.h"
 
@@ -53,6 +55,20 @@ struct PreprocessArgs {
     uint32_t leafTriangles = PreprocessOptions{}.maxLeafTriangles;
     unsigned threads = 0;
     bool quiet = false;
+};
+
+struct BenchArgs {
+    std::string suite;
+    std::string out;
+    std::string device;
+    uint32_t size = 0;           // 0: the suite's
+    uint32_t frames = 0;         // 0: the suite's
+    uint64_t scanTriangles = 0;  // 0: the suite's
+    uint32_t lightSamples = 0;   // 0: the suite's
+    uint32_t penumbraMaps = 0;   // 0: the suite's
+    uint32_t softShadowMaps = 0; // 0: the suite's
+    bool quiet = false;
+    bool noPlots = false;
 };
 
 struct GenerateArgs {
@@ -195,44 +211,6 @@ int runRender(const RenderArgs& args)
     return 0;
 }
 
-// One-line progress bar on stderr, redrawn at most ~10 times a second; silent
-// when stderr is not a terminal.
-class ProgressBar {
-public:
-    explicit ProgressBar(bool enabled) : enabled(enabled && isatty(STDERR_FILENO)) {}
-    ~ProgressBar() { finish(); }
-
-    void update(const std::string& label, double fraction)
-    {
-        if (!enabled)
-            return;
-        auto now = std::chrono::steady_clock::now();
-        if (label == lastLabel && now - lastDraw < std::chrono::milliseconds(100) && fraction < 1.0)
-            return;
-        lastDraw = now;
-        lastLabel = label;
-        int filled = int(std::lround(std::clamp(fraction, 0.0, 1.0) * kWidth));
-        std::fprintf(stderr, "\r%-24.24s [%s%s] %3d%%", label.c_str(), std::string(size_t(filled), '#').c_str(),
-                     std::string(size_t(kWidth - filled), '.').c_str(), int(std::lround(fraction * 100.0)));
-        std::fflush(stderr);
-        drawn = true;
-    }
-
-    void finish()
-    {
-        if (drawn)
-            std::fprintf(stderr, "\r%*s\r", kWidth + 34, "");
-        drawn = false;
-    }
-
-private:
-    static constexpr int kWidth = 40;
-    bool enabled;
-    bool drawn = false;
-    std::string lastLabel;
-    std::chrono::steady_clock::time_point lastDraw{};
-};
-
 std::vector<float> parseRatios(const std::string& text)
 {
     std::vector<float> ratios;
@@ -369,6 +347,23 @@ int runGenerate(const GenerateArgs& args)
     return 0;
 }
 
+int runBench(const BenchArgs& args)
+{
+    SuiteOptions options = suiteOptions(args.suite);
+    options.outDir = args.out.empty() ? defaultResultsDir(args.suite) : args.out;
+    options.device = args.device;
+    if (args.size) options.size = args.size;
+    if (args.frames) options.frames = args.frames;
+    if (args.scanTriangles) options.scanTriangles = args.scanTriangles;
+    if (args.lightSamples) options.lightSamples = args.lightSamples;
+    if (args.penumbraMaps) options.penumbraMaps = args.penumbraMaps;
+    if (args.softShadowMaps) options.softShadowMaps = args.softShadowMaps;
+    options.progress = !args.quiet;
+    options.plots = !args.noPlots;
+    runSuite(options);
+    return 0;
+}
+
 int runDevices()
 {
     for (const DeviceInfo& device : listDevices())
@@ -438,6 +433,21 @@ int main(int argc, char** argv)
     generateCommand->add_flag("--draco", generate.draco, "glTF/GLB: compress with KHR_draco_mesh_compression");
     generateCommand->add_flag("--ascii", generate.ascii, "PLY/STL: write ASCII instead of binary");
 
+    BenchArgs bench;
+    CLI::App* benchCommand = app.add_subcommand("bench", "Benchmark suite: methods, per-stage times, scalability, light size; "
+                                                         "writes CSV, JSON, plots, images and summary.md");
+    benchCommand->add_option("suite", bench.suite, "smoke (CI, < 1 min), quick (< 5 min on 2 cores), full")->required()->check(CLI::IsMember(suiteNames()));
+    benchCommand->add_option("-o,--out", bench.out, "Results folder (default: results/<suite>-<date>)");
+    benchCommand->add_option("--device", bench.device, "Vulkan device: index or part of its name (see 'penumbra devices')");
+    benchCommand->add_option("--size", bench.size, "Image width and height (default: the suite's)")->check(CLI::Range(16, 8192));
+    benchCommand->add_option("--frames", bench.frames, "Timed frames per case after one warm-up (default: the suite's)")->check(CLI::Range(1, 1000));
+    benchCommand->add_option("--scan-triangles", bench.scanTriangles, "Scalability: triangles of the full scan model (default: the suite's)")->check(CLI::Range(uint64_t(1000), uint64_t(1'000'000'000)));
+    benchCommand->add_option("--light-samples", bench.lightSamples, "Soft shadows: light samples per pixel (default 16)")->check(CLI::Range(4, 256));
+    benchCommand->add_option("--penumbra-maps", bench.penumbraMaps, "Soft shadows: penumbra maps, 1 or 5 (default 1)")->check(CLI::IsMember({1, 5}));
+    benchCommand->add_option("--soft-shadow-maps", bench.softShadowMaps, "Soft shadows, sm: shadow maps averaged over the light (default 4)")->check(CLI::Range(1, 6));
+    benchCommand->add_flag("--quiet", bench.quiet, "No progress bar");
+    benchCommand->add_flag("--no-plots", bench.noPlots, "Write plot data and gnuplot scripts without running gnuplot");
+
     app.add_subcommand("devices", "List the Vulkan devices");
 
     try {
@@ -454,6 +464,8 @@ int main(int argc, char** argv)
             return runPreprocess(preprocess);
         if (infoCommand->parsed())
             return runInfo(infoPath);
+        if (benchCommand->parsed())
+            return runBench(bench);
         return runDevices();
     } catch (const Error& e) {
         std::fprintf(stderr, "penumbra: error: %s\n", e.what());

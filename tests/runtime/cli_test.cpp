@@ -48,7 +48,8 @@ void expectError(const Result& result, std::initializer_list<std::string> fragme
 
 TEST(Cli, HelpForEverySubcommand)
 {
-    for (const char* command : {"--help", "render --help", "generate --help", "preprocess --help", "info --help", "devices --help"}) {
+    for (const char* command : {"--help", "render --help", "generate --help", "preprocess --help", "info --help", "devices --help",
+                                "bench --help"}) {
         Result result = run(command);
         EXPECT_EQ(result.status, 0) << command;
         EXPECT_NE(result.output.find("Usage"), std::string::npos) << command;

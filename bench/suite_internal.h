@@ -1,0 +1,79 @@
+// Records shared by the suite's measuring code (suite.cpp) and its report
+// writers (report.cpp).
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "penumbra/bench.h"
+#include "penumbra/penumbra.h"
+#include "shadow_adapter.h"
+
+namespace penumbra::bench {
+
+inline constexpr double kNoValue = std::numeric_limits<double>::quiet_NaN();
+
+struct PassSummary {
+    std::string name; // FrameStats pass name: camera, shadow_map, thin_triangles, ...
+    double medianMs = 0;
+    double bestMs = 0;
+};
+
+// One measured case (or one that could not run in this build).
+struct Record {
+    std::string section;      // "methods", "scalability" or "light_size"
+    std::string scene;        // generator name
+    uint64_t triangles = 0;   // triangles stored in the model
+    double level = 1.0;       // scalability: triangle ratio of the simplification level
+    double lightRadius = 0.0; // soft: sphere-light radius as a fraction of the scene diagonal; 0 for hard
+    std::string method;       // "sm", "srt", "frt" or "oracle"
+    ShadowKind kind = ShadowKind::Hard;
+    bool available = true; // false: not run; note says why
+    std::string note;
+    uint32_t width = 0, height = 0;
+    uint32_t frames = 0;           // timed frames (after one warm-up)
+    double medianMs = kNoValue;    // GPU ms per frame (oracle: CPU ms), median of the timed frames
+    double bestMs = kNoValue;      // best of the timed frames
+    double cpuMedianMs = kNoValue; // wall clock per frame: record + submit + wait + readback
+    std::vector<PassSummary> passes;
+    double pipFraction = kNoValue;      // pixels given rays / covered pixels
+    double penumbraFraction = kNoValue; // soft: covered pixels in the penumbra
+    uint64_t rays = 0;
+    uint64_t nodesVisited = 0;
+    double error = kNoValue;            // mean |visibility - oracle| over light-facing pixels (hard: mismatch share)
+    double bytesPerTriangle = kNoValue; // geometry + BVH of the compressed model
+    double simplifyError = kNoValue;    // scalability: meshoptimizer's relative error of the level
+    uint64_t deviceBytes = 0;           // Renderer::modelDeviceBytes()
+    uint64_t peakRssBytes = 0;          // process peak resident set so far (getrusage)
+    std::string device, driver;
+};
+
+// Per-stage groups of Figure 9, from FrameStats pass names.
+inline constexpr const char* kStageGroups[] = {"raster", "pip", "compaction", "trace", "shading", "transfers", "other"};
+inline constexpr size_t kStageGroupCount = sizeof(kStageGroups) / sizeof(kStageGroups[0]);
+// Index into kStageGroups: camera and shadow_map are raster; thin_triangles, penumbra_mask (soft shadows) and
+// classify PIP; compact compaction; trace trace; shade shading; readback transfers; any other pass other.
+size_t stageGroupOf(const std::string& passName);
+
+struct SuiteResults {
+    SuiteOptions options;
+    std::string date; // UTC, ISO 8601
+    DeviceInfo device;
+    std::vector<Record> records;
+    std::vector<std::string> images; // written images, relative to the results folder
+    std::vector<std::string> notes;  // one line each, for the summary
+};
+
+// Writes methods.csv, methods.json, scalability.csv, light_size.csv,
+// stages.csv, the plot data and *.gp scripts, the PNG plots (when gnuplot is
+// installed) and summary.md into options.outDir. Returns a one-line note
+// about the plots.
+std::string writeReport(SuiteResults& results);
+
+// Writes a PNG (through penumbra::writeImage) of the panels side by side,
+// separated by a few background pixels. Every panel has the same size.
+void writeSideBySide(const std::vector<Image>& panels, const std::string& path);
+
+} // namespace penumbra::bench
