@@ -1,9 +1,4 @@
 // Hard- and soft-shadow calls of the benchmark suite (see shadow_adapter.h).
-// Soft shadows are not in this build yet: the soft functions say so. Once
-// RenderSettings has lightSamples / penumbraMaps / softShadowMaps, FrameStats
-// penumbraFraction and the oracle a soft-visibility function, fill in the
-// places marked "soft shadows (#5)" and make softShadowsAvailable() return
-// true; nothing else in bench/ changes.
 #include "shadow_adapter.h"
 
 namespace penumbra::bench {
@@ -15,8 +10,7 @@ const char* shadowKindName(ShadowKind kind)
 
 bool softShadowsAvailable()
 {
-    // Soft shadows (#5): return true.
-    return false;
+    return true;
 }
 
 Frame renderHardShadows(Renderer& renderer, const RenderSettings& settings)
@@ -27,20 +21,17 @@ Frame renderHardShadows(Renderer& renderer, const RenderSettings& settings)
 
 Frame renderSoftShadows(Renderer& renderer, const RenderSettings& settings, const SoftShadowParams& params)
 {
-    // Soft shadows (#5): copy settings, set lightSamples = params.lightSamples, penumbraMaps = params.penumbraMaps
-    // and softShadowMaps = params.softShadowMaps (and a soft switch, if there is one), return renderer.render(copy).
-    (void)renderer;
-    (void)settings;
-    (void)params;
-    fail("bench", "soft shadows are not available in this build");
+    // Area lights cast soft shadows; the suite sets one for soft cases.
+    RenderSettings soft = settings;
+    soft.lightSamples = params.lightSamples;
+    soft.penumbraMaps = params.penumbraMaps;
+    soft.softShadowMaps = params.softShadowMaps;
+    return renderer.render(soft);
 }
 
 double penumbraFraction(const Frame& frame, ShadowKind kind)
 {
-    // Soft shadows (#5): return kind == ShadowKind::Soft ? frame.stats.penumbraFraction : 0.0.
-    (void)frame;
-    (void)kind;
-    return 0.0;
+    return kind == ShadowKind::Soft ? frame.stats.penumbraFraction : 0.0;
 }
 
 std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
@@ -54,14 +45,10 @@ std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame&
 std::vector<float> oracleSoftVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
                                         float rayOffset, const SoftShadowParams& params)
 {
-    // Soft shadows (#5): call the oracle's soft-visibility function on frame.positions and frame.normals with
-    // originOffset = rayOffset and the same params.lightSamples as the renderer.
-    (void)oracle;
-    (void)frame;
-    (void)light;
-    (void)rayOffset;
-    (void)params;
-    fail("bench", "soft shadows are not available in this build");
+    OracleOptions options;
+    options.originOffset = rayOffset;
+    // The suite renders one light: index 0 seeds the samples, as on the GPU.
+    return oracle.softShadowVisibility(frame.positions, frame.normals, frame.color.width, light, 0, params.lightSamples, options);
 }
 
 } // namespace penumbra::bench

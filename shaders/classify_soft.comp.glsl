@@ -10,7 +10,9 @@
 //  mode 2 (srt, the centre map): mark pixels inside the centre map's mask, outside
 //    the map, or whose plane cuts the light (self-shadowing terminator), and give
 //    every other pixel the centre shadow map's umbra or lit;
-//  mode 3 (frt): mark every pixel with a light sample above its plane.
+//  mode 3 (frt): mark every pixel with a light sample above its plane;
+//  mode 4 (before the mask of map `slot` is built): per tile of the map, the
+//    deepest light-view depth of the pixels that project there.
 // Pixels with no light sample above their plane, or behind a one-sided emitter,
 // get visibility 0 and no rays.
 
@@ -28,6 +30,7 @@ layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 6, std430) buffer Marks { uint marks[]; };
 layout(set = 0, binding = 7, std430) buffer Stats { uint64_t stats[]; };
 layout(set = 0, binding = 8, std430) readonly buffer Mask { uint mask[]; }; // penumbra_mask.comp.glsl
+layout(set = 0, binding = 9, std430) buffer Receivers { uint receivers[]; };  // mode 4: per map tile, the deepest pixel
 
 layout(push_constant) uniform ClassifySoftPush {
     uint lightIndex;
@@ -91,6 +94,14 @@ uvec2 classifyPixel()
         if (push.first != 0u)
             marks[index] = 0u;
         return uvec2(push.first, 0u);
+    }
+    if (push.mode == 4u) {
+        if (reached && s.inside) {
+            uint tiles = (push.mapSize + PENUMBRA_RECEIVER_TILE - 1u) / PENUMBRA_RECEIVER_TILE;
+            uvec2 tile = uvec2(s.texel) / PENUMBRA_RECEIVER_TILE;
+            atomicMax(receivers[tile.y * tiles + tile.x], floatBitsToUint(areaMapLinearDepth(light, push.slot, s.depth)));
+        }
+        return uvec2(0u);
     }
     if (push.mode == 1u) {
         if (reached && (!s.inside || inMask(light, s)))

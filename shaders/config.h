@@ -14,6 +14,7 @@
 #define PENUMBRA_THIN_TEXELS 1.5         // thin-triangle pass: triangles narrower than this (texels) are rasterized conservatively
 #define PENUMBRA_MASK_GROUP_SIZE 8       // penumbra_mask.comp: workgroups of 8x8 texels of the coarser level
 #define PENUMBRA_MASK_TARGET_TEXELS 16.0 // penumbra splats are drawn at the mask level where they span at most this many texels
+#define PENUMBRA_RECEIVER_TILE 8u        // penumbra mask: camera pixels' deepest map depth is kept per tile of this many texels a side
 #define PENUMBRA_AREA_MAX_HALF_FOV 60.0  // area-light shadow maps: widest half field of view (degrees); pixels outside get rays
 #define PENUMBRA_MAX_SAMPLES 256         // soft shadows: most light samples per pixel
 

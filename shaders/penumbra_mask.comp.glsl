@@ -1,5 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_ballot : require
 // Penumbra mask of an area light (Lauterbach et al. 2009, 3.2): edge texels of
 // a shadow map from a point of the light, found as for hard shadows (depth
 // discontinuity over the 3x3 neighbourhood, or a thin triangle in front), are
@@ -36,7 +37,13 @@
 //
 // level == 0: edge pass, one invocation per level-1 texel (its 2x2 children);
 // writes the level-1 minimum. level >= 1: the children at `level` of one
-// level+1 texel; writes the level+1 minimum (and splats the top level).
+// level+1 texel; writes the level+1 minimum. Both append the blocks that
+// splat (and the top level's) to a job list: splats vary in cost, so they run
+// in a pass of their own over the dense list (level == kSplatJobs, dispatched
+// indirectly; kWriteDispatch writes its size) rather than idling the
+// neighbouring invocations of a SIMD group.
+// Splats skip regions where no camera pixel lies behind the occluder (the
+// receivers buffer, written by classify_soft mode 4 before this pass).
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -48,6 +55,13 @@ layout(set = 0, binding = 0) uniform sampler2DArray shadowMap;
 layout(set = 0, binding = 1, r32ui) uniform readonly uimage2DArray thinMap;
 layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 3, std430) buffer Pyramid { float pyramid[]; }; // min occluder depth, levels 1..top
+layout(set = 0, binding = 6, std430) buffer Jobs
+{
+    uint jobCount;
+    uint jobDispatch[3];   // indirect dispatch of the splat pass
+    uvec2 jobs[];          // x: level << 28 | y << 14 | x of the block; y: float bits of its nearest edge depth
+};
+layout(set = 0, binding = 5, std430) readonly buffer Receivers { uint receivers[]; }; // per tile: float bits of the deepest camera pixel
 layout(set = 0, binding = 4, std430) buffer Mask { uint mask[]; };        // word 0: flags; then per texel of levels 0..top the
                                                                           // float bits of the nearest receiver depth reached
 
@@ -55,13 +69,16 @@ layout(push_constant) uniform MaskPush {
     mat4 invViewProj;  // inverse of the map's viewProj
     uint lightIndex;
     uint slot;         // which map of the light (viewProj[slot], mapEye[slot])
-    uint level;        // 0: edge pass; else the source level of this reduction
+    uint level;        // 0: edge pass; else the source level of this reduction; or kWriteDispatch, kSplatJobs
     uint mapSize;      // texels per side
     uint topLevel;     // level of size 1
     uint useThin;      // 1: thin triangles (thin map) are edges too
     float edgeDelta;   // depth discontinuity threshold, model units
-    float pad;
+    uint maxJobs;      // capacity of the job list
 } push;
+
+const uint kWriteDispatch = 0xFFFFFFFEu;
+const uint kSplatJobs = 0xFFFFFFFFu;
 
 const float kNoEdge = 3.0e38;
 
@@ -81,7 +98,25 @@ float splatRadius(float z, uint level)
 
 void setReceiverDepth(uint texel, float depth)
 {
-    atomicMin(mask[1u + texel], floatBitsToUint(max(depth, 0.0)));
+    uint bits = floatBitsToUint(max(depth, 0.0));
+    if (mask[1u + texel] > bits) // most splats overlap: skip the atomic when it would change nothing
+        atomicMin(mask[1u + texel], bits);
+}
+
+// Deepest camera pixel (light-view depth) over the texels [lo, hi) of the map;
+// +inf when the region spans too many tiles to look at.
+float deepestReceiver(vec2 lo, vec2 hi)
+{
+    uint tiles = (push.mapSize + PENUMBRA_RECEIVER_TILE - 1u) / PENUMBRA_RECEIVER_TILE;
+    uvec2 first = uvec2(max(lo, vec2(0.0))) / PENUMBRA_RECEIVER_TILE;
+    uvec2 last = min(uvec2(max(hi - 1e-3, lo)) / PENUMBRA_RECEIVER_TILE, uvec2(tiles - 1u));
+    if ((last.x - first.x + 1u) * (last.y - first.y + 1u) > 64u)
+        return 3.0e38;
+    float deepest = 0.0;
+    for (uint y = first.y; y <= last.y; ++y)
+        for (uint x = first.x; x <= last.x; ++x)
+            deepest = max(deepest, uintBitsToFloat(receivers[y * tiles + x]));
+    return deepest;
 }
 
 void markWholeMap()
@@ -168,6 +203,9 @@ void splat(uvec2 c, uint level, float z)
     vec2 boxMax = min(polygon.hi + dilation, vec2(float(S)));
     if (any(greaterThanEqual(boxMin, boxMax)))
         return;
+    // Only camera pixels behind the occluder can be in its penumbra.
+    if (deepestReceiver(boxMin, boxMax) < z)
+        return;
     float extent = max(boxMax.x - boxMin.x, boxMax.y - boxMin.y);
     uint target = uint(clamp(ceil(log2(max(extent / PENUMBRA_MASK_TARGET_TEXELS, 1.0))), 0.0, float(push.topLevel)));
     float targetSize = float(1u << target);
@@ -177,6 +215,9 @@ void splat(uvec2 c, uint level, float z)
     uint base = maskLevelOffset(S, target);
     for (uint y = first.y; y <= last.y; ++y)
         for (uint x = first.x; x <= last.x; ++x) {
+            float deepest = deepestReceiver(vec2(x, y) * targetSize, vec2(x + 1u, y + 1u) * targetSize);
+            if (deepest < z)
+                continue;
             vec2 texelLo = vec2(x, y) * targetSize - dilation;
             vec2 texelHi = vec2(x + 1u, y + 1u) * targetSize + dilation;
             if (!polygonOverlapsBox(polygon, texelLo, texelHi))
@@ -202,7 +243,8 @@ void splat(uvec2 c, uint level, float z)
             // 10% slack for the projection's departure from a uniform scaling.
             float kReach = min(lambda * 0.9, 1.0) * k;
             float receiver = kReach >= 1.0 ? 3.0e38 : (z - kReach * gRbig) / (1.0 - kReach);
-            setReceiverDepth(base + y * size + x, receiver);
+            if (receiver <= deepest)
+                setReceiverDepth(base + y * size + x, receiver);
         }
 }
 
@@ -253,6 +295,26 @@ float edgeDepth(ivec2 t)
     return kNoEdge;
 }
 
+// Appends a splat job; one atomic per subgroup. A full list marks the whole map (conservative).
+void appendJob(bool valid, uvec2 c, uint level, float z)
+{
+    uvec4 ballot = subgroupBallot(valid);
+    uint total = subgroupBallotBitCount(ballot);
+    if (total == 0u)
+        return;
+    uint base = 0u;
+    if (subgroupElect())
+        base = atomicAdd(jobCount, total);
+    base = subgroupBroadcastFirst(base);
+    if (!valid)
+        return;
+    uint slot = base + subgroupBallotExclusiveBitCount(ballot);
+    if (slot < push.maxJobs)
+        jobs[slot] = uvec2(level << 28u | c.y << 14u | c.x, floatBitsToUint(z));
+    else
+        markWholeMap();
+}
+
 void main()
 {
     gLight = frame.lights[push.lightIndex];
@@ -260,32 +322,44 @@ void main()
     gFar = gLight.mapRange[push.slot].x;
     gRbig = length(gLight.positionType.xyz - gLight.mapEye[push.slot].xyz) + gLight.areaV.w;
     gTexelAngle = gLight.mapRange[push.slot].y / float(push.mapSize);
-
     uint S = push.mapSize;
+
+    if (push.level == kWriteDispatch) {
+        if (gl_GlobalInvocationID.x == 0u && gl_GlobalInvocationID.y == 0u) {
+            uint groups = (min(jobCount, push.maxJobs) + 63u) / 64u;
+            uint x = min(groups, 65535u);
+            jobDispatch[0] = x;
+            jobDispatch[1] = x == 0u ? 1u : (groups + x - 1u) / x;
+            jobDispatch[2] = 1u;
+        }
+        return;
+    }
+    if (push.level == kSplatJobs) {
+        uint index = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u + gl_LocalInvocationIndex;
+        if (index >= min(jobCount, push.maxJobs))
+            return;
+        uvec2 job = jobs[index];
+        splat(uvec2(job.x & 0x3FFFu, (job.x >> 14u) & 0x3FFFu), job.x >> 28u, uintBitsToFloat(job.y));
+        return;
+    }
+
     uint parentLevel = push.level + 1u;
     uint parentSize = maskLevelSize(S, parentLevel);
     uvec2 p = gl_GlobalInvocationID.xy;
-    if (p.x >= parentSize || p.y >= parentSize)
-        return;
+    bool inside = p.x < parentSize && p.y < parentSize;
     uint childSize = maskLevelSize(S, push.level);
     float nearest = kNoEdge;
     for (uint j = 0u; j < 4u; ++j) {
         uvec2 c = p * 2u + uvec2(j & 1u, j >> 1u);
-        if (c.x >= childSize || c.y >= childSize)
-            continue;
-        float z;
-        if (push.level == 0u)
-            z = edgeDepth(ivec2(c));
-        else
-            z = pyramid[pyramidIndex(S, push.level, c)];
-        if (z >= kNoEdge)
-            continue;
+        float z = kNoEdge;
+        if (inside && c.x < childSize && c.y < childSize)
+            z = push.level == 0u ? edgeDepth(ivec2(c)) : pyramid[pyramidIndex(S, push.level, c)];
         nearest = min(nearest, z);
-        float r = splatRadius(z, push.level);
-        if (push.level == 0u ? r < 4.0 : (r >= 2.0 && r < 4.0))
-            splat(c, push.level, z);
+        float r = z < kNoEdge ? splatRadius(z, push.level) : 0.0;
+        appendJob(z < kNoEdge && (push.level == 0u ? r < 4.0 : (r >= 2.0 && r < 4.0)), c, push.level, z);
     }
-    pyramid[pyramidIndex(S, parentLevel, p)] = nearest;
-    if (parentLevel == push.topLevel && nearest < kNoEdge && splatRadius(nearest, parentLevel) >= 2.0)
-        splat(p, parentLevel, nearest);
+    if (inside)
+        pyramid[pyramidIndex(S, parentLevel, p)] = nearest;
+    appendJob(inside && parentLevel == push.topLevel && nearest < kNoEdge && splatRadius(nearest, parentLevel) >= 2.0, p, parentLevel,
+              nearest);
 }

@@ -188,9 +188,10 @@ struct MaskPush {
     uint32_t topLevel;
     uint32_t useThin;
     float edgeDelta;
-    float pad;
+    uint32_t maxJobs;
 };
 static_assert(sizeof(MaskPush) == 96);
+constexpr uint32_t kMaskWriteDispatch = 0xFFFFFFFEu, kMaskSplatJobs = 0xFFFFFFFFu; // MaskPush::level of the last two passes
 
 // Levels of the penumbra mask over an S x S map: 0 .. top, where the level is 1 texel.
 uint32_t maskTopLevel(uint32_t size)
@@ -344,7 +345,9 @@ struct Renderer::Impl {
     uint32_t width = 0, height = 0, shadowSize = 0, shadowLayers = 0;
     vk::Image position, normal, depth, color, visibility, shadowMap, thinMap;
     vk::Buffer frameUniforms, stats, readbackStats, marks, rayList;
-    vk::Buffer penumbraMask, penumbraPyramid; // per shadow-map size: penumbra mask and nearest-edge pyramid (penumbra_mask.comp.glsl)
+    // Per shadow-map size (penumbra_mask.comp.glsl): penumbra mask, nearest-edge pyramid, deepest camera pixel per tile.
+    vk::Buffer penumbraMask, penumbraPyramid, penumbraReceivers, penumbraJobs;
+    uint32_t penumbraMaxJobs = 0;
     vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
 
     explicit Impl(const RendererOptions& options)
@@ -362,8 +365,8 @@ struct Renderer::Impl {
     void createPipelines()
     {
         const VkShaderStageFlags compute = VK_SHADER_STAGE_COMPUTE_BIT;
-        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage}, compute);
-        maskSetLayout = createSetLayout(device, {kSampled, kStorageImage, kUniform, kStorage, kStorage}, compute);
+        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage}, compute);
+        maskSetLayout = createSetLayout(device, {kSampled, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage}, compute);
         thinDetectSetLayout = createSetLayout(device, {kStorageImage}, compute);
         compactSetLayout = createSetLayout(device, {kStorage, kStorage}, compute);
         shadeSetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage}, compute);
@@ -468,6 +471,8 @@ struct Renderer::Impl {
         vk::destroyImage(device, thinMap);
         vk::destroyBuffer(device, penumbraMask);
         vk::destroyBuffer(device, penumbraPyramid);
+        vk::destroyBuffer(device, penumbraReceivers);
+        vk::destroyBuffer(device, penumbraJobs);
         destroyGeometry(device, geometry);
         destroyRayTracer(device, tracer);
         vk::destroyBuffer(device, frameUniforms);
@@ -523,12 +528,23 @@ struct Renderer::Impl {
             vk::destroyImage(device, thinMap);
             vk::destroyBuffer(device, penumbraMask);
             vk::destroyBuffer(device, penumbraPyramid);
+            vk::destroyBuffer(device, penumbraReceivers);
+            vk::destroyBuffer(device, penumbraJobs);
             shadowSize = shadowLayers = 0; // stays 0 if a creation below throws
             uint64_t maskLevels = maskTexels(smSize);
             penumbraMask = vk::createBuffer(device, (1 + maskLevels) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                             vk::MemoryUse::DeviceLocal);
             penumbraPyramid = vk::createBuffer(device, std::max<uint64_t>(maskLevels - uint64_t(smSize) * smSize, 1) * 4,
                                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
+            uint64_t tiles = (smSize + PENUMBRA_RECEIVER_TILE - 1) / PENUMBRA_RECEIVER_TILE;
+            penumbraReceivers = vk::createBuffer(device, tiles * tiles * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                                 vk::MemoryUse::DeviceLocal);
+            // Splat jobs: at most one per texel of all levels, 8 bytes each, within one storage binding.
+            uint64_t bindingJobs = (std::min<uint64_t>(device.properties.limits.maxStorageBufferRange, device.maxAllocationSize) - 16) / 8;
+            penumbraMaxJobs = uint32_t(std::min<uint64_t>({maskLevels, bindingJobs, 1u << 26}));
+            penumbraJobs = vk::createBuffer(device, 16 + uint64_t(penumbraMaxJobs) * 8,
+                                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                            vk::MemoryUse::DeviceLocal);
             shadowMap = vk::createImage(device, smSize, smSize, smLayers, kDepthFormat,
                                         VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT, true);
             // The thin map stays in GENERAL: written in srt frames, read (cleared to "nothing thin") otherwise.
@@ -551,11 +567,12 @@ struct Renderer::Impl {
                                        {kStorageImage, thinMap.view},
                                        {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
                                        {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer},
-                                       {kStorage, {}, {}, penumbraMask.buffer}});
+                                       {kStorage, {}, {}, penumbraMask.buffer}, {kStorage, {}, {}, penumbraReceivers.buffer}});
         writeSet(device, thinDetectSet, {{kStorageImage, thinMap.view}});
         writeSet(device, maskSet, {{kSampled, shadowMap.view, nearestSampler, {}, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
                                    {kStorageImage, thinMap.view}, {kUniform, {}, {}, frameUniforms.buffer},
-                                   {kStorage, {}, {}, penumbraPyramid.buffer}, {kStorage, {}, {}, penumbraMask.buffer}});
+                                   {kStorage, {}, {}, penumbraPyramid.buffer}, {kStorage, {}, {}, penumbraMask.buffer},
+                                   {kStorage, {}, {}, penumbraReceivers.buffer}, {kStorage, {}, {}, penumbraJobs.buffer}});
         writeSet(device, compactSet, {{kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, rayList.buffer}});
         writeSet(device, shadeSet, {{kStorageImage, position.view}, {kStorageImage, normal.view}, {kStorageImage, color.view},
                                     {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
@@ -818,12 +835,15 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT);
         vkCmdFillBuffer(cmd, penumbraMask.buffer, 0, 4, 0);
         vkCmdFillBuffer(cmd, penumbraMask.buffer, 4, VK_WHOLE_SIZE, 0x7F800000u); // +inf: no receiver depth reached
+        vkCmdFillBuffer(cmd, penumbraReceivers.buffer, 0, VK_WHOLE_SIZE, 0);
+        vkCmdFillBuffer(cmd, penumbraJobs.buffer, 0, 16, 0);
         vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+        classifySoft(lightIndex, slot, 4, false, 1.0f); // where the camera pixels are, per tile of the map
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, maskPipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, maskLayout, 0, 1, &maskSet, 0, nullptr);
         float range = light.mapRange[slot].x - light.mapEye[slot].w;
         MaskPush push{glm::inverse(light.viewProj[slot]), lightIndex, slot, 0, shadowSize, maskTop, useThin ? 1u : 0u,
-                      float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0.0f};
+                      float(PENUMBRA_PIP_DELTA_FRACTION) * range, penumbraMaxJobs};
         for (uint32_t level = 0; level < maskTop; ++level) {
             push.level = level;
             uint32_t parentSize = (shadowSize + (2u << level) - 1u) >> (level + 1);
@@ -832,6 +852,15 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             vkCmdDispatch(cmd, groups, groups, 1);
             vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute, kStorageRW);
         }
+        push.level = kMaskWriteDispatch;
+        vkCmdPushConstants(cmd, maskLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+        vkCmdDispatch(cmd, 1, 1, 1);
+        vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                          kStorageRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+        push.level = kMaskSplatJobs;
+        vkCmdPushConstants(cmd, maskLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+        vkCmdDispatchIndirect(cmd, penumbraJobs.buffer, 4);
+        vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute, kStorageRW);
         timestamp(PassPenumbraMask);
     };
 
