@@ -34,38 +34,6 @@ layout(push_constant) uniform ClassifyPush {
     uint mode;     // 0 sm, 1 srt, 2 frt
 } push;
 
-bool depthDiscontinuityMayAffect(LightData light, ShadowLookup s, ivec2 size, vec3 n, vec3 L)
-{
-    float center = texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r;
-    float delta = 0.0;
-    for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-            ivec2 t = clamp(s.texel + ivec2(dx, dy), ivec2(0), size - 1);
-            float neighbour = texelFetch(shadowMap, ivec3(t, s.layer), 0).r;
-            delta = max(delta, abs(linearLightDepth(light, neighbour) - linearLightDepth(light, center)));
-        }
-    float range = light.shadowParams.y - light.shadowParams.x;
-    if (delta <= frame.pip.x * range)
-        return false;
-    float sLinear = linearLightDepth(light, center);
-    float d = linearLightDepth(light, s.depth);
-    float sinBeta = clamp(dot(n, L), 1e-6, 1.0);
-    float cosBeta = sqrt(max(1.0 - sinBeta * sinBeta, 0.0));
-    float dHat;
-    if (light.shadowParams.z != 0.0) {
-        float alpha = light.shadowParams.w / float(size.x);   // texel angle (small-angle)
-        dHat = d * sinBeta / sin(min(alpha + asin(sinBeta), 3.14159265 * 0.5));
-        // Receivers this close to parallel with the light can reach any depth within one texel.
-        if (asin(sinBeta) + alpha >= 3.14159265 * 0.5 - 1e-4)
-            dHat = d * sinBeta;
-    } else {
-        float w = light.shadowParams.w / float(size.x);
-        dHat = d - w * cosBeta / sinBeta;
-    }
-    float lo = min(dHat, d), hi = max(dHat, d);
-    return lo <= sLinear + delta && hi >= sLinear - delta;
-}
-
 shared uint groupCovered, groupMarked;
 
 // Returns (covered, marked) for this invocation's pixel.
@@ -101,7 +69,7 @@ uvec2 classifyPixel()
         mark = true;
     else if (lightFacing && push.mode == 1u && s.inside) {
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
-        mark = depthDiscontinuityMayAffect(light, s, size, n, L) ||
+        mark = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
                (visibility == 1.0 && uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r) < s.depth);
     }
     marks[index] = mark ? 1u : 0u;

@@ -8,8 +8,9 @@
 //  mode 1 (penumbra mask of a corner map, srt --penumbra-maps 5): mark pixels
 //    inside the mask of map `slot` (penumbra_mask.comp.glsl; OR into the marks);
 //  mode 2 (srt, the centre map): mark pixels inside the centre map's mask, outside
-//    the map, or whose plane cuts the light (self-shadowing terminator), and give
-//    every other pixel the centre shadow map's umbra or lit;
+//    the map, whose plane cuts the light (self-shadowing terminator), or that the
+//    hard-shadow tests mark (a discontinuity that may affect the pixel, a thin
+//    triangle in front), and give every other pixel the centre map's umbra or lit;
 //  mode 3 (frt): mark every pixel with a light sample above its plane;
 //  mode 4 (before the mask of map `slot` is built): per tile of the map, the
 //    deepest light-view depth of the pixels that project there.
@@ -25,6 +26,7 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
 layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
 layout(set = 0, binding = 2) uniform sampler2DArray shadowMap;
+layout(set = 0, binding = 3, r32ui) uniform readonly uimage2DArray thinMap; // float bits of the nearest thin depth
 layout(set = 0, binding = 4, r32f) uniform image2D outVisibility;
 layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 6, std430) buffer Marks { uint marks[]; };
@@ -113,7 +115,13 @@ uvec2 classifyPixel()
     if (push.mode == 3u)
         mark = reached;
     else {
-        mark = reached && (marks[index] != 0u || heights.x <= 0.0 || !s.inside || inMask(light, s));
+        // The shadow map's own umbra/lit boundary is as uncertain as for hard shadows (3.1): the
+        // mask leaves the occluder texel's neighbourhood to the hard-shadow tests.
+        float distance;
+        vec3 L = towardLight(light, p, distance);
+        bool boundary = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
+                        uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, 0)).r) < s.depth;
+        mark = reached && (marks[index] != 0u || heights.x <= 0.0 || !s.inside || boundary || inMask(light, s));
         if (reached && !mark)
             visibility = s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r ? 1.0 : 0.0;
     }
