@@ -70,7 +70,7 @@ uvec2 classifyPixel()
     else if (lightFacing && push.mode == 1u && s.inside) {
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
         mark = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
-               (visibility == 1.0 && uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r) < s.depth);
+               (visibility == 1.0 && thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r), light, s, size, n, L));
     }
     marks[index] = mark ? 1u : 0u;
     return uvec2(1u, mark ? 1u : 0u);

@@ -120,7 +120,7 @@ uvec2 classifyPixel()
         float distance;
         vec3 L = towardLight(light, p, distance);
         bool boundary = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
-                        uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, 0)).r) < s.depth;
+                        thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, 0)).r), light, s, size, n, L);
         mark = reached && (marks[index] != 0u || heights.x <= 0.0 || !s.inside || boundary || inMask(light, s));
         if (reached && !mark)
             visibility = s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r ? 1.0 : 0.0;
