@@ -10,6 +10,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "config.h"
+#include "culling.h"
 #include "device.h"
 #include "light_space.h"
 #include "model_geometry.h"
@@ -217,6 +218,7 @@ struct Renderer::Impl {
     VkPipeline thinDetectPipeline = VK_NULL_HANDLE;
     VkPipeline classifyPipeline = VK_NULL_HANDLE, compactPipeline = VK_NULL_HANDLE, shadePipeline = VK_NULL_HANDLE;
     RayTracer tracer;
+    Culling culling;
     VkSampler nearestSampler = VK_NULL_HANDLE;
     VkDescriptorPool descriptorPool = VK_NULL_HANDLE;
     VkDescriptorSet classifySet = VK_NULL_HANDLE, compactSet = VK_NULL_HANDLE, shadeSet = VK_NULL_HANDLE, thinDetectSet = VK_NULL_HANDLE;
@@ -277,6 +279,7 @@ struct Renderer::Impl {
         compactPipeline = createComputePipeline(device, "compact.comp", compactLayout);
         shadePipeline = createComputePipeline(device, "shade.comp", shadeLayout);
         createRayTracer(device, tracer);
+        culling.create(device, {kPositionFormat, kNormalFormat}, kDepthFormat);
 
         VkSamplerCreateInfo samplerInfo{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
         samplerInfo.magFilter = samplerInfo.minFilter = VK_FILTER_NEAREST;
@@ -344,6 +347,7 @@ struct Renderer::Impl {
         vk::destroyImage(device, thinMap);
         destroyGeometry(device, geometry);
         destroyRayTracer(device, tracer);
+        culling.destroy(device);
         vk::destroyBuffer(device, frameUniforms);
         vk::destroyBuffer(device, stats);
         vk::destroyBuffer(device, readbackStats);
@@ -501,12 +505,26 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     ensureTargets(settings.width, settings.height, settings.shadowMapSize, maxLayers);
     std::memcpy(frameUniforms.mapped, &frameData, sizeof(frameData));
 
+    // Raster views (camera, then every light's shadow-map layers) planned by the culling.
+    std::vector<CullView> cullViews{{"camera", 0, view.viewProj, true, true}};
+    std::vector<uint32_t> lightFirstView(frameLights.size());
+    const bool shadowOcclusion = settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
+    for (uint32_t i = 0; i < frameLights.size(); ++i) {
+        lightFirstView[i] = uint32_t(cullViews.size());
+        const uint32_t layers = uint32_t(frameData.lights[i].spotCosLayers.z);
+        for (uint32_t layer = 0; layer < layers; ++layer)
+            cullViews.push_back({"light" + std::to_string(i) + (layers > 1 ? ".face" + std::to_string(layer) : ""), 1 + 6 * i + layer,
+                                 frameData.lights[i].viewProj[layer], false, shadowOcclusion});
+    }
+    culling.beginFrame(device, settings.cull, std::move(cullViews));
+
     VkCommandBuffer cmd = commandBuffer;
     VK_CHECK(vkResetCommandBuffer(cmd, 0));
     VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
     VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
     vkCmdResetQueryPool(cmd, queryPool, 0, kMaxTimestamps);
+    culling.resetQueries(cmd);
 
     std::vector<Pass> timestampPass;   // pass of the interval ending at timestamp i
     auto timestamp = [&](Pass endedPass) {
@@ -548,8 +566,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
         depthAttachment.imageView = depth.view;
         depthAttachment.imageLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
-        depthAttachment.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-        depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+        depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_STORE; // the culling's second phase loads it
         depthAttachment.clearValue.depthStencil = {1.0f, 0};
         VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
         rendering.renderArea = {{0, 0}, {width, height}};
@@ -557,13 +574,15 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         rendering.colorAttachmentCount = 2;
         rendering.pColorAttachments = colors;
         rendering.pDepthAttachment = &depthAttachment;
-        vkCmdBeginRendering(cmd, &rendering);
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelines[int(geometry.encoding)]);
-        setViewport(cmd, width, height);
         CameraPush push{view.viewProj, glm::vec4(view.eye, 1.0f)};
-        vkCmdPushConstants(cmd, gbufferLayout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(push), &push);
-        drawGeometry(cmd, geometry);
-        vkCmdEndRendering(cmd);
+        // Colours are cleared in both culling phases (the second redraws everything the first drew); depth is kept.
+        culling.recordView(cmd, 0, geometry, [&](bool clear) {
+            depthAttachment.loadOp = clear ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_LOAD;
+            vkCmdBeginRendering(cmd, &rendering);
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelines[int(geometry.encoding)]);
+            setViewport(cmd, width, height);
+            vkCmdPushConstants(cmd, gbufferLayout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(push), &push);
+        }, [&] { vkCmdEndRendering(cmd); });
     }
     timestamp(PassCamera);
     for (vk::Image* image : {&position, &normal})
@@ -588,20 +607,20 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
             depthAttachment.imageView = shadowMap.layerViews[layer];
             depthAttachment.imageLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
-            depthAttachment.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
             depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
             depthAttachment.clearValue.depthStencil = {1.0f, 0};
             VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
             rendering.renderArea = {{0, 0}, {shadowSize, shadowSize}};
             rendering.layerCount = 1;
             rendering.pDepthAttachment = &depthAttachment;
-            vkCmdBeginRendering(cmd, &rendering);
-            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipelines[int(geometry.encoding)]);
-            setViewport(cmd, shadowSize, shadowSize);
-            vkCmdSetDepthBias(cmd, settings.depthBiasConstant, 0.0f, settings.depthBiasSlope);
-            vkCmdPushConstants(cmd, shadowLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &light.viewProj[layer]);
-            drawGeometry(cmd, geometry);
-            vkCmdEndRendering(cmd);
+            culling.recordView(cmd, lightFirstView[lightIndex] + layer, geometry, [&](bool clear) {
+                depthAttachment.loadOp = clear ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_LOAD;
+                vkCmdBeginRendering(cmd, &rendering);
+                vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipelines[int(geometry.encoding)]);
+                setViewport(cmd, shadowSize, shadowSize);
+                vkCmdSetDepthBias(cmd, settings.depthBiasConstant, 0.0f, settings.depthBiasSlope);
+                vkCmdPushConstants(cmd, shadowLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &light.viewProj[layer]);
+            }, [&] { vkCmdEndRendering(cmd); });
         }
         transition(cmd, shadowMap, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, kDepthTests,
                    VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
@@ -760,6 +779,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     for (uint32_t pass = 0; pass < PassCount; ++pass)
         if (ran[pass])
             out.passes.push_back({kPassNames[pass], passMs[pass]});
+    out.cull = settings.cull;
+    out.views = culling.endFrame(device);
     out.gpuMs = double(ticks.back() - ticks.front()) * period;
     out.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - cpuStart).count();
     return frame;
@@ -858,6 +879,7 @@ const DeviceInfo& Renderer::device() const { return impl->device.info; }
 void Renderer::loadModel(const CompressedModel& model)
 {
     impl->setGeometry(uploadCompressed(impl->device, model));
+    impl->culling.setModel(model, impl->geometry);
 }
 
 void Renderer::loadModel(const Mesh& mesh)
@@ -870,6 +892,7 @@ void Renderer::loadModel(const Mesh& mesh)
 void Renderer::loadUncompressedReference(const Mesh& mesh)
 {
     impl->setGeometry(uploadReference(impl->device, mesh));
+    impl->culling.clearModel();
 }
 
 uint64_t Renderer::modelDeviceBytes() const { return impl->geometry.deviceBytes; }

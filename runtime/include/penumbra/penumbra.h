@@ -27,6 +27,17 @@ enum class ShadowMethod { ShadowMap, Selective, FullRayTrace };
 const char* shadowMethodName(ShadowMethod method);
 ShadowMethod parseShadowMethod(const std::string& name); // throws Error
 
+// Culling of the camera and shadow-map raster passes with the top of the
+// shared BVH (Lauterbach et al. 2009, section 5.1): none draws every cluster;
+// frustum drops clusters outside each view's frustum; all also drops clusters
+// hidden behind what the view drew last frame (two-phase occlusion queries).
+// The image is bit-identical in every mode; the ray tracer always sees the
+// whole BVH.
+enum class CullMode { None, Frustum, All };
+
+const char* cullModeName(CullMode mode);
+CullMode parseCullMode(const std::string& name); // throws Error
+
 struct DeviceInfo {
     uint32_t index = 0;          // position in vkEnumeratePhysicalDevices
     std::string name;            // e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
@@ -63,6 +74,7 @@ struct RenderSettings {
     // Shadow-ray origins move this far along the light-facing normal (model
     // units); 0: shadowRayOffset of the model.
     float rayOffset = 0.0f;
+    CullMode cull = CullMode::All;      // culling of the camera and shadow-map raster passes
 };
 
 // Linear-light RGBA float image, row-major, top row first.
@@ -75,6 +87,19 @@ struct Image {
 struct PassTiming {
     std::string name;   // "camera", "shadow_map", "shade", ...
     double gpuMs = 0;   // from timestamp queries
+};
+
+// Culling of one raster view: "camera", "light0", or "light0.face3" for the
+// cube faces of a point light's shadow map.
+struct ViewCullStats {
+    std::string name;
+    uint64_t nodesTested = 0;     // BVH top-level and cluster nodes tested against the frustum
+    uint64_t clustersDrawn = 0;   // clusters drawn in the view's final pass
+    uint64_t clustersCulled = 0;  // clusters of the model not drawn
+    uint64_t trianglesDrawn = 0;
+    uint64_t trianglesCulled = 0;
+    uint64_t queriesIssued = 0;   // occlusion queries (node/cluster boxes)
+    double cpuMs = 0;             // CPU time planning the view (traversal, draw lists, query boxes)
 };
 
 struct FrameStats {
@@ -92,6 +117,8 @@ struct FrameStats {
     float rayOffset = 0;          // shadow-ray origin offset used
     DeviceInfo device;
     std::vector<PassTiming> passes;
+    CullMode cull = CullMode::None;
+    std::vector<ViewCullStats> views; // per raster view; empty for the uncompressed reference
     double gpuMs = 0;       // first to last timestamp
     double cpuMs = 0;       // record + submit + wait + readback, wall clock
 };

@@ -1,0 +1,130 @@
+// Culling of the raster passes (camera G-buffer, shadow-map layers) with the
+// top of the shared BVH (Lauterbach et al. 2009, section 5.1): view-frustum
+// culling of nodes and clusters on the CPU, then occlusion culling with
+// Vulkan occlusion queries on node and cluster boxes in two phases per view:
+//   1. draw the clusters this view found visible last frame (its history),
+//      then query the boxes of the remaining frustum-visible nodes/clusters
+//      against that depth (depth test, no writes);
+//   2. a compute pass turns the query results into the instance counts of a
+//      multi-draw-indirect list that is drawn with the same pipeline state.
+// The camera's second phase draws the history AND the passed clusters in
+// ascending cluster order (the G-buffer keeps the last of equally deep
+// fragments, so order matters); shadow maps keep the minimum depth, so their
+// second phase draws only the passed clusters. Nothing visible is dropped,
+// with or without history (first frame, jumps). The history for the next
+// frame is the passed groups plus the history clusters whose boxes pass a
+// query against the final depth; query results are read on the CPU after the
+// frame's fence (no extra sync). The ray tracer never sees any of this.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <glm/mat4x4.hpp>
+
+#include "model_geometry.h"
+#include "penumbra/penumbra.h"
+#include "resources.h"
+
+namespace penumbra {
+
+// One raster view of a frame.
+struct CullView {
+    std::string name;              // stats name: "camera", "light0", "light0.face3"
+    uint32_t slot = 0;             // key of the view's persistent history (camera 0, light i layer l: 1 + 6 i + l)
+    glm::mat4 viewProj{1.0f};      // clip = viewProj * world, Vulkan depth 0..1
+    bool camera = false;           // G-buffer target (two colour attachments) and order-preserving second phase
+    bool occlusion = false;        // occlusion queries allowed (CullMode::All; shadow maps need a non-negative depth bias)
+};
+
+struct Culling {
+    // Begins the view's rendering: clear (first phase) or load (second phase)
+    // the depth, then binds the view's geometry pipeline and sets all of its
+    // state (viewport, depth bias, push constants).
+    using BeginRendering = std::function<void(bool clear)>;
+    using EndRendering = std::function<void()>;
+
+    // Creates the box pipelines (camera: colour formats of the G-buffer, writes
+    // masked; shadow: depth only) and the predicate compute pass.
+    void create(vk::Device& device, const std::vector<VkFormat>& cameraColorFormats, VkFormat depthFormat);
+    void destroy(vk::Device& device);
+
+    // CPU copy of the cluster boxes, triangle counts, draw commands and the BVH
+    // top (every node down to the Cluster nodes) of the model just uploaded;
+    // clears every view's history. clearModel: the uncompressed reference (no culling).
+    void setModel(const CompressedModel& model, const GpuGeometry& geometry);
+    void clearModel();
+
+    // Plans every view of the frame on the CPU (frustum traversal, draw lists,
+    // query boxes) and writes them into host-visible buffers; the previous
+    // frame must be finished. Then resetQueries outside any rendering.
+    void beginFrame(vk::Device& device, CullMode mode, std::vector<CullView> views);
+    void resetQueries(VkCommandBuffer cmd);
+    // Records view `view` of beginFrame's list (with CullMode::None or no model: the whole geometry).
+    void recordView(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
+                    const EndRendering& end);
+    // After the frame's fence: reads the queries, updates the histories and
+    // returns per-view stats (empty without a compressed model).
+    std::vector<ViewCullStats> endFrame(vk::Device& device);
+
+    struct TopNode {
+        glm::vec3 min, max;        // union of the boxes below (cluster quantization boxes)
+        uint32_t firstChild = 0;   // index in topNodes; Interior only
+        uint32_t childCount = 0;   // 0: a Cluster node
+        uint32_t cluster = 0;      // Cluster nodes: cluster index
+        uint32_t clusterCount = 0; // clusters in the subtree
+    };
+    struct Entry {
+        uint32_t cluster;
+        uint32_t query;            // kNoQuery: drawn unconditionally
+    };
+    struct ViewPlan {
+        CullView view;
+        std::vector<uint32_t> firstPhase;      // history clusters, ascending
+        std::vector<Entry> finalPhase;         // ascending by cluster
+        std::vector<uint32_t> groupQueryBegin; // per group query: first index in groupClusters
+        std::vector<uint32_t> groupClusters;   // clusters of each group query, in query order
+        std::vector<uint32_t> historyTests;    // clusters whose box is queried against the final depth (in order)
+        std::vector<uint32_t> nearVisible;     // drawn unconditionally (box crosses the near plane)
+        uint32_t firstQuery = 0;               // group queries, then history tests
+        uint32_t firstCommand = 0;             // first-phase commands, then final-phase commands
+        uint32_t firstBox = 0;                 // boxes in query order
+        uint64_t nodesTested = 0;
+        double cpuMs = 0;
+    };
+    static constexpr uint32_t kNoQuery = ~0u;
+
+    // Model
+    bool enabled = false;
+    std::vector<TopNode> topNodes;                       // index 0: root
+    std::vector<glm::vec3> clusterMin, clusterMax;       // quantization boxes
+    std::vector<uint32_t> clusterTriangles;
+    std::vector<VkDrawIndexedIndirectCommand> commands;  // per cluster, as in GpuGeometry::indirect
+    std::vector<uint32_t> clusterChunk;                  // chunk of each cluster
+    uint64_t totalTriangles = 0;
+    float boxMargin = 0;                                 // added to every queried box (model units)
+    std::unordered_map<uint32_t, std::vector<uint8_t>> history; // per view slot: visible last frame, per cluster
+    // Frame
+    CullMode mode = CullMode::None;
+    std::vector<ViewPlan> plans;
+    std::vector<glm::vec3> queryBoxes;                   // min, max per query of the frame
+    uint32_t queryCount = 0;
+    // GPU
+    VkPipelineLayout boxLayout = VK_NULL_HANDLE, predicateLayout = VK_NULL_HANDLE;
+    VkPipeline cameraBoxPipeline = VK_NULL_HANDLE, shadowBoxPipeline = VK_NULL_HANDLE, predicatePipeline = VK_NULL_HANDLE;
+    VkQueryPool queryPool = VK_NULL_HANDLE;
+    uint32_t queryCapacity = 0;
+    vk::Buffer drawCommands;   // VkDrawIndexedIndirectCommand[]: all views' lists (host-visible; compute writes instanceCount)
+    vk::Buffer commandQueries; // uint per command: its query, or kNoQuery
+    vk::Buffer boxes;          // vec4 min, vec4 max per query
+    vk::Buffer queryResults;   // uint per query, copied by vkCmdCopyQueryPoolResults
+    VkDeviceAddress drawCommandsAddress = 0, commandQueriesAddress = 0, boxesAddress = 0, queryResultsAddress = 0;
+
+private:
+    void planView(ViewPlan& plan);
+    void drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand, const std::vector<uint32_t>& clusters);
+};
+
+} // namespace penumbra
