@@ -198,6 +198,7 @@ std::string statsJson(const FrameStats& stats)
                          {"nodes_tested", view.nodesTested},
                          {"clusters_drawn", view.clustersDrawn},
                          {"clusters_culled", view.clustersCulled},
+                         {"clusters_occluded", view.clustersOccluded},
                          {"triangles_drawn", view.trianglesDrawn},
                          {"triangles_culled", view.trianglesCulled},
                          {"queries_issued", view.queriesIssued},

@@ -521,9 +521,11 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
             for (uint32_t cluster : plan.nearVisible)
                 (*visible)[cluster] = 1;
             for (uint32_t g = 0; g < groupCount; ++g) {
-                if (results[plan.firstQuery + g] == 0)
-                    continue;
                 uint32_t last = g + 1 < groupCount ? plan.groupQueryBegin[g + 1] : uint32_t(plan.groupClusters.size());
+                if (results[plan.firstQuery + g] == 0) {
+                    stats.clustersOccluded += last - plan.groupQueryBegin[g];
+                    continue;
+                }
                 for (uint32_t i = plan.groupQueryBegin[g]; i < last; ++i) {
                     drawn(plan.groupClusters[i]);
                     (*visible)[plan.groupClusters[i]] = 1;

@@ -93,13 +93,14 @@ struct PassTiming {
 // cube faces of a point light's shadow map.
 struct ViewCullStats {
     std::string name;
-    uint64_t nodesTested = 0;     // BVH top-level and cluster nodes tested against the frustum
-    uint64_t clustersDrawn = 0;   // clusters drawn in the view's final pass
-    uint64_t clustersCulled = 0;  // clusters of the model not drawn
+    uint64_t nodesTested = 0;      // BVH top-level and cluster nodes tested against the frustum
+    uint64_t clustersDrawn = 0;    // clusters drawn in the view's final pass
+    uint64_t clustersCulled = 0;   // clusters of the model not drawn
+    uint64_t clustersOccluded = 0; // of those, the ones in the frustum culled by occlusion queries
     uint64_t trianglesDrawn = 0;
     uint64_t trianglesCulled = 0;
-    uint64_t queriesIssued = 0;   // occlusion queries (node/cluster boxes)
-    double cpuMs = 0;             // CPU time planning the view (traversal, draw lists, query boxes)
+    uint64_t queriesIssued = 0;    // occlusion queries (node/cluster boxes)
+    double cpuMs = 0;              // CPU time planning the view (traversal, draw lists, query boxes)
 };
 
 struct FrameStats {
