@@ -28,10 +28,11 @@ struct PredicatePush {
     VkDeviceAddress commands;
     VkDeviceAddress commandQueries;
     VkDeviceAddress queryResults;
+    VkDeviceAddress firstPassed;
     uint32_t count;
-    uint32_t pad;
+    uint32_t step;
 };
-static_assert(sizeof(PredicatePush) == 32);
+static_assert(sizeof(PredicatePush) == 40);
 
 constexpr VkDeviceSize kCommandBytes = sizeof(VkDrawIndexedIndirectCommand);
 
@@ -245,7 +246,7 @@ void Culling::planView(ViewPlan& plan)
     auto start = std::chrono::steady_clock::now();
     const glm::dmat4 viewProj(plan.view.viewProj);
     const bool occlusion = plan.view.occlusion;
-    std::vector<uint8_t>& visible = history[plan.view.slot];
+    std::vector<uint8_t>& visible = history[plan.view.slot].visible;
     visible.resize(clusterMin.size(), 0);
     const glm::vec3 margin(boxMargin);
 
@@ -262,15 +263,24 @@ void Culling::planView(ViewPlan& plan)
                     historyBelow[t] += historyBelow[node.firstChild + c];
         }
     }
+    auto addQueryBox = [&](const glm::vec3& lo, const glm::vec3& hi) {
+        queryBoxes.push_back(lo - margin);
+        queryBoxes.push_back(hi + margin);
+    };
 
-    // Depth-first traversal in child order; `group` is the query whose box
-    // covers the subtree (kNoQuery: none yet).
+    // Depth-first traversal in child order. Occlusion: a subtree without
+    // history of at most PENUMBRA_CULL_GROUP_CLUSTERS clusters is one query
+    // (tested after phase 1); below that, every cell (subtree of at most
+    // PENUMBRA_CULL_CELL_CLUSTERS clusters) with history is drawn in phase 1
+    // and its box tested against the final depth (next frame's history); a
+    // cell at the near plane is drawn in phase 1 and stays visible.
+    enum class Role : uint8_t { Free, Group, HistoryCell, Near };
     struct Item {
         uint32_t node;
-        uint32_t group;
+        Role role;
     };
-    std::vector<Item> stack{{0, kNoQuery}};
-    std::vector<uint32_t> firstPhase;
+    std::vector<Item> stack{{0, Role::Free}};
+    std::vector<uint32_t> historyCells;
     while (!stack.empty()) {
         Item item = stack.back();
         stack.pop_back();
@@ -279,46 +289,57 @@ void Culling::planView(ViewPlan& plan)
         BoxTest test = testBox(viewProj, node.min - margin, node.max + margin);
         if (test.outside)
             continue;
-        uint32_t group = item.group;
-        if (occlusion && group == kNoQuery) {
-            if (node.childCount == 0 && (visible[node.cluster] || test.crossesNear)) {
-                firstPhase.push_back(node.cluster);
-                (test.crossesNear ? plan.nearVisible : plan.historyTests).push_back(node.cluster);
-                continue;
-            }
-            if (node.childCount == 0 || (!test.crossesNear && historyBelow[item.node] == 0 && node.clusterCount <= PENUMBRA_CULL_GROUP_CLUSTERS)) {
-                group = uint32_t(plan.groupQueryBegin.size());
+        Role role = item.role;
+        if (occlusion && role == Role::Free) {
+            if (!test.crossesNear && historyBelow[item.node] == 0 && node.clusterCount <= PENUMBRA_CULL_GROUP_CLUSTERS) {
+                role = Role::Group;
                 plan.groupQueryBegin.push_back(uint32_t(plan.groupClusters.size()));
-                queryBoxes.push_back(node.min - margin);
-                queryBoxes.push_back(node.max + margin);
+                addQueryBox(node.min, node.max);
+            } else if (node.clusterCount <= PENUMBRA_CULL_CELL_CLUSTERS) {
+                role = test.crossesNear ? Role::Near : Role::HistoryCell;
+                if (role == Role::HistoryCell) {
+                    plan.historyQueryBegin.push_back(uint32_t(plan.historyClusters.size()));
+                    historyCells.push_back(item.node);
+                }
             }
         }
         if (node.childCount == 0) {
-            plan.finalPhase.push_back({node.cluster, group});
-            if (group != kNoQuery)
+            switch (role) {
+            case Role::Free: plan.finalPhase.push_back({node.cluster, kNoQuery}); break;
+            case Role::Group:
+                plan.finalPhase.push_back({node.cluster, uint32_t(plan.groupQueryBegin.size() - 1)});
                 plan.groupClusters.push_back(node.cluster);
+                break;
+            case Role::HistoryCell:
+                plan.firstPhase.push_back(node.cluster);
+                plan.historyClusters.push_back(node.cluster);
+                break;
+            case Role::Near:
+                plan.firstPhase.push_back(node.cluster);
+                plan.nearVisible.push_back(node.cluster);
+                break;
+            }
             continue;
         }
         for (uint32_t c = node.childCount; c-- > 0;)
-            stack.push_back({node.firstChild + c, group});
+            stack.push_back({node.firstChild + c, role});
     }
     // Group queries are numbered per view here; beginFrame makes them global.
-    std::sort(firstPhase.begin(), firstPhase.end());
-    plan.firstPhase = firstPhase;
+    // Boxes: the groups' (above, in query order), then the history cells'.
+    for (uint32_t cell : historyCells)
+        addQueryBox(topNodes[cell].min, topNodes[cell].max);
+    std::sort(plan.firstPhase.begin(), plan.firstPhase.end());
     if (plan.view.camera)
-        for (uint32_t cluster : firstPhase)
+        for (uint32_t cluster : plan.firstPhase)
             plan.finalPhase.push_back({cluster, kNoQuery});
-    std::sort(plan.finalPhase.begin(), plan.finalPhase.end(), [](const Entry& a, const Entry& b) { return a.cluster < b.cluster; });
-    for (uint32_t cluster : plan.historyTests) {
-        queryBoxes.push_back(clusterMin[cluster] - margin);
-        queryBoxes.push_back(clusterMax[cluster] + margin);
-    }
+    std::sort(plan.finalPhase.begin(), plan.finalPhase.end(), [](const Entry& x, const Entry& y) { return x.cluster < y.cluster; });
     plan.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-void Culling::beginFrame(vk::Device& device, CullMode cullMode, std::vector<CullView> views)
+void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcclusion, std::vector<CullView> views)
 {
     mode = cullMode;
+    adaptive = adaptiveOcclusion;
     plans.clear();
     queryBoxes.clear();
     queryCount = 0;
@@ -328,7 +349,12 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, std::vector<Cull
     for (CullView& view : views) {
         ViewPlan plan;
         plan.view = std::move(view);
-        plan.view.occlusion = plan.view.occlusion && mode == CullMode::All;
+        History& state = history[plan.view.slot];
+        if (!adaptive)
+            state.frustumOnlyFrames = 0;
+        plan.view.occlusion = plan.view.occlusion && mode == CullMode::All && state.frustumOnlyFrames == 0;
+        if (mode == CullMode::All && state.frustumOnlyFrames > 0)
+            --state.frustumOnlyFrames;
         plan.firstQuery = queryCount;
         plan.firstCommand = commandCount;
         if (mode != CullMode::None)
@@ -336,7 +362,7 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, std::vector<Cull
         for (Entry& entry : plan.finalPhase)
             if (entry.query != kNoQuery)
                 entry.query += plan.firstQuery;
-        queryCount += uint32_t(plan.groupQueryBegin.size() + plan.historyTests.size());
+        queryCount += uint32_t(plan.groupQueryBegin.size() + plan.historyQueryBegin.size());
         commandCount += uint32_t(plan.firstPhase.size() + plan.finalPhase.size());
         plans.push_back(std::move(plan));
     }
@@ -348,7 +374,9 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, std::vector<Cull
     ensureBuffer(device, drawCommands, commandCount * kCommandBytes, VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | storage, vk::MemoryUse::Upload);
     ensureBuffer(device, commandQueries, commandCount * sizeof(uint32_t), storage, vk::MemoryUse::Upload);
     ensureBuffer(device, boxes, queryBoxes.size() * sizeof(glm::vec4), storage, vk::MemoryUse::Upload);
-    ensureBuffer(device, queryResults, queryCount * sizeof(uint32_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT | storage, vk::MemoryUse::DeviceLocal);
+    // Query results, then one firstPassed word per view.
+    ensureBuffer(device, queryResults, (queryCount + plans.size()) * sizeof(uint32_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT | storage,
+                 vk::MemoryUse::DeviceLocal);
     auto* commandOut = static_cast<VkDrawIndexedIndirectCommand*>(drawCommands.mapped);
     auto* queryOut = static_cast<uint32_t*>(commandQueries.mapped);
     for (const ViewPlan& plan : plans) {
@@ -452,7 +480,7 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
     queryBoxRange(plan.firstQuery, groupCount);
     if (groupCount == 0) {
         // Nothing else can be visible: the depth is final already.
-        queryBoxRange(historyFirst, uint32_t(plan.historyTests.size()));
+        queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size()));
         end();
         return;
     }
@@ -463,16 +491,24 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
                                                    VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
     constexpr VkAccessFlags2 kAttachmentAccess = VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT |
                                                  VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
+    const VkDeviceSize firstPassed = (queryCount + viewIndex) * sizeof(uint32_t);
     vkCmdCopyQueryPoolResults(cmd, queryPool, plan.firstQuery, groupCount, queryResults.buffer, plan.firstQuery * sizeof(uint32_t),
                               sizeof(uint32_t), VK_QUERY_RESULT_WAIT_BIT);
-    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+    vkCmdFillBuffer(cmd, queryResults.buffer, firstPassed, sizeof(uint32_t), kNoQuery);
+    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, predicatePipeline);
     const uint32_t finalCount = uint32_t(plan.finalPhase.size());
     PredicatePush predicate{drawCommandsAddress + firstFinal * kCommandBytes, commandQueriesAddress + firstFinal * sizeof(uint32_t),
-                            queryResultsAddress, finalCount, 0};
-    vkCmdPushConstants(cmd, predicateLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(predicate), &predicate);
-    vkCmdDispatch(cmd, (finalCount + PENUMBRA_CULL_GROUP_SIZE - 1) / PENUMBRA_CULL_GROUP_SIZE, 1, 1);
+                            queryResultsAddress, queryResultsAddress + firstPassed, finalCount, 0};
+    for (uint32_t step = 0; step < 2; ++step) {
+        predicate.step = step;
+        vkCmdPushConstants(cmd, predicateLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(predicate), &predicate);
+        vkCmdDispatch(cmd, (finalCount + PENUMBRA_CULL_GROUP_SIZE - 1) / PENUMBRA_CULL_GROUP_SIZE, 1, 1);
+        if (step == 0)
+            vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                              VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+    }
     vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | kAttachments, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | kAttachmentAccess,
                       VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | kAttachments, VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | kAttachmentAccess);
 
@@ -480,7 +516,7 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
     // tested against the final depth (next frame's history).
     begin(false);
     drawList(cmd, geometry, firstFinal, finalClusters);
-    queryBoxRange(historyFirst, uint32_t(plan.historyTests.size()));
+    queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size()));
     end();
 }
 
@@ -499,10 +535,11 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
         stats.nodesTested = plan.nodesTested;
         stats.cpuMs = plan.cpuMs;
         const uint32_t groupCount = uint32_t(plan.groupQueryBegin.size());
-        stats.queriesIssued = groupCount + plan.historyTests.size();
+        const uint32_t historyCount = uint32_t(plan.historyQueryBegin.size());
+        stats.queriesIssued = groupCount + historyCount;
         std::vector<uint8_t>* visible = nullptr;
         if (plan.view.occlusion) {
-            visible = &history[plan.view.slot];
+            visible = &history[plan.view.slot].visible;
             std::fill(visible->begin(), visible->end(), uint8_t(0));
         }
         auto drawn = [&](uint32_t cluster) {
@@ -531,9 +568,23 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
                     (*visible)[plan.groupClusters[i]] = 1;
                 }
             }
-            for (size_t t = 0; t < plan.historyTests.size(); ++t)
-                if (results[plan.firstQuery + groupCount + t] != 0)
-                    (*visible)[plan.historyTests[t]] = 1;
+            uint64_t hiddenHistory = 0;
+            for (uint32_t h = 0; h < historyCount; ++h) {
+                uint32_t last = h + 1 < historyCount ? plan.historyQueryBegin[h + 1] : uint32_t(plan.historyClusters.size());
+                if (results[plan.firstQuery + groupCount + h] == 0) {
+                    hiddenHistory += last - plan.historyQueryBegin[h];
+                    continue;
+                }
+                for (uint32_t i = plan.historyQueryBegin[h]; i < last; ++i)
+                    (*visible)[plan.historyClusters[i]] = 1;
+            }
+            // With a history, the clusters found hidden (now or for the next
+            // frame) measure what occlusion culling buys in this view; when it
+            // is little, the queries and the second phase cost more than they
+            // save, so the view goes frustum-only for a while.
+            const uint64_t inFrustum = plan.firstPhase.size() + plan.groupClusters.size();
+            if (adaptive && historyCount > 0 && double(stats.clustersOccluded + hiddenHistory) < PENUMBRA_CULL_MIN_OCCLUDED * double(inFrustum))
+                history[plan.view.slot].frustumOnlyFrames = PENUMBRA_CULL_RETRY_FRAMES;
         }
         stats.clustersCulled = clusterTriangles.size() - stats.clustersDrawn;
         stats.trianglesCulled = totalTriangles - stats.trianglesDrawn;

@@ -60,7 +60,7 @@ struct Culling {
     // Plans every view of the frame on the CPU (frustum traversal, draw lists,
     // query boxes) and writes them into host-visible buffers; the previous
     // frame must be finished. Then resetQueries outside any rendering.
-    void beginFrame(vk::Device& device, CullMode mode, std::vector<CullView> views);
+    void beginFrame(vk::Device& device, CullMode mode, bool adaptive, std::vector<CullView> views);
     void resetQueries(VkCommandBuffer cmd);
     // Records view `view` of beginFrame's list (with CullMode::None or no model: the whole geometry).
     void recordView(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
@@ -86,8 +86,9 @@ struct Culling {
         std::vector<Entry> finalPhase;         // ascending by cluster
         std::vector<uint32_t> groupQueryBegin; // per group query: first index in groupClusters
         std::vector<uint32_t> groupClusters;   // clusters of each group query, in query order
-        std::vector<uint32_t> historyTests;    // clusters whose box is queried against the final depth (in order)
-        std::vector<uint32_t> nearVisible;     // drawn unconditionally (box crosses the near plane)
+        std::vector<uint32_t> historyQueryBegin; // per history-cell query: first index in historyClusters
+        std::vector<uint32_t> historyClusters;   // clusters of each history cell (drawn in phase 1, box tested against the final depth)
+        std::vector<uint32_t> nearVisible;       // drawn in phase 1 and kept visible (cell box crosses the near plane)
         uint32_t firstQuery = 0;               // group queries, then history tests
         uint32_t firstCommand = 0;             // first-phase commands, then final-phase commands
         uint32_t firstBox = 0;                 // boxes in query order
@@ -105,9 +106,14 @@ struct Culling {
     std::vector<uint32_t> clusterChunk;                  // chunk of each cluster
     uint64_t totalTriangles = 0;
     float boxMargin = 0;                                 // added to every queried box (model units)
-    std::unordered_map<uint32_t, std::vector<uint8_t>> history; // per view slot: visible last frame, per cluster
+    struct History {
+        std::vector<uint8_t> visible;   // per cluster: visible last frame
+        uint32_t frustumOnlyFrames = 0; // occlusion did not pay in this view: frames left culled by the frustum only
+    };
+    std::unordered_map<uint32_t, History> history;       // per view slot
     // Frame
     CullMode mode = CullMode::None;
+    bool adaptive = true;                                // RenderSettings::adaptiveOcclusion
     std::vector<ViewPlan> plans;
     std::vector<glm::vec3> queryBoxes;                   // min, max per query of the frame
     uint32_t queryCount = 0;

@@ -516,7 +516,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             cullViews.push_back({"light" + std::to_string(i) + (layers > 1 ? ".face" + std::to_string(layer) : ""), 1 + 6 * i + layer,
                                  frameData.lights[i].viewProj[layer], false, shadowOcclusion});
     }
-    culling.beginFrame(device, settings.cull, std::move(cullViews));
+    culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, std::move(cullViews));
 
     VkCommandBuffer cmd = commandBuffer;
     VK_CHECK(vkResetCommandBuffer(cmd, 0));
@@ -559,7 +559,6 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         for (int i = 0; i < 2; ++i) {
             colors[i].imageView = i == 0 ? position.view : normal.view;
             colors[i].imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-            colors[i].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
             colors[i].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
             colors[i].clearValue.color = {{0.0f, 0.0f, 0.0f, 0.0f}};
         }
@@ -575,9 +574,9 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         rendering.pColorAttachments = colors;
         rendering.pDepthAttachment = &depthAttachment;
         CameraPush push{view.viewProj, glm::vec4(view.eye, 1.0f)};
-        // Colours are cleared in both culling phases (the second redraws everything the first drew); depth is kept.
         culling.recordView(cmd, 0, geometry, [&](bool clear) {
-            depthAttachment.loadOp = clear ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_LOAD;
+            for (VkRenderingAttachmentInfo* attachment : {&colors[0], &colors[1], &depthAttachment})
+                attachment->loadOp = clear ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_LOAD;
             vkCmdBeginRendering(cmd, &rendering);
             vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelines[int(geometry.encoding)]);
             setViewport(cmd, width, height);

@@ -75,6 +75,9 @@ struct RenderSettings {
     // units); 0: shadowRayOffset of the model.
     float rayOffset = 0.0f;
     CullMode cull = CullMode::All;      // culling of the camera and shadow-map raster passes
+    // CullMode::All: a view whose occlusion queries cull little goes frustum-only
+    // for a few frames. false (tests): queries in every view, every frame.
+    bool adaptiveOcclusion = true;
 };
 
 // Linear-light RGBA float image, row-major, top row first.
