@@ -1,20 +1,29 @@
 // Culling of the raster passes (camera G-buffer, shadow-map layers) with the
 // top of the shared BVH (Lauterbach et al. 2009, section 5.1): view-frustum
 // culling of nodes and clusters on the CPU, then occlusion culling with
-// Vulkan occlusion queries on node and cluster boxes in two phases per view:
-//   1. draw the clusters this view found visible last frame (its history),
-//      then query the boxes of the remaining frustum-visible nodes/clusters
-//      against that depth (depth test, no writes);
+// Vulkan occlusion queries on node boxes, in two phases per view:
+//   1. draw the cells (subtrees of <= PENUMBRA_CULL_CELL_CLUSTERS clusters)
+//      this view found visible last frame, and the cells at the near plane;
+//      then query, against that depth, the boxes of the other frustum-visible
+//      subtrees (<= PENUMBRA_CULL_GROUP_CLUSTERS clusters, no history below);
 //   2. a compute pass turns the query results into the instance counts of a
-//      multi-draw-indirect list that is drawn with the same pipeline state.
-// The camera's second phase draws the history AND the passed clusters in
-// ascending cluster order (the G-buffer keeps the last of equally deep
-// fragments, so order matters); shadow maps keep the minimum depth, so their
-// second phase draws only the passed clusters. Nothing visible is dropped,
-// with or without history (first frame, jumps). The history for the next
-// frame is the passed groups plus the history clusters whose boxes pass a
-// query against the final depth; query results are read on the CPU after the
-// frame's fence (no extra sync). The ray tracer never sees any of this.
+//      multi-draw-indirect list, drawn with the same pipeline state; then the
+//      phase-1 cells are queried against the final depth (next frame's history).
+// Exactness. A shadow map keeps the minimum depth whatever the order, so its
+// phase 2 draws only the clusters whose box passed. The G-buffer keeps the
+// last of equally deep fragments (LESS_OR_EQUAL), so without culling a pixel
+// shows the last cluster, in ascending order, with a fragment at the minimum
+// depth m. Phase 2 of the camera draws, in ascending order, the passed
+// clusters and the phase-1 clusters after the first passed one, over phase
+// 1's colour and depth: if that last cluster is in phase 1 and before every
+// passed cluster, phase 1 already left it on top and nothing later reaches m;
+// otherwise phase 2 redraws it, after everything else at depth m. A cluster
+// that can reach a pixel at depth <= phase 1's depth there has a box that
+// passes its query (boxes are grown by a margin, drawn with the same depth
+// test, and a box crossing the near plane is never queried), so nothing
+// visible is dropped, with or without history (first frame, jumps).
+// Query results for the history are read on the CPU after the frame's fence
+// (no extra sync). The ray tracer never sees any of this.
 #pragma once
 
 #include <functional>
