@@ -453,7 +453,10 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
     const uint32_t firstFinal = plan.firstCommand + uint32_t(plan.firstPhase.size());
     if (!plan.view.occlusion) {
         begin(true);
-        drawList(cmd, geometry, firstFinal, finalClusters);
+        if (finalClusters.size() == commands.size())
+            drawGeometry(cmd, geometry); // the frustum holds everything (a sun's map): the model's own list
+        else
+            drawList(cmd, geometry, firstFinal, finalClusters);
         end();
         return;
     }
