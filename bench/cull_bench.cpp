@@ -52,8 +52,8 @@ double lightCulledFraction(const std::vector<ViewCullStats>& views)
     return total ? double(culled) / double(total) : 0.0;
 }
 
-void measureLights(Renderer& renderer, const char* name, const char* sceneName, const CompressedModel& model, const std::vector<Light>& lights,
-                   const char* lightName, uint32_t size, int frames)
+void measureLights(Renderer& renderer, const char* name, const char* sceneName, const CompressedModel& model,
+                   const std::vector<Light>& lights, const char* lightName, uint32_t size, int frames)
 {
     renderer.setLights(lights);
     RenderSettings settings;
@@ -70,32 +70,42 @@ void measureLights(Renderer& renderer, const char* name, const char* sceneName, 
             if (frame < 0)
                 continue; // warm-up: pipelines, and the occlusion history a moving camera would have
             for (const PassTiming& pass : rendered.stats.passes) {
-                if (pass.name == "camera") results[m].camera.push_back(pass.gpuMs);
-                if (pass.name == "shadow_map") results[m].shadow.push_back(pass.gpuMs);
+                if (pass.name == "camera")
+                    results[m].camera.push_back(pass.gpuMs);
+                if (pass.name == "shadow_map")
+                    results[m].shadow.push_back(pass.gpuMs);
             }
             results[m].views = rendered.stats.views;
         }
 
     const DeviceInfo& info = renderer.device();
-    std::printf("%s, %s: %s, %llu triangles, %ux%u, shadow map %u^2 per layer, %s (%s), median of %d frames\n", name, lightName, sceneName,
-                (unsigned long long)model.triangleCount(), size, size, settings.shadowMapSize, info.name.c_str(), info.driver.c_str(), frames);
+    std::printf("%s, %s: %s, %llu triangles, %ux%u, shadow map %u^2 per layer, %s (%s), median of %d frames\n", name,
+                lightName, sceneName, (unsigned long long)model.triangleCount(), size, size, settings.shadowMapSize,
+                info.name.c_str(), info.driver.c_str(), frames);
     std::printf("  %-8s %11s %11s %11s   triangles culled per view\n", "cull", "camera", "shadow map", "raster");
     for (int m = 0; m < 3; ++m) {
         const Result& r = results[m];
-        std::printf("  %-8s %8.1f ms %8.1f ms %8.1f ms  ", cullModeName(modes[m]), r.cameraMs(), r.shadowMs(), r.cameraMs() + r.shadowMs());
+        std::printf("  %-8s %8.1f ms %8.1f ms %8.1f ms  ", cullModeName(modes[m]), r.cameraMs(), r.shadowMs(),
+                    r.cameraMs() + r.shadowMs());
         for (const ViewCullStats& view : r.views)
-            std::printf(" %s %.1f%% (%llu q)", view.name.c_str(), 100.0 * culledFraction(view), (unsigned long long)view.queriesIssued);
+            std::printf(" %s %.1f%% (%llu q)", view.name.c_str(), 100.0 * culledFraction(view),
+                        (unsigned long long)view.queriesIssued);
         std::printf("\n");
     }
     const Result &none = results[0], &all = results[2];
     const double speedup = (none.cameraMs() + none.shadowMs()) / std::max(all.cameraMs() + all.shadowMs(), 1e-9);
-    std::printf("  raster speed-up all vs none: camera %.2fx, shadow map %.2fx, both %.2fx\n", none.cameraMs() / std::max(all.cameraMs(), 1e-9),
-                none.shadowMs() / std::max(all.shadowMs(), 1e-9), speedup);
-    std::printf("{\"bench\":\"cull\",\"case\":\"%s\",\"light\":\"%s\",\"scene\":\"%s\",\"triangles\":%llu,\"device\":\"%s\",\"driver\":\"%s\","
-                "\"size\":%u,\"none_camera_ms\":%.3f,\"none_shadow_ms\":%.3f,\"frustum_camera_ms\":%.3f,\"frustum_shadow_ms\":%.3f,"
-                "\"all_camera_ms\":%.3f,\"all_shadow_ms\":%.3f,\"camera_culled\":%.4f,\"light_culled\":%.4f,\"speedup\":%.3f}\n",
-                name, lightName, sceneName, (unsigned long long)model.triangleCount(), info.name.c_str(), info.driver.c_str(), size,
-                none.cameraMs(), none.shadowMs(), results[1].cameraMs(), results[1].shadowMs(), all.cameraMs(), all.shadowMs(),
+    std::printf("  raster speed-up all vs none: camera %.2fx, shadow map %.2fx, both %.2fx\n",
+                none.cameraMs() / std::max(all.cameraMs(), 1e-9), none.shadowMs() / std::max(all.shadowMs(), 1e-9),
+                speedup);
+    std::printf("{\"bench\":\"cull\",\"case\":\"%s\",\"light\":\"%s\",\"scene\":\"%s\",\"triangles\":%llu,\"device\":"
+                "\"%s\",\"driver\":\"%s\","
+                "\"size\":%u,\"none_camera_ms\":%.3f,\"none_shadow_ms\":%.3f,\"frustum_camera_ms\":%.3f,\"frustum_"
+                "shadow_ms\":%.3f,"
+                "\"all_camera_ms\":%.3f,\"all_shadow_ms\":%.3f,\"camera_culled\":%.4f,\"light_culled\":%.4f,"
+                "\"speedup\":%.3f}\n",
+                name, lightName, sceneName, (unsigned long long)model.triangleCount(), info.name.c_str(),
+                info.driver.c_str(), size, none.cameraMs(), none.shadowMs(), results[1].cameraMs(),
+                results[1].shadowMs(), all.cameraMs(), all.shadowMs(),
                 all.views.empty() ? 0.0 : culledFraction(all.views[0]), lightCulledFraction(all.views), speedup);
     std::fflush(stdout);
 }
@@ -140,13 +150,19 @@ int main(int argc, char** argv)
             return std::string(argv[++i]);
         };
         std::string arg = argv[i];
-        if (arg == "--frames") frames = std::max(1, std::atoi(value().c_str()));
-        else if (arg == "--size") size = uint32_t(std::max(16, std::atoi(value().c_str())));
-        else if (arg == "--plant-triangles") plantTriangles = std::strtoull(value().c_str(), nullptr, 10);
-        else if (arg == "--city-triangles") cityTriangles = std::strtoull(value().c_str(), nullptr, 10);
-        else if (arg == "--device") device = value();
+        if (arg == "--frames")
+            frames = std::max(1, std::atoi(value().c_str()));
+        else if (arg == "--size")
+            size = uint32_t(std::max(16, std::atoi(value().c_str())));
+        else if (arg == "--plant-triangles")
+            plantTriangles = std::strtoull(value().c_str(), nullptr, 10);
+        else if (arg == "--city-triangles")
+            cityTriangles = std::strtoull(value().c_str(), nullptr, 10);
+        else if (arg == "--device")
+            device = value();
         else {
-            std::fprintf(stderr, "usage: bench_cull [--frames N] [--size N] [--plant-triangles N] [--city-triangles N] [--device NAME]\n");
+            std::fprintf(stderr, "usage: bench_cull [--frames N] [--size N] [--plant-triangles N] [--city-triangles N] "
+                                 "[--device NAME]\n");
             return 2;
         }
     }

@@ -39,7 +39,8 @@ constexpr VkDeviceSize kCommandBytes = sizeof(VkDrawIndexedIndirectCommand);
 // Box pipeline: the cull_box.vert triangles, depth test LESS_OR_EQUAL (as the
 // geometry), no depth or colour writes, no depth bias (a query box is never
 // deeper than the geometry inside it, and the shadow bias is >= 0).
-VkPipeline createBoxPipeline(vk::Device& device, VkPipelineLayout layout, const std::vector<VkFormat>& colorFormats, VkFormat depthFormat)
+VkPipeline createBoxPipeline(vk::Device& device, VkPipelineLayout layout, const std::vector<VkFormat>& colorFormats,
+                             VkFormat depthFormat)
 {
     VkShaderModule vertex = vk::createShaderModule(device, "cull_box.vert");
     VkPipelineShaderStageCreateInfo stage{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
@@ -111,8 +112,9 @@ BoxTest testBox(const glm::dmat4& m, const glm::vec3& lo, const glm::vec3& hi)
         glm::dvec4 c = m * glm::dvec4(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z, 1.0);
         // Tolerance for the GPU's float transform of the geometry.
         const double tolerance = 1e-5 * (std::abs(c.w) + std::abs(c.x) + std::abs(c.y) + std::abs(c.z));
-        uint32_t outside = (c.x < -c.w - tolerance ? 1u : 0u) | (c.x > c.w + tolerance ? 2u : 0u) | (c.y < -c.w - tolerance ? 4u : 0u) |
-                           (c.y > c.w + tolerance ? 8u : 0u) | (c.z > c.w + tolerance ? 16u : 0u);
+        uint32_t outside = (c.x < -c.w - tolerance ? 1u : 0u) | (c.x > c.w + tolerance ? 2u : 0u) |
+                           (c.y < -c.w - tolerance ? 4u : 0u) | (c.y > c.w + tolerance ? 8u : 0u) |
+                           (c.z > c.w + tolerance ? 16u : 0u);
         outsideAll &= outside;
         allBehindNear = allBehindNear && c.z < -tolerance;
         test.crossesNear = test.crossesNear || c.z <= tolerance || c.w <= tolerance;
@@ -121,7 +123,8 @@ BoxTest testBox(const glm::dmat4& m, const glm::vec3& lo, const glm::vec3& hi)
     return test;
 }
 
-void ensureBuffer(vk::Device& device, vk::Buffer& buffer, VkDeviceSize bytes, VkBufferUsageFlags usage, vk::MemoryUse use)
+void ensureBuffer(vk::Device& device, vk::Buffer& buffer, VkDeviceSize bytes, VkBufferUsageFlags usage,
+                  vk::MemoryUse use)
 {
     if (buffer.buffer && buffer.size >= bytes)
         return;
@@ -134,7 +137,8 @@ void ensureBuffer(vk::Device& device, vk::Buffer& buffer, VkDeviceSize bytes, Vk
 void Culling::create(vk::Device& device, const std::vector<VkFormat>& cameraColorFormats, VkFormat depthFormat)
 {
     boxLayout = vk::createPipelineLayout(device, VK_NULL_HANDLE, sizeof(BoxPush), VK_SHADER_STAGE_VERTEX_BIT);
-    predicateLayout = vk::createPipelineLayout(device, VK_NULL_HANDLE, sizeof(PredicatePush), VK_SHADER_STAGE_COMPUTE_BIT);
+    predicateLayout =
+        vk::createPipelineLayout(device, VK_NULL_HANDLE, sizeof(PredicatePush), VK_SHADER_STAGE_COMPUTE_BIT);
     cameraBoxPipeline = createBoxPipeline(device, boxLayout, cameraColorFormats, depthFormat);
     shadowBoxPipeline = createBoxPipeline(device, boxLayout, {}, depthFormat);
     predicatePipeline = vk::createComputePipeline(device, "cull_predicates.comp", predicateLayout);
@@ -145,11 +149,14 @@ void Culling::destroy(vk::Device& device)
     for (vk::Buffer* buffer : {&drawCommands, &commandQueries, &boxes, &queryResults})
         vk::destroyBuffer(device, *buffer);
     VkDevice d = device.device;
-    if (queryPool) vkDestroyQueryPool(d, queryPool, nullptr);
+    if (queryPool)
+        vkDestroyQueryPool(d, queryPool, nullptr);
     for (VkPipeline p : {cameraBoxPipeline, shadowBoxPipeline, predicatePipeline})
-        if (p) vkDestroyPipeline(d, p, nullptr);
+        if (p)
+            vkDestroyPipeline(d, p, nullptr);
     for (VkPipelineLayout l : {boxLayout, predicateLayout})
-        if (l) vkDestroyPipelineLayout(d, l, nullptr);
+        if (l)
+            vkDestroyPipelineLayout(d, l, nullptr);
     queryPool = VK_NULL_HANDLE;
     cameraBoxPipeline = shadowBoxPipeline = predicatePipeline = VK_NULL_HANDLE;
     boxLayout = predicateLayout = VK_NULL_HANDLE;
@@ -195,7 +202,8 @@ void Culling::setModel(const CompressedModel& model, const GpuGeometry& geometry
         const GpuGeometry::Chunk& chunk = geometry.chunks[k];
         for (uint32_t i = chunk.firstCluster; i < chunk.firstCluster + chunk.clusterCount; ++i) {
             const model::ClusterRecord& c = model.clusters[i];
-            commands[i] = {c.indexBytes, 1, uint32_t(c.firstIndex - chunk.indexBase), int32_t(c.firstVertex - chunk.vertexBase), i};
+            commands[i] = {c.indexBytes, 1, uint32_t(c.firstIndex - chunk.indexBase),
+                           int32_t(c.firstVertex - chunk.vertexBase), i};
             clusterChunk[i] = uint32_t(k);
         }
     }
@@ -291,7 +299,8 @@ void Culling::planView(ViewPlan& plan)
             continue;
         Role role = item.role;
         if (occlusion && role == Role::Free) {
-            if (!test.crossesNear && historyBelow[item.node] == 0 && node.clusterCount <= PENUMBRA_CULL_GROUP_CLUSTERS) {
+            if (!test.crossesNear && historyBelow[item.node] == 0 &&
+                node.clusterCount <= PENUMBRA_CULL_GROUP_CLUSTERS) {
                 role = Role::Group;
                 plan.groupQueryBegin.push_back(uint32_t(plan.groupClusters.size()));
                 addQueryBox(node.min, node.max);
@@ -305,7 +314,9 @@ void Culling::planView(ViewPlan& plan)
         }
         if (node.childCount == 0) {
             switch (role) {
-            case Role::Free: plan.finalPhase.push_back({node.cluster, kNoQuery}); break;
+            case Role::Free:
+                plan.finalPhase.push_back({node.cluster, kNoQuery});
+                break;
             case Role::Group:
                 plan.finalPhase.push_back({node.cluster, uint32_t(plan.groupQueryBegin.size() - 1)});
                 plan.groupClusters.push_back(node.cluster);
@@ -332,7 +343,8 @@ void Culling::planView(ViewPlan& plan)
     if (plan.view.camera)
         for (uint32_t cluster : plan.firstPhase)
             plan.finalPhase.push_back({cluster, kNoQuery});
-    std::sort(plan.finalPhase.begin(), plan.finalPhase.end(), [](const Entry& x, const Entry& y) { return x.cluster < y.cluster; });
+    std::sort(plan.finalPhase.begin(), plan.finalPhase.end(),
+              [](const Entry& x, const Entry& y) { return x.cluster < y.cluster; });
     plan.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -371,12 +383,13 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
 
     // Draw lists, per-command queries and query boxes into host-visible buffers.
     const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-    ensureBuffer(device, drawCommands, commandCount * kCommandBytes, VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | storage, vk::MemoryUse::Upload);
+    ensureBuffer(device, drawCommands, commandCount * kCommandBytes, VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | storage,
+                 vk::MemoryUse::Upload);
     ensureBuffer(device, commandQueries, commandCount * sizeof(uint32_t), storage, vk::MemoryUse::Upload);
     ensureBuffer(device, boxes, queryBoxes.size() * sizeof(glm::vec4), storage, vk::MemoryUse::Upload);
     // Query results, then one firstPassed word per view.
-    ensureBuffer(device, queryResults, (queryCount + plans.size()) * sizeof(uint32_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT | storage,
-                 vk::MemoryUse::DeviceLocal);
+    ensureBuffer(device, queryResults, (queryCount + plans.size()) * sizeof(uint32_t),
+                 VK_BUFFER_USAGE_TRANSFER_DST_BIT | storage, vk::MemoryUse::DeviceLocal);
     auto* commandOut = static_cast<VkDrawIndexedIndirectCommand*>(drawCommands.mapped);
     auto* queryOut = static_cast<uint32_t*>(commandQueries.mapped);
     for (const ViewPlan& plan : plans) {
@@ -418,7 +431,8 @@ void Culling::resetQueries(VkCommandBuffer cmd)
         vkCmdResetQueryPool(cmd, queryPool, 0, queryCount);
 }
 
-void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand, const std::vector<uint32_t>& clusters)
+void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
+                       const std::vector<uint32_t>& clusters)
 {
     // One multi-draw per run of clusters in the same chunk (the list is ascending).
     size_t begin = 0;
@@ -432,13 +446,14 @@ void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_
         VkDeviceSize offsets[2] = {0, 0};
         vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
         vkCmdBindIndexBuffer(cmd, chunk.indices.buffer, 0, VK_INDEX_TYPE_UINT8_EXT);
-        vkCmdDrawIndexedIndirect(cmd, drawCommands.buffer, (firstCommand + begin) * kCommandBytes, uint32_t(end - begin), uint32_t(kCommandBytes));
+        vkCmdDrawIndexedIndirect(cmd, drawCommands.buffer, (firstCommand + begin) * kCommandBytes,
+                                 uint32_t(end - begin), uint32_t(kCommandBytes));
         begin = end;
     }
 }
 
-void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry, const BeginRendering& begin,
-                         const EndRendering& end)
+void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry,
+                         const BeginRendering& begin, const EndRendering& end)
 {
     if (!enabled || mode == CullMode::None || viewIndex >= plans.size()) {
         begin(true);
@@ -465,7 +480,8 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
     auto queryBoxRange = [&](uint32_t first, uint32_t count) {
         if (count == 0)
             return;
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, plan.view.camera ? cameraBoxPipeline : shadowBoxPipeline);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
+                          plan.view.camera ? cameraBoxPipeline : shadowBoxPipeline);
         vkCmdPushConstants(cmd, boxLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
         for (uint32_t q = first; q < first + count; ++q) {
             vkCmdBeginQuery(cmd, queryPool, q, 0);
@@ -490,20 +506,27 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
     end();
 
     // Query results -> instance counts of the final list.
-    constexpr VkPipelineStageFlags2 kAttachments = VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT |
+    constexpr VkPipelineStageFlags2 kAttachments = VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT |
+                                                   VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT |
                                                    VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
-    constexpr VkAccessFlags2 kAttachmentAccess = VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT |
+    constexpr VkAccessFlags2 kAttachmentAccess = VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
+                                                 VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT |
                                                  VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
     const VkDeviceSize firstPassed = (queryCount + viewIndex) * sizeof(uint32_t);
-    vkCmdCopyQueryPoolResults(cmd, queryPool, plan.firstQuery, groupCount, queryResults.buffer, plan.firstQuery * sizeof(uint32_t),
-                              sizeof(uint32_t), VK_QUERY_RESULT_WAIT_BIT);
+    vkCmdCopyQueryPoolResults(cmd, queryPool, plan.firstQuery, groupCount, queryResults.buffer,
+                              plan.firstQuery * sizeof(uint32_t), sizeof(uint32_t), VK_QUERY_RESULT_WAIT_BIT);
     vkCmdFillBuffer(cmd, queryResults.buffer, firstPassed, sizeof(uint32_t), kNoQuery);
     vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, predicatePipeline);
     const uint32_t finalCount = uint32_t(plan.finalPhase.size());
-    PredicatePush predicate{drawCommandsAddress + firstFinal * kCommandBytes, commandQueriesAddress + firstFinal * sizeof(uint32_t),
-                            queryResultsAddress, queryResultsAddress + firstPassed, finalCount, 0};
+    PredicatePush predicate{drawCommandsAddress + firstFinal * kCommandBytes,
+                            commandQueriesAddress + firstFinal * sizeof(uint32_t),
+                            queryResultsAddress,
+                            queryResultsAddress + firstPassed,
+                            finalCount,
+                            0};
     for (uint32_t step = 0; step < 2; ++step) {
         predicate.step = step;
         vkCmdPushConstants(cmd, predicateLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(predicate), &predicate);
@@ -512,8 +535,10 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
             vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                               VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
     }
-    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | kAttachments, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | kAttachmentAccess,
-                      VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | kAttachments, VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | kAttachmentAccess);
+    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | kAttachments,
+                      VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | kAttachmentAccess,
+                      VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | kAttachments,
+                      VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | kAttachmentAccess);
 
     // Phase 2: the final list over the phase-1 depth, then last frame's set
     // tested against the final depth (next frame's history).
@@ -530,8 +555,8 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
         return out;
     std::vector<uint32_t> results(queryCount);
     if (queryCount)
-        VK_CHECK(vkGetQueryPoolResults(device.device, queryPool, 0, queryCount, results.size() * sizeof(uint32_t), results.data(),
-                                       sizeof(uint32_t), VK_QUERY_RESULT_WAIT_BIT));
+        VK_CHECK(vkGetQueryPoolResults(device.device, queryPool, 0, queryCount, results.size() * sizeof(uint32_t),
+                                       results.data(), sizeof(uint32_t), VK_QUERY_RESULT_WAIT_BIT));
     for (const ViewPlan& plan : plans) {
         ViewCullStats stats;
         stats.name = plan.view.name;
@@ -573,7 +598,8 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
             }
             uint64_t hiddenHistory = 0;
             for (uint32_t h = 0; h < historyCount; ++h) {
-                uint32_t last = h + 1 < historyCount ? plan.historyQueryBegin[h + 1] : uint32_t(plan.historyClusters.size());
+                uint32_t last =
+                    h + 1 < historyCount ? plan.historyQueryBegin[h + 1] : uint32_t(plan.historyClusters.size());
                 if (results[plan.firstQuery + groupCount + h] == 0) {
                     hiddenHistory += last - plan.historyQueryBegin[h];
                     continue;
@@ -586,7 +612,8 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
             // is little, the queries and the second phase cost more than they
             // save, so the view goes frustum-only for a while.
             const uint64_t inFrustum = plan.firstPhase.size() + plan.groupClusters.size();
-            if (adaptive && historyCount > 0 && double(stats.clustersOccluded + hiddenHistory) < PENUMBRA_CULL_MIN_OCCLUDED * double(inFrustum))
+            if (adaptive && historyCount > 0 &&
+                double(stats.clustersOccluded + hiddenHistory) < PENUMBRA_CULL_MIN_OCCLUDED * double(inFrustum))
                 history[plan.view.slot].frustumOnlyFrames = PENUMBRA_CULL_RETRY_FRAMES;
         }
         stats.clustersCulled = clusterTriangles.size() - stats.clustersDrawn;

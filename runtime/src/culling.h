@@ -41,11 +41,11 @@ namespace penumbra {
 
 // One raster view of a frame.
 struct CullView {
-    std::string name;              // stats name: "camera", "light0", "light0.face3"
-    uint32_t slot = 0;             // key of the view's persistent history (camera 0, light i layer l: 1 + 6 i + l)
-    glm::mat4 viewProj{1.0f};      // clip = viewProj * world, Vulkan depth 0..1
-    bool camera = false;           // G-buffer target (two colour attachments) and order-preserving second phase
-    bool occlusion = false;        // occlusion queries allowed (CullMode::All; shadow maps need a non-negative depth bias)
+    std::string name;         // stats name: "camera", "light0", "light0.face3"
+    uint32_t slot = 0;        // key of the view's persistent history (camera 0, light i layer l: 1 + 6 i + l)
+    glm::mat4 viewProj{1.0f}; // clip = viewProj * world, Vulkan depth 0..1
+    bool camera = false;      // G-buffer target (two colour attachments) and order-preserving second phase
+    bool occlusion = false;   // occlusion queries allowed (CullMode::All; shadow maps need a non-negative depth bias)
 };
 
 struct Culling {
@@ -87,20 +87,19 @@ struct Culling {
     };
     struct Entry {
         uint32_t cluster;
-        uint32_t query;            // kNoQuery: drawn unconditionally
+        uint32_t query; // kNoQuery: drawn unconditionally
     };
     struct ViewPlan {
         CullView view;
-        std::vector<uint32_t> firstPhase;      // history clusters, ascending
-        std::vector<Entry> finalPhase;         // ascending by cluster
-        std::vector<uint32_t> groupQueryBegin; // per group query: first index in groupClusters
-        std::vector<uint32_t> groupClusters;   // clusters of each group query, in query order
+        std::vector<uint32_t> firstPhase;        // clusters of the history and near-plane cells, ascending
+        std::vector<Entry> finalPhase;           // ascending by cluster
+        std::vector<uint32_t> groupQueryBegin;   // per group query: first index in groupClusters
+        std::vector<uint32_t> groupClusters;     // clusters of each group query, in query order
         std::vector<uint32_t> historyQueryBegin; // per history-cell query: first index in historyClusters
-        std::vector<uint32_t> historyClusters;   // clusters of each history cell (drawn in phase 1, box tested against the final depth)
+        std::vector<uint32_t> historyClusters;   // clusters of each history cell, in query order
         std::vector<uint32_t> nearVisible;       // drawn in phase 1 and kept visible (cell box crosses the near plane)
-        uint32_t firstQuery = 0;               // group queries, then history tests
-        uint32_t firstCommand = 0;             // first-phase commands, then final-phase commands
-        uint32_t firstBox = 0;                 // boxes in query order
+        uint32_t firstQuery = 0;                 // group queries, then history tests
+        uint32_t firstCommand = 0;               // first-phase commands, then final-phase commands
         uint64_t nodesTested = 0;
         double cpuMs = 0;
     };
@@ -108,38 +107,41 @@ struct Culling {
 
     // Model
     bool enabled = false;
-    std::vector<TopNode> topNodes;                       // index 0: root
-    std::vector<glm::vec3> clusterMin, clusterMax;       // quantization boxes
+    std::vector<TopNode> topNodes;                 // index 0: root
+    std::vector<glm::vec3> clusterMin, clusterMax; // quantization boxes
     std::vector<uint32_t> clusterTriangles;
-    std::vector<VkDrawIndexedIndirectCommand> commands;  // per cluster, as in GpuGeometry::indirect
-    std::vector<uint32_t> clusterChunk;                  // chunk of each cluster
+    std::vector<VkDrawIndexedIndirectCommand> commands; // per cluster, as in GpuGeometry::indirect
+    std::vector<uint32_t> clusterChunk;                 // chunk of each cluster
     uint64_t totalTriangles = 0;
-    float boxMargin = 0;                                 // added to every queried box (model units)
+    float boxMargin = 0; // added to every queried box (model units)
     struct History {
         std::vector<uint8_t> visible;   // per cluster: visible last frame
         uint32_t frustumOnlyFrames = 0; // occlusion did not pay in this view: frames left culled by the frustum only
     };
-    std::unordered_map<uint32_t, History> history;       // per view slot
+    std::unordered_map<uint32_t, History> history; // per view slot
     // Frame
     CullMode mode = CullMode::None;
-    bool adaptive = true;                                // RenderSettings::adaptiveOcclusion
+    bool adaptive = true; // RenderSettings::adaptiveOcclusion
     std::vector<ViewPlan> plans;
-    std::vector<glm::vec3> queryBoxes;                   // min, max per query of the frame
+    std::vector<glm::vec3> queryBoxes; // min, max per query of the frame
     uint32_t queryCount = 0;
     // GPU
     VkPipelineLayout boxLayout = VK_NULL_HANDLE, predicateLayout = VK_NULL_HANDLE;
-    VkPipeline cameraBoxPipeline = VK_NULL_HANDLE, shadowBoxPipeline = VK_NULL_HANDLE, predicatePipeline = VK_NULL_HANDLE;
+    VkPipeline cameraBoxPipeline = VK_NULL_HANDLE, shadowBoxPipeline = VK_NULL_HANDLE,
+               predicatePipeline = VK_NULL_HANDLE;
     VkQueryPool queryPool = VK_NULL_HANDLE;
     uint32_t queryCapacity = 0;
-    vk::Buffer drawCommands;   // VkDrawIndexedIndirectCommand[]: all views' lists (host-visible; compute writes instanceCount)
+    vk::Buffer
+        drawCommands; // VkDrawIndexedIndirectCommand[]: all views' lists (host-visible; compute writes instanceCount)
     vk::Buffer commandQueries; // uint per command: its query, or kNoQuery
     vk::Buffer boxes;          // vec4 min, vec4 max per query
     vk::Buffer queryResults;   // uint per query, copied by vkCmdCopyQueryPoolResults
     VkDeviceAddress drawCommandsAddress = 0, commandQueriesAddress = 0, boxesAddress = 0, queryResultsAddress = 0;
 
-private:
+  private:
     void planView(ViewPlan& plan);
-    void drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand, const std::vector<uint32_t>& clusters);
+    void drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
+                  const std::vector<uint32_t>& clusters);
 };
 
 } // namespace penumbra

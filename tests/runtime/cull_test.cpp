@@ -21,9 +21,9 @@ constexpr uint32_t kFrames = 20;
 struct TestScene {
     const char* name;
     Mesh mesh;
-    glm::vec3 center;   // camera paths circle this point
-    float radius;       // at this distance
-    float height;       // and this height above the center
+    glm::vec3 center; // camera paths circle this point
+    float radius;     // at this distance
+    float height;     // and this height above the center
 };
 
 std::vector<TestScene> testScenes()
@@ -37,9 +37,11 @@ std::vector<TestScene> testScenes()
         Bounds bounds = computeBounds(scene.mesh);
         glm::vec3 extent = bounds.extent();
         // Low over the city (street level), inside the interior.
-        float radius = std::string(name) == "city" ? 0.3f * std::max(extent.x, extent.z) : 0.25f * std::max(extent.x, extent.z);
+        float radius =
+            std::string(name) == "city" ? 0.3f * std::max(extent.x, extent.z) : 0.25f * std::max(extent.x, extent.z);
         float height = std::string(name) == "city" ? 0.02f * extent.y : 0.4f * extent.y;
-        scenes.push_back({name, std::move(scene.mesh), bounds.center() - glm::vec3(0, 0.5f * extent.y, 0), radius, height});
+        scenes.push_back(
+            {name, std::move(scene.mesh), bounds.center() - glm::vec3(0, 0.5f * extent.y, 0), radius, height});
     }
     return scenes;
 }
@@ -109,8 +111,8 @@ uint64_t compareSequence(const TestScene& scene, ShadowMethod method, bool moveC
             settings.cull = i == 0 ? CullMode::None : CullMode::All;
             frames[i] = renderer.render(settings);
         }
-        const std::string what = std::string(scene.name) + " " + shadowMethodName(method) + (moveCamera ? " camera" : " light") +
-                                 " path, frame " + std::to_string(f);
+        const std::string what = std::string(scene.name) + " " + shadowMethodName(method) +
+                                 (moveCamera ? " camera" : " light") + " path, frame " + std::to_string(f);
         expectSameBits(frames[0].color.rgba, frames[1].color.rgba, what + ": color");
         expectSameBits(frames[0].positions, frames[1].positions, what + ": positions");
         expectSameBits(frames[0].visibility, frames[1].visibility, what + ": visibility");
@@ -196,7 +198,8 @@ TEST(Culling, CullsClustersOutsideTheFrustumAndBehindOccluders)
     EXPECT_GT(frustum.nodesTested, 0u);
     EXPECT_EQ(frustum.queriesIssued, 0u);
     EXPECT_GT(all.queriesIssued, 0u);
-    EXPECT_LT(all.trianglesDrawn, frustum.trianglesDrawn / 2) << "occlusion culling drops most of what the frustum keeps";
+    EXPECT_LT(all.trianglesDrawn, frustum.trianglesDrawn / 2)
+        << "occlusion culling drops most of what the frustum keeps";
     EXPECT_GT(all.clustersOccluded, 0u);
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
