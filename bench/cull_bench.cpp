@@ -4,7 +4,8 @@
 // steel structure (under its sun, then a lamp inside: six cube faces) and on
 // the city at street level (its sun).
 //   bench_cull [--frames N] [--size N] [--plant-triangles N] [--city-triangles N] [--device NAME]
-// The modes take turns: 2 warm-up frames each, then N frames each; median
+// The modes take turns: 6 warm-up frames each (pipelines, and an occlusion
+// history in which every visible cell was retested), then N frames each; median
 // times, last frame's counts.
 #include <algorithm>
 #include <chrono>
@@ -63,7 +64,7 @@ void measureLights(Renderer& renderer, const char* name, const char* sceneName, 
     // CullMode::All reads or writes it).
     const CullMode modes[3] = {CullMode::None, CullMode::Frustum, CullMode::All};
     Result results[3];
-    for (int frame = -2; frame < frames; ++frame)
+    for (int frame = -6; frame < frames; ++frame)
         for (int m = 0; m < 3; ++m) {
             settings.cull = modes[m];
             Frame rendered = renderer.render(settings);

@@ -254,7 +254,8 @@ void Culling::planView(ViewPlan& plan)
     auto start = std::chrono::steady_clock::now();
     const glm::dmat4 viewProj(plan.view.viewProj);
     const bool occlusion = plan.view.occlusion;
-    std::vector<uint8_t>& visible = history[plan.view.slot].visible;
+    History& state = history[plan.view.slot];
+    std::vector<uint8_t>& visible = state.visible;
     visible.resize(clusterMin.size(), 0);
     const glm::vec3 margin(boxMargin);
 
@@ -282,7 +283,7 @@ void Culling::planView(ViewPlan& plan)
     // PENUMBRA_CULL_CELL_CLUSTERS clusters) with history is drawn in phase 1
     // and its box tested against the final depth (next frame's history); a
     // cell at the near plane is drawn in phase 1 and stays visible.
-    enum class Role : uint8_t { Free, Group, HistoryCell, Near };
+    enum class Role : uint8_t { Free, Group, HistoryCell, Kept };
     struct Item {
         uint32_t node;
         Role role;
@@ -305,7 +306,10 @@ void Culling::planView(ViewPlan& plan)
                 plan.groupQueryBegin.push_back(uint32_t(plan.groupClusters.size()));
                 addQueryBox(node.min, node.max);
             } else if (node.clusterCount <= PENUMBRA_CULL_CELL_CLUSTERS) {
-                role = test.crossesNear ? Role::Near : Role::HistoryCell;
+                // A visible cell is tested every PENUMBRA_CULL_RETEST_FRAMES frames
+                // (staggered); in between it is kept, like a cell at the near plane.
+                const bool retest = (item.node + state.frame) % PENUMBRA_CULL_RETEST_FRAMES == 0;
+                role = test.crossesNear || !retest ? Role::Kept : Role::HistoryCell;
                 if (role == Role::HistoryCell) {
                     plan.historyQueryBegin.push_back(uint32_t(plan.historyClusters.size()));
                     historyCells.push_back(item.node);
@@ -325,9 +329,9 @@ void Culling::planView(ViewPlan& plan)
                 plan.firstPhase.push_back(node.cluster);
                 plan.historyClusters.push_back(node.cluster);
                 break;
-            case Role::Near:
+            case Role::Kept:
                 plan.firstPhase.push_back(node.cluster);
-                plan.nearVisible.push_back(node.cluster);
+                plan.keptVisible.push_back(node.cluster);
                 break;
             }
             continue;
@@ -345,6 +349,8 @@ void Culling::planView(ViewPlan& plan)
             plan.finalPhase.push_back({cluster, kNoQuery});
     std::sort(plan.finalPhase.begin(), plan.finalPhase.end(),
               [](const Entry& x, const Entry& y) { return x.cluster < y.cluster; });
+    if (occlusion)
+        ++state.frame;
     plan.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -583,7 +589,7 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
         } else {
             for (uint32_t cluster : plan.firstPhase)
                 drawn(cluster);
-            for (uint32_t cluster : plan.nearVisible)
+            for (uint32_t cluster : plan.keptVisible)
                 (*visible)[cluster] = 1;
             for (uint32_t g = 0; g < groupCount; ++g) {
                 uint32_t last = g + 1 < groupCount ? plan.groupQueryBegin[g + 1] : uint32_t(plan.groupClusters.size());
@@ -611,7 +617,7 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
             // frame) measure what occlusion culling buys in this view; when it
             // is little, the queries and the second phase cost more than they
             // save, so the view goes frustum-only for a while.
-            const uint64_t inFrustum = plan.firstPhase.size() + plan.groupClusters.size();
+            const uint64_t inFrustum = plan.historyClusters.size() + plan.groupClusters.size(); // the tested ones
             if (adaptive && historyCount > 0 &&
                 double(stats.clustersOccluded + hiddenHistory) < PENUMBRA_CULL_MIN_OCCLUDED * double(inFrustum))
                 history[plan.view.slot].frustumOnlyFrames = PENUMBRA_CULL_RETRY_FRAMES;

@@ -8,7 +8,9 @@
 //      subtrees (<= PENUMBRA_CULL_GROUP_CLUSTERS clusters, no history below);
 //   2. a compute pass turns the query results into the instance counts of a
 //      multi-draw-indirect list, drawn with the same pipeline state; then the
-//      phase-1 cells are queried against the final depth (next frame's history).
+//      phase-1 cells due for a retest (each every PENUMBRA_CULL_RETEST_FRAMES
+//      frames, staggered; kept visible in between) are queried against the
+//      final depth, which gives next frame's history.
 // Exactness. A shadow map keeps the minimum depth whatever the order, so its
 // phase 2 draws only the clusters whose box passed. The G-buffer keeps the
 // last of equally deep fragments (LESS_OR_EQUAL), so without culling a pixel
@@ -97,7 +99,7 @@ struct Culling {
         std::vector<uint32_t> groupClusters;     // clusters of each group query, in query order
         std::vector<uint32_t> historyQueryBegin; // per history-cell query: first index in historyClusters
         std::vector<uint32_t> historyClusters;   // clusters of each history cell, in query order
-        std::vector<uint32_t> nearVisible;       // drawn in phase 1 and kept visible (cell box crosses the near plane)
+        std::vector<uint32_t> keptVisible;       // drawn in phase 1 and kept visible untested (near plane, or not due)
         uint32_t firstQuery = 0;                 // group queries, then history tests
         uint32_t firstCommand = 0;               // first-phase commands, then final-phase commands
         uint64_t nodesTested = 0;
@@ -117,6 +119,7 @@ struct Culling {
     struct History {
         std::vector<uint8_t> visible;   // per cluster: visible last frame
         uint32_t frustumOnlyFrames = 0; // occlusion did not pay in this view: frames left culled by the frustum only
+        uint32_t frame = 0;             // frames planned with occlusion (staggers the retests of visible cells)
     };
     std::unordered_map<uint32_t, History> history; // per view slot
     // Frame

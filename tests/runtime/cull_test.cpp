@@ -178,7 +178,7 @@ TEST(Culling, CullsClustersOutsideTheFrustumAndBehindOccluders)
     auto cameraView = [&](CullMode mode) {
         settings.cull = mode;
         Frame frame;
-        for (int i = 0; i < 3; ++i) // occlusion culling needs a history
+        for (int i = 0; i < 6; ++i) // a history, with every visible cell retested once (PENUMBRA_CULL_RETEST_FRAMES)
             frame = renderer.render(settings);
         EXPECT_EQ(frame.stats.cull, mode);
         EXPECT_FALSE(frame.stats.views.empty());
