@@ -161,7 +161,7 @@ std::string summaryLine(const FrameStats& stats)
     line += std::string(" | cull ") + cullModeName(stats.cull);
     for (const ViewCullStats& view : stats.views) {
         uint64_t total = view.trianglesDrawn + view.trianglesCulled;
-        std::snprintf(buffer, sizeof(buffer), " | %s %.1f%% tris culled, %llu queries", view.name.c_str(),
+        std::snprintf(buffer, sizeof(buffer), " | %s %.2f ms, %.1f%% tris culled, %llu queries", view.name.c_str(), view.gpuMs,
                       total ? 100.0 * double(view.trianglesCulled) / double(total) : 0.0, (unsigned long long)view.queriesIssued);
         line += buffer;
     }
@@ -202,7 +202,8 @@ std::string statsJson(const FrameStats& stats)
                          {"triangles_drawn", view.trianglesDrawn},
                          {"triangles_culled", view.trianglesCulled},
                          {"queries_issued", view.queriesIssued},
-                         {"cull_cpu_ms", view.cpuMs}});
+                         {"cull_cpu_ms", view.cpuMs},
+                         {"gpu_ms", view.gpuMs}});
     json["views"] = views;
     json["gpu_ms"] = stats.gpuMs;
     json["frame_ms"] = stats.cpuMs;

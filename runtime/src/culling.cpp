@@ -142,6 +142,7 @@ void Culling::create(vk::Device& device, const std::vector<VkFormat>& cameraColo
     cameraBoxPipeline = createBoxPipeline(device, boxLayout, cameraColorFormats, depthFormat);
     shadowBoxPipeline = createBoxPipeline(device, boxLayout, {}, depthFormat);
     predicatePipeline = vk::createComputePipeline(device, "cull_predicates.comp", predicateLayout);
+    timestampPeriodNs = device.properties.limits.timestampPeriod;
 }
 
 void Culling::destroy(vk::Device& device)
@@ -151,13 +152,16 @@ void Culling::destroy(vk::Device& device)
     VkDevice d = device.device;
     if (queryPool)
         vkDestroyQueryPool(d, queryPool, nullptr);
+    if (timestampPool)
+        vkDestroyQueryPool(d, timestampPool, nullptr);
     for (VkPipeline p : {cameraBoxPipeline, shadowBoxPipeline, predicatePipeline})
         if (p)
             vkDestroyPipeline(d, p, nullptr);
     for (VkPipelineLayout l : {boxLayout, predicateLayout})
         if (l)
             vkDestroyPipelineLayout(d, l, nullptr);
-    queryPool = VK_NULL_HANDLE;
+    queryPool = timestampPool = VK_NULL_HANDLE;
+    timestampCapacity = 0;
     cameraBoxPipeline = shadowBoxPipeline = predicatePipeline = VK_NULL_HANDLE;
     boxLayout = predicateLayout = VK_NULL_HANDLE;
     queryCapacity = 0;
@@ -384,6 +388,17 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
         commandCount += uint32_t(plan.firstPhase.size() + plan.finalPhase.size());
         plans.push_back(std::move(plan));
     }
+    if (2 * plans.size() > timestampCapacity) {
+        if (timestampPool)
+            vkDestroyQueryPool(device.device, timestampPool, nullptr);
+        timestampPool = VK_NULL_HANDLE;
+        timestampCapacity = 0;
+        VkQueryPoolCreateInfo info{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+        info.queryType = VK_QUERY_TYPE_TIMESTAMP;
+        info.queryCount = 2 * uint32_t(plans.size());
+        VK_CHECK(vkCreateQueryPool(device.device, &info, nullptr, &timestampPool));
+        timestampCapacity = info.queryCount;
+    }
     if (mode == CullMode::None)
         return;
 
@@ -435,6 +450,8 @@ void Culling::resetQueries(VkCommandBuffer cmd)
 {
     if (queryCount)
         vkCmdResetQueryPool(cmd, queryPool, 0, queryCount);
+    if (!plans.empty())
+        vkCmdResetQueryPool(cmd, timestampPool, 0, 2 * uint32_t(plans.size()));
 }
 
 void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
@@ -460,6 +477,17 @@ void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_
 
 void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry,
                          const BeginRendering& begin, const EndRendering& end)
+{
+    const bool timed = viewIndex < plans.size();
+    if (timed)
+        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * viewIndex);
+    recordPhases(cmd, viewIndex, geometry, begin, end);
+    if (timed)
+        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * viewIndex + 1);
+}
+
+void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry,
+                           const BeginRendering& begin, const EndRendering& end)
 {
     if (!enabled || mode == CullMode::None || viewIndex >= plans.size()) {
         begin(true);
@@ -560,6 +588,11 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
     if (!enabled)
         return out;
     std::vector<uint32_t> results(queryCount);
+    std::vector<uint64_t> ticks(2 * plans.size());
+    if (!ticks.empty())
+        VK_CHECK(vkGetQueryPoolResults(device.device, timestampPool, 0, uint32_t(ticks.size()),
+                                       ticks.size() * sizeof(uint64_t), ticks.data(), sizeof(uint64_t),
+                                       VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
     if (queryCount)
         VK_CHECK(vkGetQueryPoolResults(device.device, queryPool, 0, queryCount, results.size() * sizeof(uint32_t),
                                        results.data(), sizeof(uint32_t), VK_QUERY_RESULT_WAIT_BIT));
@@ -568,6 +601,8 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
         stats.name = plan.view.name;
         stats.nodesTested = plan.nodesTested;
         stats.cpuMs = plan.cpuMs;
+        const size_t v = &plan - plans.data();
+        stats.gpuMs = double(ticks[2 * v + 1] - ticks[2 * v]) * timestampPeriodNs * 1e-6;
         const uint32_t groupCount = uint32_t(plan.groupQueryBegin.size());
         const uint32_t historyCount = uint32_t(plan.historyQueryBegin.size());
         stats.queriesIssued = groupCount + historyCount;

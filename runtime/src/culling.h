@@ -134,6 +134,9 @@ struct Culling {
                predicatePipeline = VK_NULL_HANDLE;
     VkQueryPool queryPool = VK_NULL_HANDLE;
     uint32_t queryCapacity = 0;
+    VkQueryPool timestampPool = VK_NULL_HANDLE; // two per view: before and after its passes
+    uint32_t timestampCapacity = 0;
+    float timestampPeriodNs = 1.0f;
     vk::Buffer
         drawCommands; // VkDrawIndexedIndirectCommand[]: all views' lists (host-visible; compute writes instanceCount)
     vk::Buffer commandQueries; // uint per command: its query, or kNoQuery
@@ -143,6 +146,8 @@ struct Culling {
 
   private:
     void planView(ViewPlan& plan);
+    void recordPhases(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
+                      const EndRendering& end);
     void drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
                   const std::vector<uint32_t>& clusters);
 };

@@ -185,6 +185,7 @@ TEST(Culling, CullsClustersOutsideTheFrustumAndBehindOccluders)
         for (const ViewCullStats& view : frame.stats.views) {
             EXPECT_EQ(view.trianglesDrawn + view.trianglesCulled, frame.stats.triangles) << view.name;
             EXPECT_GT(view.clustersDrawn, 0u) << view.name;
+            EXPECT_GT(view.gpuMs, 0.0) << view.name;
         }
         return frame.stats.views.at(0);
     };

@@ -104,6 +104,7 @@ struct ViewCullStats {
     uint64_t trianglesCulled = 0;
     uint64_t queriesIssued = 0;    // occlusion queries (node/cluster boxes)
     double cpuMs = 0;              // CPU time planning the view (traversal, draw lists, query boxes)
+    double gpuMs = 0;              // GPU time of the view's raster pass: both phases, queries, predicate pass
 };
 
 struct FrameStats {
