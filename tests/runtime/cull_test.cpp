@@ -11,6 +11,7 @@
 
 #include "penumbra/generate.h"
 #include "penumbra/penumbra.h"
+#include "penumbra/preprocess.h"
 #include "test_scenes.h"
 
 namespace penumbra {
@@ -87,10 +88,13 @@ void expectSameBits(const std::vector<float>& expected, const std::vector<float>
 
 // Renders the same frames with --cull none and --cull all (each renderer keeps
 // its own history) and compares them bit for bit. Returns the clusters that
-// occlusion queries culled over the sequence.
-uint64_t compareSequence(const TestScene& scene, ShadowMethod method, bool moveCamera)
+// occlusion queries culled over the sequence. chunkBytes: RendererOptions::maxModelBufferBytes.
+uint64_t compareSequence(const TestScene& scene, ShadowMethod method, bool moveCamera, uint32_t frameCount = kFrames,
+                         uint64_t chunkBytes = 0)
 {
-    Renderer reference, culled;
+    RendererOptions options;
+    options.maxModelBufferBytes = chunkBytes;
+    Renderer reference(options), culled(options);
     for (Renderer* renderer : {&reference, &culled})
         renderer->loadModel(scene.mesh);
     RenderSettings settings;
@@ -100,7 +104,7 @@ uint64_t compareSequence(const TestScene& scene, ShadowMethod method, bool moveC
     settings.readbackGBuffer = true;
     settings.adaptiveOcclusion = false; // queries in every view and frame, also where they do not pay
     uint64_t culledClusters = 0, occludedClusters = 0;
-    for (uint32_t f = 0; f < kFrames; ++f) {
+    for (uint32_t f = 0; f < frameCount; ++f) {
         const Camera camera = pathCamera(scene, moveCamera ? f : 3);
         const std::vector<Light> lights = pathLights(scene, moveCamera ? 3 : f);
         Frame frames[2];
@@ -155,6 +159,17 @@ TEST(Culling, LightPathIsBitIdenticalToNoCulling)
             occluded += compareSequence(scene, method, false);
         EXPECT_GT(occluded, 0u) << shadowMethodName(method);
     }
+}
+
+// A model split into many buffer chunks: the culled draw lists break at every
+// chunk boundary (one multi-draw per run of clusters in the same chunk).
+TEST(Culling, ChunkedModelIsBitIdenticalToNoCulling)
+{
+    for (const TestScene& scene : testScenes())
+        if (std::string(scene.name) == "city") {
+            ASSERT_GT(buildCompressedModel(scene.mesh, {}).vertices.size_bytes(), 4u * 16 * 1024);
+            compareSequence(scene, ShadowMethod::ShadowMap, true, 8, 16 * 1024);
+        }
 }
 
 // From street level most of the city is outside the frustum or behind the
