@@ -66,6 +66,7 @@ int main(int argc, char** argv)
         renderer.setLights(scene.lights);
         penumbra::RenderSettings settings;
         settings.width = settings.height = size;
+        settings.cull = penumbra::CullMode::None; // the same draws for both encodings (bench_cull measures culling)
 
         renderer.loadUncompressedReference(scene.mesh);
         uint64_t referenceBytes = renderer.modelDeviceBytes();

@@ -11,6 +11,12 @@
 #define PENUMBRA_TRACE_STACK_SIZE 64     // BVH traversal stack entries (>= model::kMaxBvhDepth)
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
 #define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range
+#define PENUMBRA_CULL_GROUP_SIZE 64     // cull_predicates.comp: draw commands per workgroup
+#define PENUMBRA_CULL_GROUP_CLUSTERS 64 // occlusion culling: largest BVH subtree (clusters) without history queried with one box
+#define PENUMBRA_CULL_CELL_CLUSTERS 8   // occlusion culling: largest subtree whose history is kept and tested as one box
+#define PENUMBRA_CULL_RETEST_FRAMES 4   // occlusion culling: a visible cell's box is tested against the final depth every this many frames
+#define PENUMBRA_CULL_MIN_OCCLUDED 0.1  // occlusion culling: a view that occludes less of its frustum's clusters than this
+#define PENUMBRA_CULL_RETRY_FRAMES 16   // ... is culled by its frustum only for this many frames, then tried again
 #define PENUMBRA_THIN_TEXELS 1.5         // thin-triangle pass: triangles narrower than this (texels) are rasterized conservatively
 #define PENUMBRA_MASK_GROUP_SIZE 8       // penumbra_mask.comp: workgroups of 8x8 texels of the coarser level
 #define PENUMBRA_MASK_TARGET_TEXELS 16.0 // penumbra splats are drawn at the mask level where they span at most this many texels

@@ -33,6 +33,7 @@ struct RenderArgs {
     int cameraIndex = 0;
     std::vector<std::string> lights;
     std::string shadows = "sm";
+    std::string cull = "all";
     uint32_t shadowMapSize = 2048;
     uint32_t samples = RenderSettings{}.lightSamples;
     uint32_t penumbraMaps = RenderSettings{}.penumbraMaps;
@@ -114,6 +115,7 @@ int runRender(const RenderArgs& args)
     RenderSettings settings;
     parseSize(args.size, settings);
     settings.shadows = parseShadowMethod(args.shadows);
+    settings.cull = parseCullMode(args.cull);
     settings.shadowMapSize = args.shadowMapSize;
     settings.lightSamples = args.samples;
     settings.penumbraMaps = args.penumbraMaps;
@@ -397,6 +399,9 @@ int main(int argc, char** argv)
                               "keys position direction up color intensity range inner_cone outer_cone width height radius; "
                               "e.g. --light 'directional direction=-1,-2,-1 intensity=3'");
     renderCommand->add_option("--shadows", render.shadows, "Shadow method: sm (shadow map), srt (selective ray tracing), frt (full ray tracing)")->capture_default_str();
+    renderCommand->add_option("--cull", render.cull,
+                              "Raster culling with the BVH: none, frustum, all (frustum + occlusion queries); same image in every mode")
+        ->capture_default_str();
     renderCommand->add_option("--debug-image", render.debugImage, "pip: tint the pixels given rays red (area lights: the penumbra mask)")->check(CLI::IsMember({"pip"}));
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
     renderCommand->add_option("--samples", render.samples, "Area lights, srt/frt: light samples per pixel (soft shadows)")->capture_default_str()->check(CLI::Range(4, 256));

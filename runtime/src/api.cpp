@@ -33,6 +33,27 @@ ShadowMethod parseShadowMethod(const std::string& name)
     fail("--shadows " + name, "unknown method (expected sm, srt or frt)");
 }
 
+const char* cullModeName(CullMode mode)
+{
+    switch (mode) {
+    case CullMode::None: return "none";
+    case CullMode::Frustum: return "frustum";
+    case CullMode::All: return "all";
+    }
+    return "unknown";
+}
+
+CullMode parseCullMode(const std::string& name)
+{
+    if (name == "none")
+        return CullMode::None;
+    if (name == "frustum")
+        return CullMode::Frustum;
+    if (name == "all")
+        return CullMode::All;
+    fail("--cull " + name, "unknown mode (expected none, frustum or all)");
+}
+
 float shadowRayOffset(const Bounds& bounds, float maxPositionError)
 {
     return std::max(1e-5f * glm::length(bounds.extent()), 4.0f * maxPositionError);
@@ -141,6 +162,13 @@ std::string summaryLine(const FrameStats& stats)
         std::snprintf(buffer, sizeof(buffer), " | %s %.2f ms", pass.name.c_str(), pass.gpuMs);
         line += buffer;
     }
+    line += std::string(" | cull ") + cullModeName(stats.cull);
+    for (const ViewCullStats& view : stats.views) {
+        uint64_t total = view.trianglesDrawn + view.trianglesCulled;
+        std::snprintf(buffer, sizeof(buffer), " | %s %.2f ms, %.1f%% tris culled, %llu queries", view.name.c_str(), view.gpuMs,
+                      total ? 100.0 * double(view.trianglesCulled) / double(total) : 0.0, (unsigned long long)view.queriesIssued);
+        line += buffer;
+    }
     std::snprintf(buffer, sizeof(buffer), " | gpu %.2f ms | frame %.2f ms", stats.gpuMs, stats.cpuMs);
     return line + buffer;
 }
@@ -170,6 +198,20 @@ std::string statsJson(const FrameStats& stats)
     for (const PassTiming& pass : stats.passes)
         passes[pass.name + "_ms"] = pass.gpuMs;
     json["passes"] = passes;
+    json["cull"] = cullModeName(stats.cull);
+    nlohmann::ordered_json views = nlohmann::ordered_json::array();
+    for (const ViewCullStats& view : stats.views)
+        views.push_back({{"name", view.name},
+                         {"nodes_tested", view.nodesTested},
+                         {"clusters_drawn", view.clustersDrawn},
+                         {"clusters_culled", view.clustersCulled},
+                         {"clusters_occluded", view.clustersOccluded},
+                         {"triangles_drawn", view.trianglesDrawn},
+                         {"triangles_culled", view.trianglesCulled},
+                         {"queries_issued", view.queriesIssued},
+                         {"cull_cpu_ms", view.cpuMs},
+                         {"gpu_ms", view.gpuMs}});
+    json["views"] = views;
     json["gpu_ms"] = stats.gpuMs;
     json["frame_ms"] = stats.cpuMs;
     return json.dump(2);

@@ -12,6 +12,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "config.h"
+#include "culling.h"
 #include "device.h"
 #include "light_space.h"
 #include "model_geometry.h"
@@ -335,6 +336,7 @@ struct Renderer::Impl {
     VkPipeline thinDetectPipeline = VK_NULL_HANDLE;
     VkPipeline classifyPipeline = VK_NULL_HANDLE, compactPipeline = VK_NULL_HANDLE, shadePipeline = VK_NULL_HANDLE;
     RayTracer tracer;
+    Culling culling;
     VkSampler nearestSampler = VK_NULL_HANDLE;
     VkDescriptorPool descriptorPool = VK_NULL_HANDLE;
     VkDescriptorSet classifySet = VK_NULL_HANDLE, compactSet = VK_NULL_HANDLE, shadeSet = VK_NULL_HANDLE, thinDetectSet = VK_NULL_HANDLE;
@@ -403,6 +405,7 @@ struct Renderer::Impl {
         compactPipeline = createComputePipeline(device, "compact.comp", compactLayout);
         shadePipeline = createComputePipeline(device, "shade.comp", shadeLayout);
         createRayTracer(device, tracer);
+        culling.create(device, {kPositionFormat, kNormalFormat}, kDepthFormat);
 
         VkSamplerCreateInfo samplerInfo{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
         samplerInfo.magFilter = samplerInfo.minFilter = VK_FILTER_NEAREST;
@@ -475,6 +478,7 @@ struct Renderer::Impl {
         vk::destroyBuffer(device, penumbraJobs);
         destroyGeometry(device, geometry);
         destroyRayTracer(device, tracer);
+        culling.destroy(device);
         vk::destroyBuffer(device, frameUniforms);
         vk::destroyBuffer(device, stats);
         vk::destroyBuffer(device, readbackStats);
@@ -663,12 +667,29 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     ensureTargets(settings.width, settings.height, settings.shadowMapSize, maxLayers);
     std::memcpy(frameUniforms.mapped, &frameData, sizeof(frameData));
 
+    // Raster views (camera, then every light's shadow-map layers) planned by the culling.
+    std::vector<CullView> cullViews{{"camera", 0, view.viewProj, true, true}};
+    std::vector<uint32_t> lightFirstView(frameLights.size());
+    const bool shadowOcclusion = settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
+    for (uint32_t i = 0; i < frameLights.size(); ++i) {
+        lightFirstView[i] = uint32_t(cullViews.size());
+        // Shadow maps drawn for the light: its layers, or an area light's maps (none for soft frt).
+        const bool area = isAreaLight(frameLights[i]);
+        const uint32_t maps = area ? (settings.shadows == ShadowMethod::FullRayTrace ? 0u : uint32_t(frameData.lights[i].spotCosLayers.w))
+                                   : uint32_t(frameData.lights[i].spotCosLayers.z);
+        for (uint32_t k = 0; k < maps; ++k)
+            cullViews.push_back({"light" + std::to_string(i) + (maps > 1 ? (area ? ".map" : ".face") + std::to_string(k) : ""), 1 + 6 * i + k,
+                                 frameData.lights[i].viewProj[k], false, shadowOcclusion});
+    }
+    culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, std::move(cullViews));
+
     VkCommandBuffer cmd = commandBuffer;
     VK_CHECK(vkResetCommandBuffer(cmd, 0));
     VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
     VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
     vkCmdResetQueryPool(cmd, queryPool, 0, kMaxTimestamps);
+    culling.resetQueries(cmd);
 
     std::vector<Pass> timestampPass;   // pass of the interval ending at timestamp i
     auto timestamp = [&](Pass endedPass) {
@@ -703,15 +724,13 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         for (int i = 0; i < 2; ++i) {
             colors[i].imageView = i == 0 ? position.view : normal.view;
             colors[i].imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-            colors[i].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
             colors[i].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
             colors[i].clearValue.color = {{0.0f, 0.0f, 0.0f, 0.0f}};
         }
         VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
         depthAttachment.imageView = depth.view;
         depthAttachment.imageLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
-        depthAttachment.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-        depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+        depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_STORE; // the culling's second phase loads it
         depthAttachment.clearValue.depthStencil = {1.0f, 0};
         VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
         rendering.renderArea = {{0, 0}, {width, height}};
@@ -719,13 +738,15 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         rendering.colorAttachmentCount = 2;
         rendering.pColorAttachments = colors;
         rendering.pDepthAttachment = &depthAttachment;
-        vkCmdBeginRendering(cmd, &rendering);
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelines[int(geometry.encoding)]);
-        setViewport(cmd, width, height);
         CameraPush push{view.viewProj, glm::vec4(view.eye, 1.0f)};
-        vkCmdPushConstants(cmd, gbufferLayout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(push), &push);
-        drawGeometry(cmd, geometry);
-        vkCmdEndRendering(cmd);
+        culling.recordView(cmd, 0, geometry, [&](bool clear) {
+            for (VkRenderingAttachmentInfo* attachment : {&colors[0], &colors[1], &depthAttachment})
+                attachment->loadOp = clear ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_LOAD;
+            vkCmdBeginRendering(cmd, &rendering);
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelines[int(geometry.encoding)]);
+            setViewport(cmd, width, height);
+            vkCmdPushConstants(cmd, gbufferLayout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(push), &push);
+        }, [&] { vkCmdEndRendering(cmd); });
     }
     timestamp(PassCamera);
     for (vk::Image* image : {&position, &normal})
@@ -739,24 +760,25 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     const uint32_t pixelCount = width * height;
     // Lights in reverse order, so that the visibility image ends with light 0's (readback).
     // Draws the model into shadow-map layer `layer` from viewProj.
-    auto drawShadowMap = [&](const glm::mat4& viewProj, uint32_t layer) {
+    // Draws the model into shadow-map layer `layer` from viewProj, culled as raster view `cullView`.
+    auto drawShadowMap = [&](const glm::mat4& viewProj, uint32_t layer, uint32_t cullView) {
         VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
         depthAttachment.imageView = shadowMap.layerViews[layer];
         depthAttachment.imageLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
-        depthAttachment.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
         depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
         depthAttachment.clearValue.depthStencil = {1.0f, 0};
         VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
         rendering.renderArea = {{0, 0}, {shadowSize, shadowSize}};
         rendering.layerCount = 1;
         rendering.pDepthAttachment = &depthAttachment;
-        vkCmdBeginRendering(cmd, &rendering);
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipelines[int(geometry.encoding)]);
-        setViewport(cmd, shadowSize, shadowSize);
-        vkCmdSetDepthBias(cmd, settings.depthBiasConstant, 0.0f, settings.depthBiasSlope);
-        vkCmdPushConstants(cmd, shadowLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &viewProj);
-        drawGeometry(cmd, geometry);
-        vkCmdEndRendering(cmd);
+        culling.recordView(cmd, cullView, geometry, [&](bool clear) {
+            depthAttachment.loadOp = clear ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_LOAD;
+            vkCmdBeginRendering(cmd, &rendering);
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipelines[int(geometry.encoding)]);
+            setViewport(cmd, shadowSize, shadowSize);
+            vkCmdSetDepthBias(cmd, settings.depthBiasConstant, 0.0f, settings.depthBiasSlope);
+            vkCmdPushConstants(cmd, shadowLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &viewProj);
+        }, [&] { vkCmdEndRendering(cmd); });
     };
     auto beginShadowMaps = [&] {
         transition(cmd, shadowMap, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, kCompute, 0,
@@ -884,7 +906,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                 const uint32_t slot = maps - 1 - m;
                 if (!full) {
                     beginShadowMaps();
-                    drawShadowMap(light.viewProj[slot], 0);
+                    drawShadowMap(light.viewProj[slot], 0, lightFirstView[lightIndex] + slot);
                     endShadowMaps();
                 }
                 if (selective) {
@@ -912,7 +934,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             // Shadow map from the light, every frame (moving light).
             beginShadowMaps();
             for (uint32_t layer = 0; layer < layers; ++layer)
-                drawShadowMap(light.viewProj[layer], layer);
+                drawShadowMap(light.viewProj[layer], layer, lightFirstView[lightIndex] + layer);
             endShadowMaps();
 
             if (selective) {
@@ -1031,6 +1053,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     for (uint32_t pass = 0; pass < PassCount; ++pass)
         if (ran[pass])
             out.passes.push_back({kPassNames[pass], passMs[pass]});
+    out.cull = settings.cull;
+    out.views = culling.endFrame(device);
     out.gpuMs = double(ticks.back() - ticks.front()) * period;
     out.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - cpuStart).count();
     return frame;
@@ -1129,6 +1153,7 @@ const DeviceInfo& Renderer::device() const { return impl->device.info; }
 void Renderer::loadModel(const CompressedModel& model)
 {
     impl->setGeometry(uploadCompressed(impl->device, model));
+    impl->culling.setModel(model, impl->geometry);
 }
 
 void Renderer::loadModel(const Mesh& mesh)
@@ -1141,6 +1166,7 @@ void Renderer::loadModel(const Mesh& mesh)
 void Renderer::loadUncompressedReference(const Mesh& mesh)
 {
     impl->setGeometry(uploadReference(impl->device, mesh));
+    impl->culling.clearModel();
 }
 
 uint64_t Renderer::modelDeviceBytes() const { return impl->geometry.deviceBytes; }

@@ -167,6 +167,7 @@ TEST(Cli, BadInputGetsOneClearLineAndNoImage)
 
     expectError(run("render --size 0 -o " + image), {"--size"});
     expectError(run("render --shadows magic -o " + image), {"--shadows", "magic"});
+    expectError(run("render --cull some -o " + image), {"--cull", "some"});
     expectError(run("render --light 'point position=1,2' -o " + image), {"--light"});
     expectError(run("render --device no-such-gpu -o " + image), {"no-such-gpu"});
     expectError(run("render -o " + tmp("image.unknownformat") + " --size 32"), {"image.unknownformat"});

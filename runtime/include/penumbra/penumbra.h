@@ -35,6 +35,17 @@ enum class ShadowMethod { ShadowMap, Selective, FullRayTrace };
 const char* shadowMethodName(ShadowMethod method);
 ShadowMethod parseShadowMethod(const std::string& name); // throws Error
 
+// Culling of the camera and shadow-map raster passes with the top of the
+// shared BVH (Lauterbach et al. 2009, section 5.1): none draws every cluster;
+// frustum drops clusters outside each view's frustum; all also drops clusters
+// hidden behind what the view drew last frame (two-phase occlusion queries).
+// The image is bit-identical in every mode; the ray tracer always sees the
+// whole BVH.
+enum class CullMode { None, Frustum, All };
+
+const char* cullModeName(CullMode mode);
+CullMode parseCullMode(const std::string& name); // throws Error
+
 struct DeviceInfo {
     uint32_t index = 0;          // position in vkEnumeratePhysicalDevices
     std::string name;            // e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
@@ -75,6 +86,10 @@ struct RenderSettings {
     uint32_t lightSamples = 16;         // srt/frt: light samples per pixel, 4..256
     uint32_t penumbraMaps = 1;          // srt: shadow maps whose masks mark the penumbra: 1 (centre) or 5 (centre and corners)
     uint32_t softShadowMaps = 4;        // sm: point-light shadow maps averaged over the light, 1..6
+    CullMode cull = CullMode::All;      // culling of the camera and shadow-map raster passes
+    // CullMode::All: a view whose occlusion queries cull little goes frustum-only
+    // for a few frames. false (tests): queries in every view, every frame.
+    bool adaptiveOcclusion = true;
 };
 
 // Linear-light RGBA float image, row-major, top row first.
@@ -87,6 +102,21 @@ struct Image {
 struct PassTiming {
     std::string name;   // "camera", "shadow_map", "shade", ...
     double gpuMs = 0;   // from timestamp queries
+};
+
+// Culling of one raster view: "camera", "light0", or "light0.face3" for the
+// cube faces of a point light's shadow map.
+struct ViewCullStats {
+    std::string name;
+    uint64_t nodesTested = 0;      // BVH top-level and cluster nodes tested against the frustum
+    uint64_t clustersDrawn = 0;    // clusters drawn in the view's final pass
+    uint64_t clustersCulled = 0;   // clusters of the model not drawn
+    uint64_t clustersOccluded = 0; // of those, the ones in the frustum culled by occlusion queries
+    uint64_t trianglesDrawn = 0;
+    uint64_t trianglesCulled = 0;
+    uint64_t queriesIssued = 0;    // occlusion queries (node/cluster boxes)
+    double cpuMs = 0;              // CPU time planning the view (traversal, draw lists, query boxes)
+    double gpuMs = 0;              // GPU time of the view's raster pass: both phases, queries, predicate pass
 };
 
 struct FrameStats {
@@ -107,6 +137,8 @@ struct FrameStats {
     float rayOffset = 0;          // shadow-ray origin offset used
     DeviceInfo device;
     std::vector<PassTiming> passes;
+    CullMode cull = CullMode::None;
+    std::vector<ViewCullStats> views; // per raster view; empty for the uncompressed reference
     double gpuMs = 0;       // first to last timestamp
     double cpuMs = 0;       // record + submit + wait + readback, wall clock
 };

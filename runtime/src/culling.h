@@ -1,0 +1,155 @@
+// Culling of the raster passes (camera G-buffer, shadow-map layers) with the
+// top of the shared BVH (Lauterbach et al. 2009, section 5.1): view-frustum
+// culling of nodes and clusters on the CPU, then occlusion culling with
+// Vulkan occlusion queries on node boxes, in two phases per view:
+//   1. draw the cells (subtrees of <= PENUMBRA_CULL_CELL_CLUSTERS clusters)
+//      this view found visible last frame, and the cells at the near plane;
+//      then query, against that depth, the boxes of the other frustum-visible
+//      subtrees (<= PENUMBRA_CULL_GROUP_CLUSTERS clusters, no history below);
+//   2. a compute pass turns the query results into the instance counts of a
+//      multi-draw-indirect list, drawn with the same pipeline state; then the
+//      phase-1 cells due for a retest (each every PENUMBRA_CULL_RETEST_FRAMES
+//      frames, staggered; kept visible in between) are queried against the
+//      final depth, which gives next frame's history.
+// Exactness. A shadow map keeps the minimum depth whatever the order, so its
+// phase 2 draws only the clusters whose box passed. The G-buffer keeps the
+// last of equally deep fragments (LESS_OR_EQUAL), so without culling a pixel
+// shows the last cluster, in ascending order, with a fragment at the minimum
+// depth m. Phase 2 of the camera draws, in ascending order, the passed
+// clusters and the phase-1 clusters after the first passed one, over phase
+// 1's colour and depth: if that last cluster is in phase 1 and before every
+// passed cluster, phase 1 already left it on top and nothing later reaches m;
+// otherwise phase 2 redraws it, after everything else at depth m. A cluster
+// that can reach a pixel at depth <= phase 1's depth there has a box that
+// passes its query (boxes are grown by a margin, drawn with the same depth
+// test, and a box crossing the near plane is never queried), so nothing
+// visible is dropped, with or without history (first frame, jumps).
+// Query results for the history are read on the CPU after the frame's fence
+// (no extra sync). The ray tracer never sees any of this.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <glm/mat4x4.hpp>
+
+#include "model_geometry.h"
+#include "penumbra/penumbra.h"
+#include "resources.h"
+
+namespace penumbra {
+
+// One raster view of a frame.
+struct CullView {
+    std::string name;         // stats name: "camera", "light0", "light0.face3"
+    uint32_t slot = 0;        // key of the view's persistent history (camera 0, light i layer l: 1 + 6 i + l)
+    glm::mat4 viewProj{1.0f}; // clip = viewProj * world, Vulkan depth 0..1
+    bool camera = false;      // G-buffer target (two colour attachments) and order-preserving second phase
+    bool occlusion = false;   // occlusion queries allowed (CullMode::All; shadow maps need a non-negative depth bias)
+};
+
+struct Culling {
+    // Begins the view's rendering: clear (first phase) or load (second phase)
+    // the depth, then binds the view's geometry pipeline and sets all of its
+    // state (viewport, depth bias, push constants).
+    using BeginRendering = std::function<void(bool clear)>;
+    using EndRendering = std::function<void()>;
+
+    // Creates the box pipelines (camera: colour formats of the G-buffer, writes
+    // masked; shadow: depth only) and the predicate compute pass.
+    void create(vk::Device& device, const std::vector<VkFormat>& cameraColorFormats, VkFormat depthFormat);
+    void destroy(vk::Device& device);
+
+    // CPU copy of the cluster boxes, triangle counts, draw commands and the BVH
+    // top (every node down to the Cluster nodes) of the model just uploaded;
+    // clears every view's history. clearModel: the uncompressed reference (no culling).
+    void setModel(const CompressedModel& model, const GpuGeometry& geometry);
+    void clearModel();
+
+    // Plans every view of the frame on the CPU (frustum traversal, draw lists,
+    // query boxes) and writes them into host-visible buffers; the previous
+    // frame must be finished. Then resetQueries outside any rendering.
+    void beginFrame(vk::Device& device, CullMode mode, bool adaptive, std::vector<CullView> views);
+    void resetQueries(VkCommandBuffer cmd);
+    // Records view `view` of beginFrame's list (with CullMode::None or no model: the whole geometry).
+    void recordView(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
+                    const EndRendering& end);
+    // After the frame's fence: reads the queries, updates the histories and
+    // returns per-view stats (empty without a compressed model).
+    std::vector<ViewCullStats> endFrame(vk::Device& device);
+
+    struct TopNode {
+        glm::vec3 min, max;        // union of the boxes below (cluster quantization boxes)
+        uint32_t firstChild = 0;   // index in topNodes; Interior only
+        uint32_t childCount = 0;   // 0: a Cluster node
+        uint32_t cluster = 0;      // Cluster nodes: cluster index
+        uint32_t clusterCount = 0; // clusters in the subtree
+    };
+    struct Entry {
+        uint32_t cluster;
+        uint32_t query; // kNoQuery: drawn unconditionally
+    };
+    struct ViewPlan {
+        CullView view;
+        std::vector<uint32_t> firstPhase;        // clusters of the history and near-plane cells, ascending
+        std::vector<Entry> finalPhase;           // ascending by cluster
+        std::vector<uint32_t> groupQueryBegin;   // per group query: first index in groupClusters
+        std::vector<uint32_t> groupClusters;     // clusters of each group query, in query order
+        std::vector<uint32_t> historyQueryBegin; // per history-cell query: first index in historyClusters
+        std::vector<uint32_t> historyClusters;   // clusters of each history cell, in query order
+        std::vector<uint32_t> keptVisible;       // drawn in phase 1 and kept visible untested (near plane, or not due)
+        uint32_t firstQuery = 0;                 // group queries, then history tests
+        uint32_t firstCommand = 0;               // first-phase commands, then final-phase commands
+        uint64_t nodesTested = 0;
+        double cpuMs = 0;
+    };
+    static constexpr uint32_t kNoQuery = ~0u;
+
+    // Model
+    bool enabled = false;
+    std::vector<TopNode> topNodes;                 // index 0: root
+    std::vector<glm::vec3> clusterMin, clusterMax; // quantization boxes
+    std::vector<uint32_t> clusterTriangles;
+    std::vector<VkDrawIndexedIndirectCommand> commands; // per cluster, as in GpuGeometry::indirect
+    std::vector<uint32_t> clusterChunk;                 // chunk of each cluster
+    uint64_t totalTriangles = 0;
+    float boxMargin = 0; // added to every queried box (model units)
+    struct History {
+        std::vector<uint8_t> visible;   // per cluster: visible last frame
+        uint32_t frustumOnlyFrames = 0; // occlusion did not pay in this view: frames left culled by the frustum only
+        uint32_t frame = 0;             // frames planned with occlusion (staggers the retests of visible cells)
+    };
+    std::unordered_map<uint32_t, History> history; // per view slot
+    // Frame
+    CullMode mode = CullMode::None;
+    bool adaptive = true; // RenderSettings::adaptiveOcclusion
+    std::vector<ViewPlan> plans;
+    std::vector<glm::vec3> queryBoxes; // min, max per query of the frame
+    uint32_t queryCount = 0;
+    // GPU
+    VkPipelineLayout boxLayout = VK_NULL_HANDLE, predicateLayout = VK_NULL_HANDLE;
+    VkPipeline cameraBoxPipeline = VK_NULL_HANDLE, shadowBoxPipeline = VK_NULL_HANDLE,
+               predicatePipeline = VK_NULL_HANDLE;
+    VkQueryPool queryPool = VK_NULL_HANDLE;
+    uint32_t queryCapacity = 0;
+    VkQueryPool timestampPool = VK_NULL_HANDLE; // two per view: before and after its passes
+    uint32_t timestampCapacity = 0;
+    float timestampPeriodNs = 1.0f;
+    vk::Buffer
+        drawCommands; // VkDrawIndexedIndirectCommand[]: all views' lists (host-visible; compute writes instanceCount)
+    vk::Buffer commandQueries; // uint per command: its query, or kNoQuery
+    vk::Buffer boxes;          // vec4 min, vec4 max per query
+    vk::Buffer queryResults;   // uint per query, copied by vkCmdCopyQueryPoolResults
+    VkDeviceAddress drawCommandsAddress = 0, commandQueriesAddress = 0, boxesAddress = 0, queryResultsAddress = 0;
+
+  private:
+    void planView(ViewPlan& plan);
+    void recordPhases(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
+                      const EndRendering& end);
+    void drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
+                  const std::vector<uint32_t>& clusters);
+};
+
+} // namespace penumbra
