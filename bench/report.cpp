@@ -590,7 +590,7 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << "Scene `" << o.sweepScene << "`, sphere-light radius as a fraction of the scene diagonal: ";
         for (double radius : o.lightRadii)
             md << number(radius) << " ";
-        md << "— soft: not available in this build (see light_size.csv; radius-0 rows are the hard-shadow records).\n";
+        md << "— no soft-shadow records in this run.\n";
     } else {
         md << "Scene `" << o.sweepScene << "`, " << o.lightSamples << " light samples, " << o.penumbraMaps
            << " penumbra map(s); median ms per frame and penumbra fraction (covered pixels with 0 < visibility "

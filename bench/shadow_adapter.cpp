@@ -8,11 +8,6 @@ const char* shadowKindName(ShadowKind kind)
     return kind == ShadowKind::Hard ? "hard" : "soft";
 }
 
-bool softShadowsAvailable()
-{
-    return true;
-}
-
 Frame renderHardShadows(Renderer& renderer, const RenderSettings& settings)
 {
     // The suite sets only point-like or directional lights for hard cases (area lights cast soft shadows).

@@ -1,8 +1,5 @@
 // The one place where the benchmark suite calls the renderer and the oracle
-// for a shadow computation, hard or soft. Soft shadows (issue #5) plug in
-// here and nowhere else: until this build's RenderSettings, FrameStats and
-// oracle have them, softShadowsAvailable() is false and the suite records
-// every soft case as "soft: not available in this build".
+// for a shadow computation, hard or soft.
 #pragma once
 
 #include <cstdint>
@@ -25,9 +22,6 @@ struct SoftShadowParams {
     uint32_t softShadowMaps = 4; // sm: point-light shadow maps averaged over the light
 };
 
-// True when renderSoftShadows and oracleSoftVisibility compute soft shadows.
-bool softShadowsAvailable();
-
 // One frame of hard shadows from the point-like or directional lights set on
 // the renderer, with settings.shadows choosing sm, srt or frt.
 Frame renderHardShadows(Renderer& renderer, const RenderSettings& settings);
@@ -35,7 +29,6 @@ Frame renderHardShadows(Renderer& renderer, const RenderSettings& settings);
 // One frame of soft shadows from the area light (rectangle, disk or sphere)
 // set on the renderer as light 0, settings.shadows choosing the method. Frame::visibility (with
 // readbackGBuffer) is the lit fraction of light 0 in [0, 1], -1 background.
-// Throws Error when !softShadowsAvailable().
 Frame renderSoftShadows(Renderer& renderer, const RenderSettings& settings, const SoftShadowParams& params);
 
 // Share of covered pixels in the penumbra (0 < visibility < 1) of a soft
@@ -48,7 +41,6 @@ double penumbraFraction(const Frame& frame, ShadowKind kind);
 // soft, kVisibilityBackground and kVisibilityBackFacing as in oracle.h.
 std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
                                         float rayOffset);
-// Throws Error when !softShadowsAvailable().
 std::vector<float> oracleSoftVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
                                         float rayOffset, const SoftShadowParams& params);
 

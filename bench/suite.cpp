@@ -33,7 +33,6 @@ namespace {
 
 constexpr ShadowMethod kGpuMethods[] = {ShadowMethod::ShadowMap, ShadowMethod::Selective, ShadowMethod::FullRayTrace};
 constexpr const char* kOracleName = "oracle";
-constexpr const char* kSoftUnavailable = "soft: not available in this build";
 
 double msSince(std::chrono::steady_clock::time_point start)
 {
@@ -198,9 +197,6 @@ class SuiteRunner {
         runScalability();
         runLightSweep();
         progressBar.finish();
-        if (!softShadowsAvailable())
-            results.notes.push_back(
-                "Soft shadows are not available in this build: every soft case is recorded as not available.");
         return std::move(results);
     }
 
@@ -297,19 +293,6 @@ class SuiteRunner {
         return r;
     }
 
-    void addUnavailable(const std::string& section, const LoadedScene& loaded, ShadowKind kind, double radius)
-    {
-        for (const char* method : {"sm", "srt", "frt", kOracleName}) {
-            Record r = baseRecord(section, loaded, method, kind);
-            r.available = false;
-            r.note = kSoftUnavailable;
-            r.lightRadius = radius;
-            r.frames = 0;
-            add(r);
-            stepDone(section + " " + loaded.name);
-        }
-    }
-
     // sm, srt, frt and the oracle on one loaded scene with the light already
     // set; errors against the oracle; images when imagePrefix is not empty.
     // Returns the records (also added to the results).
@@ -390,10 +373,6 @@ class SuiteRunner {
         std::string prefix = "images/" + loaded.name;
         renderer->setLights({loaded.light});
         measureAllMethods("methods", loaded, ShadowKind::Hard, loaded.light, 0.0, 1.0, kNoValue, prefix + "-hard");
-        if (!softShadowsAvailable()) {
-            addUnavailable("methods", loaded, ShadowKind::Soft, options.softLightRadius);
-            return;
-        }
         Light area = areaLightFor(loaded.light, loaded.bounds, options.softLightRadius);
         renderer->setLights({area});
         measureAllMethods("methods", loaded, ShadowKind::Soft, area, options.softLightRadius, 1.0, kNoValue,
@@ -452,14 +431,6 @@ class SuiteRunner {
                 copy.note = "radius 0: the hard-shadow record of the method comparison";
                 results.records.push_back(copy);
             }
-        if (!softShadowsAvailable()) {
-            LoadedScene placeholder;
-            placeholder.name = options.sweepScene;
-            placeholder.triangles = triangles;
-            for (double radius : options.lightRadii)
-                addUnavailable("light_size", placeholder, ShadowKind::Soft, radius);
-            return;
-        }
         step("light size: generate");
         LoadedScene loaded = generateAndLoad(*renderer, options.sweepScene, triangles);
         for (double radius : options.lightRadii) {

@@ -64,8 +64,6 @@ bool inMask(LightData light, ShadowLookup s)
     return false;
 }
 
-shared uint groupCovered, groupMarked;
-
 uvec2 classifyPixel()
 {
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
@@ -130,21 +128,9 @@ uvec2 classifyPixel()
     return uvec2(1u, mark ? 1u : 0u);
 }
 
+#include "pixel_counts.glsli"
+
 void main()
 {
-    if (gl_LocalInvocationIndex == 0u) {
-        groupCovered = 0u;
-        groupMarked = 0u;
-    }
-    barrier();
-    uvec2 counts = classifyPixel();
-    if (counts.x != 0u)
-        atomicAdd(groupCovered, counts.x);
-    if (counts.y != 0u)
-        atomicAdd(groupMarked, counts.y);
-    barrier();
-    if (gl_LocalInvocationIndex == 0u) {
-        atomicAdd(stats[PENUMBRA_STAT_COVERED], uint64_t(groupCovered));
-        atomicAdd(stats[PENUMBRA_STAT_PIP], uint64_t(groupMarked));
-    }
+    countPixels(classifyPixel());
 }

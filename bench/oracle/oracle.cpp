@@ -57,10 +57,12 @@ EmbreeOracle::~EmbreeOracle() = default;
 
 namespace {
 
-// Runs fn(firstPixel, endPixel, context) over blocks of pixels on all threads; returns the rays fn counted.
+// Runs fn(i, position, normal, context) for every covered pixel i (position
+// w != 0) on all threads; fn returns the rays it traced, summed and returned.
 template <typename Fn>
-uint64_t parallelPixels(size_t pixels, unsigned threads, Fn fn)
+uint64_t forEachCoveredPixel(const std::vector<float>& positions, const std::vector<float>& normals, unsigned threads, Fn fn)
 {
+    const size_t pixels = positions.size() / 4;
     std::atomic<size_t> next{0};
     std::atomic<uint64_t> traced{0};
     auto worker = [&] {
@@ -69,7 +71,11 @@ uint64_t parallelPixels(size_t pixels, unsigned threads, Fn fn)
         uint64_t local = 0;
         const size_t block = 1024;
         for (size_t begin = next.fetch_add(block); begin < pixels; begin = next.fetch_add(block))
-            local += fn(begin, std::min(pixels, begin + block), context);
+            for (size_t i = begin; i < std::min(pixels, begin + block); ++i) {
+                const float* p = &positions[i * 4];
+                if (p[3] != 0.0f)
+                    local += fn(i, glm::vec3(p[0], p[1], p[2]), glm::vec3(normals[i * 4], normals[i * 4 + 1], normals[i * 4 + 2]), context);
+            }
         traced += local;
     };
     threads = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
@@ -112,27 +118,18 @@ std::vector<float> EmbreeOracle::hardShadowVisibility(const std::vector<float>& 
     std::vector<float> visibility(pixels, kVisibilityBackground);
     bool directional = light.type == LightType::Directional;
     glm::vec3 towardLight = directional ? -glm::normalize(light.direction) : glm::vec3(0.0f);
-    rays = parallelPixels(pixels, options.threads, [&](size_t begin, size_t end, RTCIntersectContext& context) {
-        uint64_t local = 0;
-        for (size_t i = begin; i < end; ++i) {
-            const float* p = &positions[i * 4];
-            if (p[3] == 0.0f)
-                continue;
-            glm::vec3 position(p[0], p[1], p[2]);
-            glm::vec3 n(normals[i * 4], normals[i * 4 + 1], normals[i * 4 + 2]);
-            glm::vec3 dir = directional ? towardLight : light.position - position;
-            float distance = directional ? std::numeric_limits<float>::infinity() : glm::length(dir);
-            if (!directional)
-                dir /= std::max(distance, 1e-30f);
-            if (glm::dot(n, dir) <= 0.0f) {
-                visibility[i] = kVisibilityBackFacing;
-                continue;
-            }
-            ++local;
-            float tfar = directional ? std::numeric_limits<float>::infinity() : distance - options.originOffset;
-            visibility[i] = occluded(impl->scene, context, position + n * options.originOffset, dir, tfar) ? 0.0f : 1.0f;
+    rays = forEachCoveredPixel(positions, normals, options.threads, [&](size_t i, glm::vec3 position, glm::vec3 n, RTCIntersectContext& context) {
+        glm::vec3 dir = directional ? towardLight : light.position - position;
+        float distance = directional ? std::numeric_limits<float>::infinity() : glm::length(dir);
+        if (!directional)
+            dir /= std::max(distance, 1e-30f);
+        if (glm::dot(n, dir) <= 0.0f) {
+            visibility[i] = kVisibilityBackFacing;
+            return uint64_t(0);
         }
-        return local;
+        float tfar = directional ? std::numeric_limits<float>::infinity() : distance - options.originOffset;
+        visibility[i] = occluded(impl->scene, context, position + n * options.originOffset, dir, tfar) ? 0.0f : 1.0f;
+        return uint64_t(1);
     });
     return visibility;
 }
@@ -156,35 +153,25 @@ std::vector<float> EmbreeOracle::softShadowVisibility(const std::vector<float>& 
                                                               : PENUMBRA_AREA_SPHERE;
     const bool oneSided = light.type != LightType::Sphere;
     const glm::vec3 facing = oneSided ? glm::normalize(light.direction) : glm::vec3(0.0f);
-    rays = parallelPixels(pixels, options.threads, [&](size_t begin, size_t end, RTCIntersectContext& context) {
-        uint64_t local = 0;
-        for (size_t i = begin; i < end; ++i) {
-            const float* p = &positions[i * 4];
-            if (p[3] == 0.0f)
-                continue;
-            glm::vec3 position(p[0], p[1], p[2]);
-            glm::vec3 n(normals[i * 4], normals[i * 4 + 1], normals[i * 4 + 2]);
-            if (oneSided && glm::dot(position - light.position, facing) <= 0.0f) {
-                visibility[i] = kVisibilityBackFacing;
-                continue;
-            }
-            uint32_t seed = sampling::sampleSeed(uint32_t(i % width), uint32_t(i / width), lightIndex);
-            uint32_t visible = 0, above = 0;
-            for (uint32_t s = 0; s < samples; ++s) {
-                glm::vec3 target = sampling::areaLightPoint(shape, light.position, u, v, position, sampling::stratifiedSample(seed, s, samples));
-                glm::vec3 dir = target - position;
-                float distance = glm::length(dir);
-                dir /= std::max(distance, 1e-30f);
-                if (glm::dot(n, dir) <= 0.0f)
-                    continue;
-                ++above;
-                ++local;
-                if (!occluded(impl->scene, context, position + n * options.originOffset, dir, distance - options.originOffset))
-                    ++visible;
-            }
-            visibility[i] = above == 0 ? kVisibilityBackFacing : float(visible) / float(samples);
+    rays = forEachCoveredPixel(positions, normals, options.threads, [&](size_t i, glm::vec3 position, glm::vec3 n, RTCIntersectContext& context) {
+        if (oneSided && glm::dot(position - light.position, facing) <= 0.0f) {
+            visibility[i] = kVisibilityBackFacing;
+            return uint64_t(0);
         }
-        return local;
+        uint32_t seed = sampling::sampleSeed(uint32_t(i % width), uint32_t(i / width), lightIndex);
+        uint32_t visible = 0, above = 0;
+        for (uint32_t s = 0; s < samples; ++s) {
+            glm::vec3 target = sampling::areaLightPoint(shape, light.position, u, v, position, sampling::stratifiedSample(seed, s, samples));
+            glm::vec3 dir = target - position;
+            float distance = glm::length(dir);
+            dir /= std::max(distance, 1e-30f);
+            if (glm::dot(n, dir) <= 0.0f)
+                continue;
+            ++above;
+            visible += occluded(impl->scene, context, position + n * options.originOffset, dir, distance - options.originOffset) ? 0 : 1;
+        }
+        visibility[i] = above == 0 ? kVisibilityBackFacing : float(visible) / float(samples);
+        return uint64_t(above);
     });
     return visibility;
 }

@@ -23,6 +23,13 @@ struct SoftCase {
     Light light;
 };
 
+void load(Renderer& renderer, const SoftCase& c)
+{
+    renderer.loadModel(c.mesh);
+    renderer.setCamera(c.camera);
+    renderer.setLights({c.light});
+}
+
 Frame renderSoft(Renderer& renderer, ShadowMethod method, uint32_t size, uint32_t samples = 16, uint32_t penumbraMaps = 1)
 {
     RenderSettings settings;
@@ -108,9 +115,7 @@ TEST(SoftShadows, SelectiveAgreesWithFullRayTracingOnIdenticalSamples)
     for (SoftCase& c : softCases()) {
         SCOPED_TRACE(c.name);
         Renderer renderer;
-        renderer.loadModel(c.mesh);
-        renderer.setCamera(c.camera);
-        renderer.setLights({c.light});
+        load(renderer, c);
         Frame full = renderSoft(renderer, ShadowMethod::FullRayTrace, 256);
         Frame selective = renderSoft(renderer, ShadowMethod::Selective, 256);
         SoftComparison diff = compareSoft(full.visibility, selective.visibility, 1.0f / 16.0f);
@@ -132,9 +137,7 @@ TEST(SoftShadows, FullRayTracingAgreesWithTheOracleOnIdenticalSamples)
     for (SoftCase& c : softCases()) {
         SCOPED_TRACE(c.name);
         Renderer renderer;
-        renderer.loadModel(c.mesh);
-        renderer.setCamera(c.camera);
-        renderer.setLights({c.light});
+        load(renderer, c);
         const uint32_t samples = 16;
         Frame full = renderSoft(renderer, ShadowMethod::FullRayTrace, 256, samples);
         EmbreeOracle oracle(c.mesh);
@@ -159,9 +162,7 @@ TEST(SoftShadows, ShadowMapBaselineAveragesPointShadowMaps)
 {
     SoftCase c = std::move(softCases()[0]);
     Renderer renderer;
-    renderer.loadModel(c.mesh);
-    renderer.setCamera(c.camera);
-    renderer.setLights({c.light});
+    load(renderer, c);
     RenderSettings settings;
     settings.width = settings.height = 256;
     settings.readbackGBuffer = true;
@@ -187,9 +188,7 @@ TEST(SoftShadows, CornerMapsOnlyAddPixels)
 {
     SoftCase c = std::move(softCases()[0]);
     Renderer renderer;
-    renderer.loadModel(c.mesh);
-    renderer.setCamera(c.camera);
-    renderer.setLights({c.light});
+    load(renderer, c);
     Frame one = renderSoft(renderer, ShadowMethod::Selective, 256, 16, 1);
     Frame five = renderSoft(renderer, ShadowMethod::Selective, 256, 16, 5);
     EXPECT_GE(five.stats.pipPixels, one.stats.pipPixels);

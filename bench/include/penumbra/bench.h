@@ -50,9 +50,8 @@ std::string defaultResultsDir(const std::string& suite);
 
 // Runs the suite and writes the results folder (file list: README.md,
 // section Benchmarks). Prints one line per measured case to stdout. Throws
-// Error for bad options or when a file cannot be written; a case that
-// cannot run in this build (soft shadows before they exist) is recorded as
-// not available instead. Returns the number of records written.
+// Error for bad options or when a file cannot be written. Returns the number
+// of records written.
 size_t runSuite(const SuiteOptions& options);
 
 } // namespace penumbra
