@@ -11,6 +11,7 @@
 //    the map, whose plane cuts the light (self-shadowing terminator), or that the
 //    hard-shadow tests mark (a discontinuity that may affect the pixel, a thin
 //    triangle in front), and give every other pixel the centre map's umbra or lit;
+//    pixels only the hard-shadow tests mark get PENUMBRA_MARK_ONE_SAMPLE (one ray);
 //  mode 3 (frt): mark every pixel with a light sample above its plane;
 //  mode 4 (before the mask of map `slot` is built): per tile of the map, the
 //    deepest light-view depth of the pixels that project there.
@@ -119,7 +120,15 @@ uvec2 classifyPixel()
         vec3 L = towardLight(light, p, distance);
         bool boundary = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
                         thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, 0)).r), light, s, size, n, L);
-        mark = reached && (marks[index] != 0u || heights.x <= 0.0 || !s.inside || boundary || inMask(light, s));
+        bool penumbra = marks[index] != 0u || heights.x <= 0.0 || !s.inside || inMask(light, s);
+        mark = reached && (penumbra || boundary);
+        // Outside the mask no penumbra reaches the pixel: every light sample agrees, so one of
+        // them (sample 0, as frt traces it) decides the map's uncertain umbra/lit boundary.
+        if (mark && !penumbra) {
+            imageStore(outVisibility, pixel, vec4(0.0));
+            marks[index] = PENUMBRA_MARK_ONE_SAMPLE;
+            return uvec2(1u, 1u);
+        }
         if (reached && !mark)
             visibility = s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r ? 1.0 : 0.0;
     }

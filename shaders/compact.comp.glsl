@@ -44,5 +44,6 @@ void main()
         base = atomicAdd(rays[0], total);
     base = subgroupBroadcastFirst(base);
     if (marked)
-        rays[PENUMBRA_RAY_LIST_HEADER_UINTS + base + subgroupBallotExclusiveBitCount(ballot)] = i;
+        rays[PENUMBRA_RAY_LIST_HEADER_UINTS + base + subgroupBallotExclusiveBitCount(ballot)] =
+            i | (marks[i] == PENUMBRA_MARK_ONE_SAMPLE ? PENUMBRA_RAY_ONE_SAMPLE : 0u);
 }

@@ -26,8 +26,11 @@
 
 // Ray list written by compaction and read by the tracer (std430):
 // uint count; uint dispatch[3] (indirect dispatch of trace.comp); uint pixels[count]
-// where pixels[i] = y * width + x of a pixel to trace.
+// where pixels[i] = y * width + x of a pixel to trace, | PENUMBRA_RAY_ONE_SAMPLE when
+// the pixel was marked PENUMBRA_MARK_ONE_SAMPLE (area lights: trace light sample 0 only).
 #define PENUMBRA_RAY_LIST_HEADER_UINTS 4
+#define PENUMBRA_MARK_ONE_SAMPLE 2u      // marks[]: outside the penumbra, all light samples agree (1: trace all)
+#define PENUMBRA_RAY_ONE_SAMPLE 0x80000000u
 
 // Counters of one frame (std430 uint64_t array, atomically accumulated).
 #define PENUMBRA_STAT_RAYS 0             // rays traced

@@ -134,7 +134,7 @@ void splat(uvec2 c, uint level, float z)
     vec2 hi = min(lo + blockSize, vec2(float(S)));
     vec2 centreTexel = 0.5 * (lo + hi);
     // The occluder lies within the block; the margin covers the splat's departure from a projected polygon.
-    float dilation = level == 0u ? 0.25 : 0.5 * max(hi.x - lo.x, hi.y - lo.y);
+    float dilation = 0.5 * max(hi.x - lo.x, hi.y - lo.y) + (level == 0u ? 0.25 : 0.0);
     if (z <= gRbig * 1.0001) {
         markWholeMap(); // an occluder within the light's reach: its penumbra can cover anything
         return;

@@ -43,14 +43,16 @@ layout(push_constant) uniform Push
 // Soft shadows (area lights): the fraction of the pixel's light samples
 // (penumbra/light_sampling.h, seeded by the pixel) that no triangle blocks;
 // samples below the pixel's plane count as blocked and get no ray.
-float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, inout uint rays, inout TraceCounters counters)
+// oneSample: the pixel is outside the penumbra mask, so all samples agree: sample 0 decides.
+float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, bool oneSample, inout uint rays, inout TraceCounters counters)
 {
     if (!inFrontOfEmitter(light, p))
         return 0.0;
     uint shape = uint(light.positionType.w);
     uint seed = sampleSeed(uint(pixel.x), uint(pixel.y), push.lightIndex);
     uint visible = 0u;
-    for (uint i = 0u; i < push.samples; ++i) {
+    uint traced = oneSample ? 1u : push.samples;
+    for (uint i = 0u; i < traced; ++i) {
         vec3 target = areaLightPoint(shape, light.positionType.xyz, light.areaU.xyz, light.areaV.xyz, p,
                                      stratifiedSample(seed, i, push.samples));
         vec3 direction = target - p;
@@ -63,11 +65,11 @@ float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, ino
         if (!modelOccludes(push.modelTable, ray, counters))
             ++visible;
     }
-    return float(visible) / float(push.samples);
+    return float(visible) / float(traced);
 }
 
 // 1 lit, 0 shadowed; counts the ray when one is traced.
-float traceVisibility(uint pixelIndex, inout uint rays, inout TraceCounters counters)
+float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout TraceCounters counters)
 {
     uint width = uint(imageSize(positionImage).x);
     ivec2 pixel = ivec2(pixelIndex % width, pixelIndex / width);
@@ -78,7 +80,7 @@ float traceVisibility(uint pixelIndex, inout uint rays, inout TraceCounters coun
 
     LightData light = frame.lights[push.lightIndex];
     if (push.samples != 0u)
-        return traceSoftVisibility(pixel, position.xyz, normal, light, rays, counters);
+        return traceSoftVisibility(pixel, position.xyz, normal, light, oneSample, rays, counters);
     uint type = uint(light.positionType.w);
     vec3 direction;
     float tMax;
@@ -108,8 +110,9 @@ void main()
     uint rays = 0u;
     TraceCounters counters = TraceCounters(0u, 0u, 0u);
     if (index < rayCount) {
-        uint pixelIndex = rayPixels[index];
-        float visibility = traceVisibility(pixelIndex, rays, counters);
+        uint entry = rayPixels[index];
+        uint pixelIndex = entry & ~PENUMBRA_RAY_ONE_SAMPLE;
+        float visibility = traceVisibility(pixelIndex, (entry & PENUMBRA_RAY_ONE_SAMPLE) != 0u, rays, counters);
         uint width = uint(imageSize(visibilityImage).x);
         imageStore(visibilityImage, ivec2(pixelIndex % width, pixelIndex / width), vec4(visibility));
     }
