@@ -118,8 +118,10 @@ uvec2 classifyPixel()
         // mask leaves the occluder texel's neighbourhood to the hard-shadow tests.
         float distance;
         vec3 L = towardLight(light, p, distance);
+        bool lit = s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r;
+        // As for hard shadows, a thin occluder the map dropped matters only where the map says lit.
         bool boundary = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
-                        thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, 0)).r), light, s, size, n, L);
+                        (lit && thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, 0)).r), light, s, size, n, L));
         bool penumbra = marks[index] != 0u || heights.x <= 0.0 || !s.inside || inMask(light, s);
         mark = reached && (penumbra || boundary);
         // Outside the mask no penumbra reaches the pixel: every light sample agrees, so one of
@@ -130,7 +132,7 @@ uvec2 classifyPixel()
             return uvec2(1u, 1u);
         }
         if (reached && !mark)
-            visibility = s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r ? 1.0 : 0.0;
+            visibility = lit ? 1.0 : 0.0;
     }
     imageStore(outVisibility, pixel, vec4(visibility));
     marks[index] = mark ? 1u : 0u;
