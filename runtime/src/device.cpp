@@ -70,8 +70,26 @@ bool hasLayer(const char* name)
     return std::any_of(layers.begin(), layers.end(), [&](const VkLayerProperties& l) { return std::strcmp(l.layerName, name) == 0; });
 }
 
+// The loader unloads a driver with the last instance that uses it. NVIDIA's driver holds initial-exec TLS, and
+// glibc does not hand static TLS back when a library is unloaded, so after a few dozen renderers in one process
+// the driver no longer loads ("cannot allocate memory in static TLS block") and vkCreateInstance finds no driver.
+// One bare instance that lives as long as the process keeps every driver loaded once.
+void pinDrivers()
+{
+    static const VkInstance pinned = [] {
+        VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+        app.apiVersion = VK_API_VERSION_1_3;
+        VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+        info.pApplicationInfo = &app;
+        VkInstance instance = VK_NULL_HANDLE;
+        return vkCreateInstance(&info, nullptr, &instance) == VK_SUCCESS ? instance : VK_NULL_HANDLE;
+    }();
+    (void)pinned;
+}
+
 VkInstance createInstance(bool validation, const VkDebugUtilsMessengerCreateInfoEXT* messengerInfo)
 {
+    pinDrivers();
     VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
     app.pApplicationName = "penumbra";
     app.pEngineName = "penumbra";
