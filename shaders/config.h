@@ -5,7 +5,7 @@
 
 #define PENUMBRA_MAX_LIGHTS 8            // lights shaded per frame
 #define PENUMBRA_SHADE_GROUP_SIZE 8      // shade.comp and classify.comp workgroups are 8x8 pixels
-#define PENUMBRA_THIN_DETECT_GROUP_SIZE 64 // thin_detect.comp: BVH nodes per workgroup
+#define PENUMBRA_THIN_DETECT_GROUP_SIZE 64 // thin_detect.comp: BVH nodes per workgroup, strip bytes decoded at once
 
 #define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: rays per workgroup
 #define PENUMBRA_TRACE_STACK_SIZE 64     // BVH traversal stack entries (>= model::kMaxBvhDepth)

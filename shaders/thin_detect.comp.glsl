@@ -1,9 +1,9 @@
 // Thin-triangle detection for the conservative rasterization of thin
 // triangles in the light view (Lauterbach et al. 2009, section 3.1; no
-// conservative-rasterization extension on lavapipe). One invocation per BVH
-// node; a Leaf node decodes its strip range exactly as the tracer does
+// conservative-rasterization extension on lavapipe). Leaves are decoded
+// one invocation per strip byte (see main), exactly as the tracer does
 // (bvh_traversal.glsli: forEachStripTriangle, decodeVertex, degenerate
-// triangles skipped) unless its smallest model-space altitude (computed at
+// triangles skipped) unless the leaf's smallest model-space altitude (computed at
 // upload) rules out slivers at this light's texel size, projects every triangle with the layer's viewProj and
 // keeps those whose height over their longest edge (or whose longest edge)
 // is under PENUMBRA_THIN_TEXELS texels: such a triangle may be missed by the
@@ -19,6 +19,8 @@
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_8bit_storage : require
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_ballot : require
 
 #include "config.h"
 #include "bvh_traversal.glsli"
@@ -117,60 +119,79 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
+shared uint passingLeaves[PENUMBRA_THIN_DETECT_GROUP_SIZE];
+shared uint passingCount;
+
+// A leaf whose every triangle is wider than the thin threshold in model space, at the smallest texel size
+// the leaf can see, holds no sliver unless seen edge-on; edge-on faces of closed objects are covered by
+// their neighbours in the shadow map, so such a leaf is skipped without decoding.
+bool mayHoldSlivers(ModelTable table, uint index, uvec4 leaf)
+{
+    if (push.leafAltitudes == 0ul)
+        return true;
+    float altitude = LeafAltitudes(push.leafAltitudes).altitude[index];
+    float texel = push.texelSize;
+    if (push.light.w != 0.0) {
+        ClusterInfo cluster = loadCluster(table, leaf.z);
+        vec3 boxMax = cluster.boxMin + 65535.0 * cluster.step;
+        texel *= distance(clamp(push.light.xyz, cluster.boxMin, boxMax), push.light.xyz) * push.light.w;
+    }
+    return altitude < PENUMBRA_THIN_TEXELS * texel;
+}
+
+// Each workgroup takes PENUMBRA_THIN_DETECT_GROUP_SIZE BVH nodes and keeps the leaves that may hold
+// slivers; each subgroup then decodes its share of them, one invocation per strip byte, so that the
+// triangles of a leaf are projected in parallel. A byte's place in its strip (which decides the
+// winding) comes from the last restart before it: an inclusive max-scan of restart positions.
 void main()
 {
+    const uint lane = gl_LocalInvocationIndex;
+    if (lane == 0u)
+        passingCount = 0u;
+    barrier();
     // Groups may be laid out in 2D when the nodes exceed maxComputeWorkGroupCount[0].
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint index = group * PENUMBRA_THIN_DETECT_GROUP_SIZE + gl_LocalInvocationIndex;
-    if (index >= push.nodeCount)
-        return;
+    uint index = group * PENUMBRA_THIN_DETECT_GROUP_SIZE + lane;
     ModelTable table = ModelTable(push.modelTable);
     NodeChunks nodeChunks = NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift);
-    uvec4 leaf = loadNode(nodeChunks, index);
-    if (((leaf.y >> 16) & 0xFFu) != PENUMBRA_NODE_LEAF)
-        return;
-    GeometryChunks chunks = geometryChunksOf(push.modelTable, table);
-    ClusterInfo cluster = loadCluster(table, leaf.z);
-    vec3 boxMin = cluster.boxMin, step = cluster.step;
-
-    // A leaf whose every triangle is wider than the thin threshold in model
-    // space, at the smallest texel size the leaf can see, holds no sliver
-    // unless seen edge-on; edge-on faces of closed objects are covered by their
-    // neighbours in the shadow map, so the leaf is skipped without decoding.
-    if (push.leafAltitudes != 0ul) {
-        float altitude = LeafAltitudes(push.leafAltitudes).altitude[index];
-        float texel = push.texelSize;
-        if (push.light.w != 0.0) {
-            vec3 boxMax = boxMin + 65535.0 * step;
-            texel *= distance(clamp(push.light.xyz, boxMin, boxMax), push.light.xyz) * push.light.w;
-        }
-        if (altitude >= PENUMBRA_THIN_TEXELS * texel)
-            return;
+    if (index < push.nodeCount) {
+        uvec4 node = loadNode(nodeChunks, index);
+        if (((node.y >> 16) & 0xFFu) == PENUMBRA_NODE_LEAF && mayHoldSlivers(table, index, node))
+            passingLeaves[atomicAdd(passingCount, 1u)] = index;
     }
-    // The strips, decoded as leafOccludes() in bvh_traversal.glsli does.
-    LeafStrips leafStrips = openLeaf(table, chunks, cluster, leaf);
-    VertexArray vertices = leafStrips.vertices;
-    ByteArray strips = leafStrips.strips;
-    uint count = leafStrips.count;
-
-    uint i0 = 0u, i1 = 0u;
-    vec3 p0 = vec3(0.0), p1 = vec3(0.0);
-    uint position = 0u; // bytes of the current strip so far
-    for (uint byteIndex = 0u; byteIndex < count; ++byteIndex) {
-        uint i2 = uint(strips.bytes[byteIndex]);
-        if (i2 == 0xFFu) {
-            position = 0u;
-            continue;
+    barrier();
+    const uint leafCount = passingCount;
+    GeometryChunks chunks = geometryChunksOf(push.modelTable, table);
+    for (uint j = gl_SubgroupID; j < leafCount; j += gl_NumSubgroups) {
+        uvec4 leaf = loadNode(nodeChunks, passingLeaves[j]);
+        ClusterInfo cluster = loadCluster(table, leaf.z);
+        // The strips, decoded as leafOccludes() in bvh_traversal.glsli does.
+        LeafStrips leafStrips = openLeaf(table, chunks, cluster, leaf);
+        ByteArray strips = leafStrips.strips;
+        // Active invocations of the subgroup, in order (all of them, unless the subgroup is partial).
+        uvec4 lanes = subgroupBallot(true);
+        uint width = subgroupBallotBitCount(lanes), slot = subgroupBallotExclusiveBitCount(lanes);
+        int lastRestart = -1; // of the bytes before this chunk
+        for (uint chunkStart = 0u; chunkStart < leafStrips.count; chunkStart += width) {
+            uint k = chunkStart + slot;
+            bool inside = k < leafStrips.count;
+            uint i2 = inside ? uint(strips.bytes[k]) : 0u;
+            int restart = inside && i2 == 0xFFu ? int(k) : -1;
+            int before = max(lastRestart, subgroupExclusiveMax(restart)); // last restart before k
+            lastRestart = max(lastRestart, subgroupMax(restart));
+            // Invocations leave this iteration together (no continue): the next one's subgroup
+            // operations need every invocation of the subgroup.
+            uint position = k - uint(before + 1); // bytes of this strip before k
+            if (inside && i2 != 0xFFu && position >= 2u) {
+                uint i0 = uint(strips.bytes[k - 2u]), i1 = uint(strips.bytes[k - 1u]);
+                if (i0 != i1 && i1 != i2 && i0 != i2) {
+                    vec3 p0 = decodeVertex(leafStrips.vertices.vertices[i0], cluster.boxMin, cluster.step);
+                    vec3 p1 = decodeVertex(leafStrips.vertices.vertices[i1], cluster.boxMin, cluster.step);
+                    vec3 p2 = decodeVertex(leafStrips.vertices.vertices[i2], cluster.boxMin, cluster.step);
+                    bool odd = ((position - 2u) & 1u) != 0u;
+                    emitIfThin(odd ? p1 : p0, odd ? p0 : p1, p2);
+                }
+            }
         }
-        vec3 p2 = decodeVertex(vertices.vertices[i2], boxMin, step);
-        if (position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
-            bool odd = ((position - 2u) & 1u) != 0u;
-            emitIfThin(odd ? p1 : p0, odd ? p0 : p1, p2);
-        }
-        i0 = i1;
-        p0 = p1;
-        i1 = i2;
-        p1 = p2;
-        ++position;
     }
 }

@@ -201,11 +201,18 @@ VkPhysicalDevice choosePhysicalDevice(VkInstance instance, const std::string& re
     if (devices.empty())
         fail("vulkan", "no Vulkan device found (install mesa-vulkan-drivers for lavapipe)");
 
+    // Vulkan 1.3, a graphics+compute queue with timestamps, and the subgroup operations the compute
+    // shaders use (ballot in the penumbra mask, ballot and arithmetic in the thin-triangle pass).
     auto usable = [](VkPhysicalDevice d) {
-        VkPhysicalDeviceProperties p;
-        vkGetPhysicalDeviceProperties(d, &p);
+        VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+        VkPhysicalDeviceProperties2 p{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+        p.pNext = &subgroup;
+        vkGetPhysicalDeviceProperties2(d, &p);
+        const VkSubgroupFeatureFlags needed = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT |
+                                              VK_SUBGROUP_FEATURE_ARITHMETIC_BIT;
         uint32_t family;
-        return p.apiVersion >= VK_API_VERSION_1_3 && graphicsComputeFamily(d, family);
+        return p.properties.apiVersion >= VK_API_VERSION_1_3 && (subgroup.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) &&
+               (subgroup.supportedOperations & needed) == needed && graphicsComputeFamily(d, family);
     };
 
     if (!request.empty()) {
@@ -219,7 +226,7 @@ VkPhysicalDevice choosePhysicalDevice(VkInstance instance, const std::string& re
             bool match = numeric ? index == i : lower(info.name).find(lower(request)) != std::string::npos;
             if (match) {
                 if (!usable(devices[i]))
-                    fail("--device " + request, "'" + info.name + "' lacks Vulkan 1.3 or a graphics+compute queue with timestamps");
+                    fail("--device " + request, "'" + info.name + "' lacks Vulkan 1.3, compute subgroup operations or a graphics+compute queue with timestamps");
                 return devices[i];
             }
         }
