@@ -119,7 +119,7 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-shared uint passingLeaves[PENUMBRA_THIN_DETECT_GROUP_SIZE];
+shared uvec4 passingLeaves[PENUMBRA_THIN_DETECT_GROUP_SIZE]; // the leaf nodes themselves
 shared uint passingCount;
 
 // A leaf whose every triangle is wider than the thin threshold in model space, at the smallest texel size
@@ -157,13 +157,13 @@ void main()
     if (index < push.nodeCount) {
         uvec4 node = loadNode(nodeChunks, index);
         if (((node.y >> 16) & 0xFFu) == PENUMBRA_NODE_LEAF && mayHoldSlivers(table, index, node))
-            passingLeaves[atomicAdd(passingCount, 1u)] = index;
+            passingLeaves[atomicAdd(passingCount, 1u)] = node;
     }
     barrier();
     const uint leafCount = passingCount;
     GeometryChunks chunks = geometryChunksOf(push.modelTable, table);
     for (uint j = gl_SubgroupID; j < leafCount; j += gl_NumSubgroups) {
-        uvec4 leaf = loadNode(nodeChunks, passingLeaves[j]);
+        uvec4 leaf = passingLeaves[j];
         ClusterInfo cluster = loadCluster(table, leaf.z);
         // The strips, decoded as leafOccludes() in bvh_traversal.glsli does.
         LeafStrips leafStrips = openLeaf(table, chunks, cluster, leaf);
