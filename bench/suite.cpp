@@ -553,7 +553,7 @@ namespace bench {
 
 size_t stageGroupOf(const std::string& passName)
 {
-    static const std::map<std::string, size_t> groups = {{"camera", 0},        {"shadow_map", 0}, {"thin_triangles", 1},
+    static const std::map<std::string, size_t> groups = {{"camera", 0},        {"view_fit", 0},   {"shadow_map", 0},     {"thin_triangles", 1},
                                                          {"penumbra_mask", 1}, {"classify", 1},   {"compact", 2},
                                                          {"trace", 3},         {"shade", 4},      {"readback", 5}};
     auto it = groups.find(passName);

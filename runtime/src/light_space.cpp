@@ -12,10 +12,12 @@ namespace penumbra {
 
 namespace {
 
-// Flips y so that row 0 of every render target is the top of the view.
+// Flips y so that row 0 of every render target is the top of the view: the
+// whole y row, so that off-centre (asymmetric) projections stay in range.
 glm::mat4 vulkanClip(glm::mat4 projection)
 {
-    projection[1][1] *= -1.0f;
+    for (int column = 0; column < 4; ++column)
+        projection[column][1] = -projection[column][1];
     return projection;
 }
 
@@ -104,6 +106,8 @@ LightProjection lightProjection(const Light& light, const Bounds& bounds)
         glm::mat4 projection = glm::orthoRH_ZO(lo.x - margin, hi.x + margin, lo.y - margin, hi.y + margin, result.nearPlane, result.farPlane);
         result.viewProj[0] = vulkanClip(projection) * view;
         result.footprint = std::max(hi.x - lo.x, hi.y - lo.y) + 2.0f * margin;
+        result.view = view;
+        result.orthoRect = glm::vec4(lo.x - margin, hi.x + margin, lo.y - margin, hi.y + margin);
         return result;
     }
     result.perspective = true;
@@ -136,6 +140,37 @@ LightProjection lightProjection(const Light& light, const Bounds& bounds)
         result.viewProj[face] =
             vulkanClip(glm::perspectiveRH_ZO(glm::radians(90.0f), 1.0f, result.nearPlane, result.farPlane)) * view;
     }
+    return result;
+}
+
+LightProjection fitDirectionalToView(const LightProjection& modelFit, glm::vec3 clipMin, glm::vec3 clipMax, uint32_t mapSize)
+{
+    if (modelFit.perspective || !(clipMin.x <= clipMax.x && clipMin.y <= clipMax.y))
+        return modelFit;
+    // Back from clip space: x = left + (c + 1) / 2 (right - left); Vulkan's y
+    // is flipped, y = bottom + (1 - c) / 2 (top - bottom).
+    const glm::vec4 rect = modelFit.orthoRect;
+    const float width = rect.y - rect.x, height = rect.w - rect.z;
+    auto toX = [&](float c) { return rect.x + 0.5f * (std::clamp(c, -1.0f, 1.0f) + 1.0f) * width; };
+    auto toY = [&](float c) { return rect.z + 0.5f * (1.0f - std::clamp(c, -1.0f, 1.0f)) * height; };
+    float left = toX(clipMin.x), right = toX(clipMax.x), bottom = toY(clipMax.y), top = toY(clipMin.y);
+    // A floor on the extent (a view of one flat point), then the margin in
+    // texels of the narrowed map: m = k (extent + 2 m) / size.
+    const float minExtent = 1e-4f * std::max(width, height);
+    const float extent = std::max({right - left, top - bottom, minExtent});
+    const float texels = float(PENUMBRA_VIEW_FIT_MARGIN_TEXELS);
+    const float margin = texels * extent / std::max(float(mapSize) - 2.0f * texels, 1.0f);
+    left = std::max(rect.x, left - margin);
+    right = std::min(rect.y, std::max(right, left + minExtent) + margin);
+    bottom = std::max(rect.z, bottom - margin);
+    top = std::min(rect.w, std::max(top, bottom + minExtent) + margin);
+    if (right - left >= 0.99f * width && top - bottom >= 0.99f * height)
+        return modelFit;
+    LightProjection result = modelFit;
+    glm::mat4 projection = glm::orthoRH_ZO(left, right, bottom, top, modelFit.nearPlane, modelFit.farPlane);
+    result.viewProj[0] = vulkanClip(projection) * modelFit.view;
+    result.footprint = std::max(right - left, top - bottom);
+    result.orthoRect = glm::vec4(left, right, bottom, top);
     return result;
 }
 

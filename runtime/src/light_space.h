@@ -25,8 +25,22 @@ struct LightProjection {
     float nearPlane = 0, farPlane = 1; // light-view depth range of every layer
     bool perspective = false;
     float footprint = 1;               // perspective: 2 tan(fov/2); orthographic: map width in model units
+    // Orthographic (directional lights): the light's view and the map's
+    // x (left, right) and y (bottom, top) range in it.
+    glm::mat4 view{1.0f};
+    glm::vec4 orthoRect{0.0f};
 };
 LightProjection lightProjection(const Light& light, const Bounds& bounds);
+
+// Directional lights, fitted to the view: narrows the model-fitted map in x
+// and y to the light-space bounds of the surface the camera sees, given in the
+// model-fitted map's clip space (view_bounds.comp.glsl), grown by
+// PENUMBRA_VIEW_FIT_MARGIN_TEXELS texels of a mapSize map. The depth range
+// stays, so every caster between the light and those receivers is still in
+// the map, and the casters beside them fall out of its frustum (culling). The
+// texels get finer by the same factor. Returns modelFit unchanged when the
+// bounds are empty (nothing covered) or would not make the map smaller.
+LightProjection fitDirectionalToView(const LightProjection& modelFit, glm::vec3 clipMin, glm::vec3 clipMax, uint32_t mapSize);
 
 // Shadow map of an area light from one of its points (soft shadows): a single
 // perspective map looking along axis, its field of view fitted to the scene

@@ -47,10 +47,11 @@ constexpr uint32_t kMaxTimestamps = 256;
 
 // Named passes, in the order stats report them.
 enum Pass : uint32_t {
-    PassCamera, PassShadowMap, PassThinTriangles, PassPenumbraMask, PassClassify, PassCompact, PassTrace, PassShade, PassReadback, PassCount
+    PassCamera, PassViewFit, PassShadowMap, PassThinTriangles, PassPenumbraMask, PassClassify, PassCompact, PassTrace, PassShade,
+    PassReadback, PassCount
 };
-constexpr const char* kPassNames[PassCount] = {"camera",  "shadow_map", "thin_triangles", "penumbra_mask", "classify",
-                                               "compact", "trace",      "shade",          "readback"};
+constexpr const char* kPassNames[PassCount] = {"camera",   "view_fit", "shadow_map", "thin_triangles", "penumbra_mask", "classify",
+                                               "compact",  "trace",    "shade",      "readback"};
 
 struct GraphicsPipelineDesc {
     std::string vertexShader;                 // registry name; ".float" is appended for the reference encoding
@@ -164,6 +165,12 @@ struct ThinDetectPush {
 };
 static_assert(sizeof(ThinDetectPush) == 128);
 
+struct ViewBoundsPush {
+    VkDeviceAddress keys; // view_bounds.comp.glsl
+    uint32_t lightMask;
+    uint32_t pad;
+};
+
 struct ClassifyPush {
     uint32_t lightIndex;
     uint32_t mode; // 0 sm, 1 srt, 2 frt
@@ -268,7 +275,9 @@ std::vector<glm::vec3> areaMapEyes(const Light& light, glm::vec3 axis, const Bou
     return eyes;
 }
 
-gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings)
+// viewClip (directional lights, RenderSettings::fitDirectionalToView): min and
+// max of the camera's visible points in the model-fitted map's clip space.
+gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings, const glm::vec3* viewClip = nullptr)
 {
     gpu::LightData data{};
     if (isAreaLight(light)) {
@@ -292,6 +301,8 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderS
         data.spotCosLayers = glm::vec4(1.0f, 1.0f, 1.0f, float(eyes.size()));
     } else {
         LightProjection projection = lightProjection(light, bounds);
+        if (viewClip)
+            projection = fitDirectionalToView(projection, viewClip[0], viewClip[1], settings.shadowMapSize);
         std::copy(std::begin(projection.viewProj), std::end(projection.viewProj), std::begin(data.viewProj));
         data.shadowParams = glm::vec4(projection.nearPlane, projection.farPlane, projection.perspective ? 1.0f : 0.0f, projection.footprint);
         data.spotCosLayers = glm::vec4(std::cos(glm::radians(light.innerConeDegrees)), std::cos(glm::radians(light.outerConeDegrees)),
@@ -335,8 +346,12 @@ struct Renderer::Impl {
     VkPipeline gbufferPipelines[2] = {}, shadowPipelines[2] = {};
     VkPipeline thinDetectPipeline = VK_NULL_HANDLE;
     VkPipeline classifyPipeline = VK_NULL_HANDLE, compactPipeline = VK_NULL_HANDLE, shadePipeline = VK_NULL_HANDLE;
+    VkPipelineLayout viewBoundsLayout = VK_NULL_HANDLE;
+    VkPipeline viewBoundsPipeline = VK_NULL_HANDLE;
     RayTracer tracer;
-    Culling culling;
+    // Raster culling: the camera's view, and the shadow maps' views (planned
+    // later in the frame, once directional maps are fitted to the view).
+    Culling culling, shadowCulling;
     VkSampler nearestSampler = VK_NULL_HANDLE;
     VkDescriptorPool descriptorPool = VK_NULL_HANDLE;
     VkDescriptorSet classifySet = VK_NULL_HANDLE, compactSet = VK_NULL_HANDLE, shadeSet = VK_NULL_HANDLE, thinDetectSet = VK_NULL_HANDLE;
@@ -347,6 +362,7 @@ struct Renderer::Impl {
     uint32_t width = 0, height = 0, shadowSize = 0, shadowLayers = 0;
     vk::Image position, normal, depth, color, visibility, shadowMap, thinMap;
     vk::Buffer frameUniforms, stats, readbackStats, marks, rayList;
+    vk::Buffer viewBounds; // view_bounds.comp.glsl: light-space bounds of the G-buffer, read before the shadow pass
     // Per shadow-map size (penumbra_mask.comp.glsl): penumbra mask, nearest-edge pyramid, deepest camera pixel per tile.
     vk::Buffer penumbraMask, penumbraPyramid, penumbraReceivers, penumbraJobs;
     uint32_t penumbraMaxJobs = 0;
@@ -377,6 +393,7 @@ struct Renderer::Impl {
         shadowLayout = createPipelineLayout(device, VK_NULL_HANDLE, sizeof(glm::mat4), VK_SHADER_STAGE_VERTEX_BIT);
         thinDetectLayout = createPipelineLayout(device, thinDetectSetLayout, sizeof(ThinDetectPush), compute);
         classifyLayout = createPipelineLayout(device, classifySetLayout, sizeof(ClassifyPush), compute);
+        viewBoundsLayout = createPipelineLayout(device, classifySetLayout, sizeof(ViewBoundsPush), compute);
         classifySoftLayout = createPipelineLayout(device, classifySetLayout, sizeof(ClassifySoftPush), compute);
         maskLayout = createPipelineLayout(device, maskSetLayout, sizeof(MaskPush), compute);
         compactLayout = createPipelineLayout(device, compactSetLayout, sizeof(CompactPush), compute);
@@ -400,12 +417,14 @@ struct Renderer::Impl {
         }
         thinDetectPipeline = createComputePipeline(device, "thin_detect.comp", thinDetectLayout);
         classifyPipeline = createComputePipeline(device, "classify.comp", classifyLayout);
+        viewBoundsPipeline = createComputePipeline(device, "view_bounds.comp", viewBoundsLayout);
         classifySoftPipeline = createComputePipeline(device, "classify_soft.comp", classifySoftLayout);
         maskPipeline = createComputePipeline(device, "penumbra_mask.comp", maskLayout);
         compactPipeline = createComputePipeline(device, "compact.comp", compactLayout);
         shadePipeline = createComputePipeline(device, "shade.comp", shadeLayout);
         createRayTracer(device, tracer);
         culling.create(device, {kPositionFormat, kNormalFormat}, kDepthFormat);
+        shadowCulling.create(device, {kPositionFormat, kNormalFormat}, kDepthFormat);
 
         VkSamplerCreateInfo samplerInfo{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
         samplerInfo.magFilter = samplerInfo.minFilter = VK_FILTER_NEAREST;
@@ -451,6 +470,8 @@ struct Renderer::Impl {
                                  vk::MemoryUse::DeviceLocal);
         readbackStats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                          vk::MemoryUse::Readback);
+        viewBounds = vk::createBuffer(device, PENUMBRA_MAX_LIGHTS * 8 * sizeof(uint32_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                      vk::MemoryUse::Readback, vk::Addressable::Yes);
     }
 
     void destroyTargets()
@@ -479,6 +500,8 @@ struct Renderer::Impl {
         destroyGeometry(device, geometry);
         destroyRayTracer(device, tracer);
         culling.destroy(device);
+        shadowCulling.destroy(device);
+        vk::destroyBuffer(device, viewBounds);
         vk::destroyBuffer(device, frameUniforms);
         vk::destroyBuffer(device, stats);
         vk::destroyBuffer(device, readbackStats);
@@ -488,10 +511,11 @@ struct Renderer::Impl {
         if (descriptorPool) vkDestroyDescriptorPool(d, descriptorPool, nullptr);
         if (nearestSampler) vkDestroySampler(d, nearestSampler, nullptr);
         for (VkPipeline p : {gbufferPipelines[0], gbufferPipelines[1], shadowPipelines[0], shadowPipelines[1],
-                             thinDetectPipeline, classifyPipeline, compactPipeline, shadePipeline, classifySoftPipeline, maskPipeline})
+                             thinDetectPipeline, classifyPipeline, compactPipeline, shadePipeline, classifySoftPipeline, maskPipeline,
+                             viewBoundsPipeline})
             if (p) vkDestroyPipeline(d, p, nullptr);
         for (VkPipelineLayout l : {gbufferLayout, shadowLayout, thinDetectLayout, classifyLayout, compactLayout, shadeLayout,
-                                   classifySoftLayout, maskLayout})
+                                   classifySoftLayout, maskLayout, viewBoundsLayout})
             if (l) vkDestroyPipelineLayout(d, l, nullptr);
         for (VkDescriptorSetLayout l : {classifySetLayout, compactSetLayout, shadeSetLayout, thinDetectSetLayout, maskSetLayout})
             if (l) vkDestroyDescriptorSetLayout(d, l, nullptr);
@@ -667,21 +691,33 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     ensureTargets(settings.width, settings.height, settings.shadowMapSize, maxLayers);
     std::memcpy(frameUniforms.mapped, &frameData, sizeof(frameData));
 
-    // Raster views (camera, then every light's shadow-map layers) planned by the culling.
-    std::vector<CullView> cullViews{{"camera", 0, view.viewProj, true, true}};
+    // Raster views planned by the culling: the camera's now; every light's
+    // shadow-map layers once the directional maps are fitted to the view.
+    culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, view.viewProj, true, true}});
     std::vector<uint32_t> lightFirstView(frameLights.size());
-    const bool shadowOcclusion = settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
-    for (uint32_t i = 0; i < frameLights.size(); ++i) {
-        lightFirstView[i] = uint32_t(cullViews.size());
-        // Shadow maps drawn for the light: its layers, or an area light's maps (none for soft frt).
-        const bool area = isAreaLight(frameLights[i]);
-        const uint32_t maps = area ? (settings.shadows == ShadowMethod::FullRayTrace ? 0u : uint32_t(frameData.lights[i].spotCosLayers.w))
-                                   : uint32_t(frameData.lights[i].spotCosLayers.z);
-        for (uint32_t k = 0; k < maps; ++k)
-            cullViews.push_back({"light" + std::to_string(i) + (maps > 1 ? (area ? ".map" : ".face") + std::to_string(k) : ""), 1 + 6 * i + k,
-                                 frameData.lights[i].viewProj[k], false, shadowOcclusion});
-    }
-    culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, std::move(cullViews));
+    auto planShadowViews = [&] {
+        std::vector<CullView> cullViews;
+        const bool shadowOcclusion = settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
+        for (uint32_t i = 0; i < frameLights.size(); ++i) {
+            lightFirstView[i] = uint32_t(cullViews.size());
+            // Shadow maps drawn for the light: its layers, or an area light's maps (none for soft frt).
+            const bool area = isAreaLight(frameLights[i]);
+            const uint32_t maps = area ? (settings.shadows == ShadowMethod::FullRayTrace ? 0u : uint32_t(frameData.lights[i].spotCosLayers.w))
+                                       : uint32_t(frameData.lights[i].spotCosLayers.z);
+            for (uint32_t k = 0; k < maps; ++k)
+                cullViews.push_back({"light" + std::to_string(i) + (maps > 1 ? (area ? ".map" : ".face") + std::to_string(k) : ""),
+                                     1 + 6 * i + k, frameData.lights[i].viewProj[k], false, shadowOcclusion});
+        }
+        shadowCulling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, std::move(cullViews));
+    };
+    // Directional lights whose maps are fitted to what the camera sees.
+    uint32_t viewFitMask = 0;
+    if (settings.fitDirectionalToView)
+        for (uint32_t i = 0; i < frameLights.size(); ++i)
+            if (frameLights[i].type == LightType::Directional)
+                viewFitMask |= 1u << i;
+    if (!viewFitMask)
+        planShadowViews();
 
     VkCommandBuffer cmd = commandBuffer;
     VK_CHECK(vkResetCommandBuffer(cmd, 0));
@@ -690,6 +726,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
     vkCmdResetQueryPool(cmd, queryPool, 0, kMaxTimestamps);
     culling.resetQueries(cmd);
+    if (!viewFitMask)
+        shadowCulling.resetQueries(cmd);
 
     std::vector<Pass> timestampPass;   // pass of the interval ending at timestamp i
     auto timestamp = [&](Pass endedPass) {
@@ -755,6 +793,53 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     for (vk::Image* image : {&color, &visibility})
         transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);
 
+    if (viewFitMask) {
+        // Fit the directional maps to the view: the light-space bounds of the
+        // G-buffer, read back here (the frame's one extra submission), narrow
+        // each map before its views are planned and drawn.
+        vkCmdFillBuffer(cmd, viewBounds.buffer, 0, VK_WHOLE_SIZE, ~0u);
+        vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, viewBoundsPipeline);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, viewBoundsLayout, 0, 1, &classifySet, 0, nullptr);
+        ViewBoundsPush push{vk::bufferAddress(device, viewBounds), viewFitMask, 0};
+        vkCmdPushConstants(cmd, viewBoundsLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+        const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * 4; // view_bounds.comp.glsl: VIEW_BOUNDS_BLOCK pixels per invocation
+        vkCmdDispatch(cmd, (width + tile - 1) / tile, (height + tile - 1) / tile, 1);
+        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
+        VK_CHECK(vkEndCommandBuffer(cmd));
+        VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+        submit.commandBufferCount = 1;
+        submit.pCommandBuffers = &cmd;
+        VK_CHECK(vkResetFences(device.device, 1, &fence));
+        VK_CHECK(vkQueueSubmit(device.queue, 1, &submit, fence));
+        VK_CHECK(vkWaitForFences(device.device, 1, &fence, VK_TRUE, UINT64_MAX));
+
+        // Keys back to floats (view_bounds.comp.glsl): min x, y, z, then -max x, y, z.
+        const uint32_t* keys = static_cast<const uint32_t*>(viewBounds.mapped);
+        auto fromKey = [](uint32_t key) {
+            uint32_t bits = key & 0x80000000u ? key & 0x7FFFFFFFu : ~key;
+            float f;
+            std::memcpy(&f, &bits, sizeof(f));
+            return f;
+        };
+        for (uint32_t i = 0; i < frameLights.size(); ++i) {
+            if (!(viewFitMask & (1u << i)))
+                continue;
+            const uint32_t* k = keys + 8 * i;
+            glm::vec3 clip[2] = {{fromKey(k[0]), fromKey(k[1]), fromKey(k[2])}, {-fromKey(k[3]), -fromKey(k[4]), -fromKey(k[5])}};
+            if (k[0] == ~0u) // nothing covered: the model-fitted map stays
+                continue;
+            frameData.lights[i] = packLight(frameLights[i], bounds, settings, clip);
+        }
+        std::memcpy(frameUniforms.mapped, &frameData, sizeof(frameData));
+        planShadowViews();
+
+        VK_CHECK(vkResetCommandBuffer(cmd, 0));
+        VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
+        shadowCulling.resetQueries(cmd);
+        timestamp(PassViewFit); // the interval includes the round trip through the host
+    }
+
     const uint32_t groupsX = (width + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE;
     const uint32_t groupsY = (height + PENUMBRA_SHADE_GROUP_SIZE - 1) / PENUMBRA_SHADE_GROUP_SIZE;
     const uint32_t pixelCount = width * height;
@@ -771,7 +856,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         rendering.renderArea = {{0, 0}, {shadowSize, shadowSize}};
         rendering.layerCount = 1;
         rendering.pDepthAttachment = &depthAttachment;
-        culling.recordView(cmd, cullView, geometry, [&](bool clear) {
+        shadowCulling.recordView(cmd, cullView, geometry, [&](bool clear) {
             depthAttachment.loadOp = clear ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_LOAD;
             vkCmdBeginRendering(cmd, &rendering);
             vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadowPipelines[int(geometry.encoding)]);
@@ -1055,6 +1140,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             out.passes.push_back({kPassNames[pass], passMs[pass]});
     out.cull = settings.cull;
     out.views = culling.endFrame(device);
+    for (ViewCullStats& shadowView : shadowCulling.endFrame(device))
+        out.views.push_back(std::move(shadowView));
     out.gpuMs = double(ticks.back() - ticks.front()) * period;
     out.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - cpuStart).count();
     return frame;
@@ -1154,6 +1241,7 @@ void Renderer::loadModel(const CompressedModel& model)
 {
     impl->setGeometry(uploadCompressed(impl->device, model));
     impl->culling.setModel(model, impl->geometry);
+    impl->shadowCulling.setModel(model, impl->geometry);
 }
 
 void Renderer::loadModel(const Mesh& mesh)
@@ -1167,6 +1255,7 @@ void Renderer::loadUncompressedReference(const Mesh& mesh)
 {
     impl->setGeometry(uploadReference(impl->device, mesh));
     impl->culling.clearModel();
+    impl->shadowCulling.clearModel();
 }
 
 uint64_t Renderer::modelDeviceBytes() const { return impl->geometry.deviceBytes; }

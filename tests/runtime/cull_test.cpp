@@ -243,5 +243,51 @@ TEST(Culling, CullsClustersOutsideTheFrustumAndBehindOccluders)
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 
+// The sun's map fitted to the view (RenderSettings::fitDirectionalToView)
+// covers only the light-space footprint of what the camera sees, so frustum
+// culling drops the casters beside it; fitted to the model, the map holds
+// every cluster. A camera that sees nothing keeps the model-fitted map.
+TEST(Culling, SunMapFittedToTheViewDropsCastersBesideIt)
+{
+    GenerateOptions options;
+    options.triangles = 60'000;
+    Scene scene = generateScene("city", options);
+    Bounds bounds = computeBounds(scene.mesh);
+    Camera camera;
+    camera.position = {bounds.min.x + 0.1f * bounds.extent().x, bounds.min.y + 2.0f, bounds.center().z};
+    camera.target = {bounds.max.x, bounds.min.y + 2.0f, bounds.center().z};
+    Renderer renderer;
+    renderer.loadModel(scene.mesh);
+    renderer.setCamera(camera);
+    RenderSettings settings;
+    settings.width = settings.height = 128;
+    settings.shadowMapSize = 256;
+    settings.cull = CullMode::Frustum;
+    auto sunView = [&](bool fit) {
+        settings.fitDirectionalToView = fit;
+        Frame frame = renderer.render(settings);
+        EXPECT_EQ(frame.stats.views.size(), 2u);
+        bool timed = false;
+        for (const PassTiming& pass : frame.stats.passes)
+            timed = timed || pass.name == "view_fit";
+        EXPECT_EQ(timed, fit);
+        return frame.stats.views.at(1);
+    };
+    ViewCullStats model = sunView(false), view = sunView(true);
+    EXPECT_EQ(model.name, "light0");
+    EXPECT_EQ(model.clustersCulled, 0u) << "the model-fitted map holds the whole model";
+    EXPECT_GT(view.clustersCulled, view.clustersDrawn) << "a street-level view needs few of the city's casters";
+
+    // Looking away from the model: nothing covered, the map stays model-fitted.
+    camera.target = camera.position + (camera.position - camera.target);
+    camera.position += 2.0f * (camera.position - bounds.center());
+    renderer.setCamera(camera);
+    settings.fitDirectionalToView = true;
+    Frame away = renderer.render(settings);
+    EXPECT_EQ(away.stats.coveredPixels, 0u);
+    EXPECT_EQ(away.stats.views.at(1).clustersCulled, 0u);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+}
+
 } // namespace
 } // namespace penumbra

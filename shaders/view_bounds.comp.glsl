@@ -1,0 +1,89 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+// Bounds of what the camera sees, in the clip space of each directional
+// light's model-fitted shadow map: the renderer reads them back before the
+// shadow pass and narrows the map to them (light_space.h,
+// fitDirectionalToView). Every covered G-buffer pixel is a receiver; a caster
+// outside their light-space x/y range cannot shadow any of them.
+// Output per light l: 8 uints at 8 l: order keys of min x, y, z, then of
+// -max x, y, z (so that one atomicMin and one clear value serve all six).
+
+#include "config.h"
+
+layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
+
+// Pixels per invocation, a side: a workgroup covers PENUMBRA_SHADE_GROUP_SIZE *
+// VIEW_BOUNDS_BLOCK pixels a side and adds its bounds with one atomic per key.
+#define VIEW_BOUNDS_BLOCK 4
+#define GROUP_INVOCATIONS (PENUMBRA_SHADE_GROUP_SIZE * PENUMBRA_SHADE_GROUP_SIZE)
+
+// Bindings of the classify set that this pass reads.
+layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
+layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
+
+layout(buffer_reference, std430) buffer Keys { uint keys[]; };
+
+layout(push_constant) uniform ViewBoundsPush {
+    uint64_t keys;   // Keys, PENUMBRA_MAX_LIGHTS * 8 uints, cleared to 0xFFFFFFFF
+    uint lightMask;  // bit l: light l is fitted
+} push;
+
+shared vec3 sharedLo[GROUP_INVOCATIONS], sharedNegHi[GROUP_INVOCATIONS];
+
+// Unsigned key with the order of the float.
+uint orderKey(float f)
+{
+    uint bits = floatBitsToUint(f);
+    return (bits & 0x80000000u) != 0u ? ~bits : bits | 0x80000000u;
+}
+
+void main()
+{
+    const float inf = uintBitsToFloat(0x7F800000u);
+    const ivec2 size = imageSize(gPosition);
+    const ivec2 origin = ivec2(gl_GlobalInvocationID.xy) * VIEW_BOUNDS_BLOCK;
+    Keys out_ = Keys(push.keys);
+    for (uint l = 0u; l < PENUMBRA_MAX_LIGHTS; ++l) {
+        if ((push.lightMask & (1u << l)) == 0u)
+            continue;
+        const mat4 viewProj = frame.lights[l].viewProj[0];
+        vec3 lo = vec3(inf), negHi = vec3(inf);
+        for (int y = 0; y < VIEW_BOUNDS_BLOCK; ++y)
+            for (int x = 0; x < VIEW_BOUNDS_BLOCK; ++x) {
+                ivec2 pixel = origin + ivec2(x, y);
+                if (any(greaterThanEqual(pixel, size)))
+                    continue;
+                vec4 g = imageLoad(gPosition, pixel);
+                if (g.w <= 0.0)
+                    continue;
+                vec3 c = (viewProj * vec4(g.xyz, 1.0)).xyz; // orthographic: w = 1
+                lo = min(lo, c);
+                negHi = min(negHi, -c);
+            }
+        lo = subgroupMin(lo);
+        negHi = subgroupMin(negHi);
+        if (subgroupElect()) {
+            sharedLo[gl_SubgroupID] = lo;
+            sharedNegHi[gl_SubgroupID] = negHi;
+        }
+        barrier();
+        if (gl_LocalInvocationIndex == 0u) {
+            for (uint s = 1u; s < gl_NumSubgroups; ++s) {
+                lo = min(lo, sharedLo[s]);
+                negHi = min(negHi, sharedNegHi[s]);
+            }
+            if (lo.x != inf) {
+                atomicMin(out_.keys[8u * l + 0u], orderKey(lo.x));
+                atomicMin(out_.keys[8u * l + 1u], orderKey(lo.y));
+                atomicMin(out_.keys[8u * l + 2u], orderKey(lo.z));
+                atomicMin(out_.keys[8u * l + 3u], orderKey(negHi.x));
+                atomicMin(out_.keys[8u * l + 4u], orderKey(negHi.y));
+                atomicMin(out_.keys[8u * l + 5u], orderKey(negHi.z));
+            }
+        }
+        barrier();
+    }
+}
