@@ -3,7 +3,7 @@
 // of triangles each view culls, on the generated plant seen from inside its
 // steel structure (under its sun, then a lamp inside: six cube faces) and on
 // the city at street level (its sun). A sun's map is fitted to what the
-// camera sees (RenderSettings::fitDirectionalToView, in every mode); its
+// camera sees (RenderSettings::fitShadowMapsToView, in every mode); its
 // "shadow map" time includes that fit (bounds pass and host round trip).
 //   bench_cull [--frames N] [--size N] [--plant-triangles N] [--city-triangles N] [--device NAME]
 // The modes take turns: 6 warm-up frames each (pipelines, and an occlusion

@@ -3,15 +3,18 @@
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
-// Bounds of what the camera sees, in the clip space of each directional
-// light's model-fitted shadow map: the renderer reads them back before the
-// shadow pass and narrows the map to them (light_space.h,
-// fitDirectionalToView). Every covered G-buffer pixel is a receiver; a caster
-// outside their light-space x/y range cannot shadow any of them.
-// Output per light l: 8 uints at 8 l: order keys of min x, y, z, then of
-// -max x, y, z (so that one atomicMin and one clear value serve all six).
+// Bounds of what the camera sees in the clip space of each model-fitted
+// shadow map of the lights being fitted to the view: a directional light's
+// orthographic map, and each perspective map of an area light (x/w, y/w).
+// The renderer reads them back before the shadow pass and narrows the maps
+// to them (light_space.h: fitDirectionalToView, fitAreaMapToView). Every
+// covered G-buffer pixel is a receiver.
+// Output per map k of light l: 8 uints at 8 (6 l + k): order keys of min x,
+// y, z, then of -max x, y, z (so that one atomicMin and one clear value serve
+// all six); then 0 when some pixel lies behind a perspective map's eye plane.
 
 #include "config.h"
+#include "shadow_common.glsli"
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
 
@@ -27,11 +30,12 @@ layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
 layout(buffer_reference, std430) buffer Keys { uint keys[]; };
 
 layout(push_constant) uniform ViewBoundsPush {
-    uint64_t keys;   // Keys, PENUMBRA_MAX_LIGHTS * 8 uints, cleared to 0xFFFFFFFF
+    uint64_t keys;   // Keys, PENUMBRA_MAX_LIGHTS * 6 * 8 uints, cleared to 0xFFFFFFFF
     uint lightMask;  // bit l: light l is fitted
 } push;
 
 shared vec3 sharedLo[GROUP_INVOCATIONS], sharedNegHi[GROUP_INVOCATIONS];
+shared bool sharedBehind[GROUP_INVOCATIONS];
 
 // Unsigned key with the order of the float.
 uint orderKey(float f)
@@ -49,41 +53,57 @@ void main()
     for (uint l = 0u; l < PENUMBRA_MAX_LIGHTS; ++l) {
         if ((push.lightMask & (1u << l)) == 0u)
             continue;
-        const mat4 viewProj = frame.lights[l].viewProj[0];
-        vec3 lo = vec3(inf), negHi = vec3(inf);
-        for (int y = 0; y < VIEW_BOUNDS_BLOCK; ++y)
-            for (int x = 0; x < VIEW_BOUNDS_BLOCK; ++x) {
-                ivec2 pixel = origin + ivec2(x, y);
-                if (any(greaterThanEqual(pixel, size)))
-                    continue;
-                vec4 g = imageLoad(gPosition, pixel);
-                if (g.w <= 0.0)
-                    continue;
-                vec3 c = (viewProj * vec4(g.xyz, 1.0)).xyz; // orthographic: w = 1
-                lo = min(lo, c);
-                negHi = min(negHi, -c);
+        const bool perspective = isAreaLight(frame.lights[l]);
+        const uint maps = perspective ? uint(frame.lights[l].spotCosLayers.w) : 1u;
+        for (uint k = 0u; k < maps; ++k) {
+            const mat4 viewProj = frame.lights[l].viewProj[k];
+            vec3 lo = vec3(inf), negHi = vec3(inf);
+            bool behind = false;
+            for (int y = 0; y < VIEW_BOUNDS_BLOCK; ++y)
+                for (int x = 0; x < VIEW_BOUNDS_BLOCK; ++x) {
+                    ivec2 pixel = origin + ivec2(x, y);
+                    if (any(greaterThanEqual(pixel, size)))
+                        continue;
+                    vec4 g = imageLoad(gPosition, pixel);
+                    if (g.w <= 0.0)
+                        continue;
+                    vec4 clip = viewProj * vec4(g.xyz, 1.0); // orthographic: w = 1
+                    if (clip.w <= 0.0) {
+                        behind = true;
+                        continue;
+                    }
+                    vec3 c = clip.xyz / clip.w;
+                    lo = min(lo, c);
+                    negHi = min(negHi, -c);
+                }
+            lo = subgroupMin(lo);
+            negHi = subgroupMin(negHi);
+            behind = subgroupMax(behind ? 1u : 0u) != 0u; // the device offers arithmetic, not vote
+            if (subgroupElect()) {
+                sharedLo[gl_SubgroupID] = lo;
+                sharedNegHi[gl_SubgroupID] = negHi;
+                sharedBehind[gl_SubgroupID] = behind;
             }
-        lo = subgroupMin(lo);
-        negHi = subgroupMin(negHi);
-        if (subgroupElect()) {
-            sharedLo[gl_SubgroupID] = lo;
-            sharedNegHi[gl_SubgroupID] = negHi;
+            barrier();
+            if (gl_LocalInvocationIndex == 0u) {
+                for (uint s = 1u; s < gl_NumSubgroups; ++s) {
+                    lo = min(lo, sharedLo[s]);
+                    negHi = min(negHi, sharedNegHi[s]);
+                    behind = behind || sharedBehind[s];
+                }
+                uint base = 8u * (6u * l + k);
+                if (lo.x != inf) {
+                    atomicMin(out_.keys[base + 0u], orderKey(lo.x));
+                    atomicMin(out_.keys[base + 1u], orderKey(lo.y));
+                    atomicMin(out_.keys[base + 2u], orderKey(lo.z));
+                    atomicMin(out_.keys[base + 3u], orderKey(negHi.x));
+                    atomicMin(out_.keys[base + 4u], orderKey(negHi.y));
+                    atomicMin(out_.keys[base + 5u], orderKey(negHi.z));
+                }
+                if (behind)
+                    atomicMin(out_.keys[base + 6u], 0u);
+            }
+            barrier();
         }
-        barrier();
-        if (gl_LocalInvocationIndex == 0u) {
-            for (uint s = 1u; s < gl_NumSubgroups; ++s) {
-                lo = min(lo, sharedLo[s]);
-                negHi = min(negHi, sharedNegHi[s]);
-            }
-            if (lo.x != inf) {
-                atomicMin(out_.keys[8u * l + 0u], orderKey(lo.x));
-                atomicMin(out_.keys[8u * l + 1u], orderKey(lo.y));
-                atomicMin(out_.keys[8u * l + 2u], orderKey(lo.z));
-                atomicMin(out_.keys[8u * l + 3u], orderKey(negHi.x));
-                atomicMin(out_.keys[8u * l + 4u], orderKey(negHi.y));
-                atomicMin(out_.keys[8u * l + 5u], orderKey(negHi.z));
-            }
-        }
-        barrier();
     }
 }

@@ -34,7 +34,7 @@ struct RenderArgs {
     std::vector<std::string> lights;
     std::string shadows = "sm";
     std::string cull = "all";
-    std::string sunFit = "view";
+    std::string shadowFit = "view";
     uint32_t shadowMapSize = 2048;
     uint32_t samples = RenderSettings{}.lightSamples;
     uint32_t penumbraMaps = RenderSettings{}.penumbraMaps;
@@ -117,7 +117,7 @@ int runRender(const RenderArgs& args)
     parseSize(args.size, settings);
     settings.shadows = parseShadowMethod(args.shadows);
     settings.cull = parseCullMode(args.cull);
-    settings.fitDirectionalToView = args.sunFit == "view";
+    settings.fitShadowMapsToView = args.shadowFit == "view";
     settings.shadowMapSize = args.shadowMapSize;
     settings.lightSamples = args.samples;
     settings.penumbraMaps = args.penumbraMaps;
@@ -404,9 +404,9 @@ int main(int argc, char** argv)
     renderCommand->add_option("--cull", render.cull,
                               "Raster culling with the BVH: none, frustum, all (frustum + occlusion queries); same image in every mode")
         ->capture_default_str();
-    renderCommand->add_option("--sun-fit", render.sunFit,
-                              "Directional lights' shadow maps cover: view (what the camera sees; finer, and casters beside it are culled) "
-                              "or model (the whole model)")
+    renderCommand->add_option("--shadow-fit", render.shadowFit,
+                              "Directional and area lights' shadow maps cover: view (what the camera sees: finer texels, and the "
+                              "casters beside it are culled) or model (the whole model)")
         ->capture_default_str()
         ->check(CLI::IsMember({"view", "model"}));
     renderCommand->add_option("--debug-image", render.debugImage, "pip: tint the pixels given rays red (area lights: the penumbra mask)")->check(CLI::IsMember({"pip"}));

@@ -203,6 +203,54 @@ AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up,
         result.farPlane = result.nearPlane * 2.0f;
     result.footprint = 2.0f * halfTan;
     result.viewProj = vulkanClip(glm::perspectiveRH_ZO(2.0f * std::atan(halfTan), 1.0f, result.nearPlane, result.farPlane)) * view;
+    result.view = view;
+    return result;
+}
+
+AreaMapProjection fitAreaMapToView(const AreaMapProjection& modelFit, glm::vec3 eye, glm::vec3 up, const Bounds& bounds, glm::vec2 clipMin,
+                                   glm::vec2 clipMax, float spreadTan, uint32_t mapSize)
+{
+    if (!(clipMin.x <= clipMax.x && clipMin.y <= clipMax.y) || !(spreadTan >= 0.0f))
+        return modelFit;
+    const glm::vec3 nearestPoint = glm::clamp(eye, bounds.min, bounds.max);
+    const float nearest = glm::length(nearestPoint - eye);
+    if (!(nearest > 0.0f))
+        return modelFit; // the eye lies in the bounds: geometry all around it
+    // View-space directions of the clip-space rectangle's corners (Vulkan's y
+    // is flipped): x/-z = c.x tan, y/-z = -c.y tan.
+    const float halfTan = 0.5f * modelFit.footprint;
+    auto direction = [&](float cx, float cy) { return glm::normalize(glm::vec3(cx * halfTan, -cy * halfTan, -1.0f)); };
+    const glm::vec3 corners[4] = {direction(clipMin.x, clipMin.y), direction(clipMax.x, clipMin.y), direction(clipMin.x, clipMax.y),
+                                  direction(clipMax.x, clipMax.y)};
+    const glm::vec3 axisView = direction(0.5f * (clipMin.x + clipMax.x), 0.5f * (clipMin.y + clipMax.y));
+    float cone = 0.0f; // half-angle of the cone about the axis that holds the corners
+    for (const glm::vec3& corner : corners)
+        cone = std::max(cone, std::acos(std::clamp(glm::dot(axisView, corner), -1.0f, 1.0f)));
+    // Widened by the penumbra spread, then by the margin in texels of the new
+    // map (a texel spans about 2 tan / size radians at its centre).
+    const float texels = float(PENUMBRA_VIEW_FIT_MARGIN_TEXELS);
+    float angle = cone + std::atan(spreadTan);
+    float newHalfTan = std::tan(angle);
+    newHalfTan += texels * 2.0f * newHalfTan / std::max(float(mapSize) - 2.0f * texels, 1.0f) * (1.0f + newHalfTan * newHalfTan);
+    if (!(newHalfTan < 0.95f * halfTan) || !(angle < 1.5f))
+        return modelFit;
+
+    const glm::vec3 axis = glm::normalize(glm::vec3(glm::inverse(modelFit.view) * glm::vec4(axisView, 0.0f)));
+    AreaMapProjection result;
+    glm::mat4 view = glm::lookAtRH(eye, eye + axis, stableUp(axis, up));
+    // Depth range: every point of the bounds inside the frustum is at least
+    // `nearest` from the eye, at an angle of at most the corner ray's from the axis.
+    float farthest = 0.0f;
+    for (int i = 0; i < 8; ++i)
+        farthest = std::max(farthest, glm::length(corner(bounds, i) - eye));
+    result.farPlane = std::max(farthest * 1.01f, 1e-3f);
+    result.nearPlane = std::max(0.99f * nearest / std::sqrt(1.0f + 2.0f * newHalfTan * newHalfTan), result.farPlane * 1e-4f);
+    if (!(result.farPlane > result.nearPlane))
+        result.farPlane = result.nearPlane * 2.0f;
+    result.footprint = 2.0f * newHalfTan;
+    result.capped = true; // most of the model lies outside
+    result.view = view;
+    result.viewProj = vulkanClip(glm::perspectiveRH_ZO(2.0f * std::atan(newHalfTan), 1.0f, result.nearPlane, result.farPlane)) * view;
     return result;
 }
 

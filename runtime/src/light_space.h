@@ -51,7 +51,20 @@ struct AreaMapProjection {
     float nearPlane = 0, farPlane = 1;
     float footprint = 2;   // 2 tan(fov / 2)
     bool capped = false;
+    glm::mat4 view{1.0f};  // the map's view (eye at the origin, looking down -z)
 };
 AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up, const Bounds& bounds);
+
+// Area-light map fitted to the view: a narrower map from the same eye, its
+// axis through the middle of the camera's visible points (given by their
+// bounds in modelFit's clip space, x/w and y/w) and its square field of view
+// covering them, widened by spreadTan (the tangent of the widest angle at
+// which an occluder beside them can still throw penumbra onto them) and
+// PENUMBRA_VIEW_FIT_MARGIN_TEXELS texels of a mapSize map. Its depth range
+// holds the bounds (near: the eye's distance to the box, shortened to the
+// frustum's corner ray). Returns modelFit unchanged when the eye lies in the
+// bounds or the fit would not narrow the map.
+AreaMapProjection fitAreaMapToView(const AreaMapProjection& modelFit, glm::vec3 eye, glm::vec3 up, const Bounds& bounds, glm::vec2 clipMin,
+                                   glm::vec2 clipMax, float spreadTan, uint32_t mapSize);
 
 } // namespace penumbra

@@ -275,9 +275,17 @@ std::vector<glm::vec3> areaMapEyes(const Light& light, glm::vec3 axis, const Bou
     return eyes;
 }
 
-// viewClip (directional lights, RenderSettings::fitDirectionalToView): min and
-// max of the camera's visible points in the model-fitted map's clip space.
-gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings, const glm::vec3* viewClip = nullptr)
+// Bounds of the camera's visible points in the clip space of one model-fitted
+// shadow map (view_bounds.comp.glsl); not valid: the map stays model-fitted.
+struct ViewClip {
+    bool valid = false;
+    glm::vec3 min{0.0f}, max{0.0f};
+};
+
+// viewClip (RenderSettings::fitShadowMapsToView): per map of the light (a
+// directional light's one, an area light's spotCosLayers.w), the bounds its
+// map is fitted to.
+gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings, const ViewClip* viewClip = nullptr)
 {
     gpu::LightData data{};
     if (isAreaLight(light)) {
@@ -292,6 +300,20 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderS
         std::vector<glm::vec3> eyes = areaMapEyes(light, axis, bounds, settings);
         for (size_t k = 0; k < eyes.size(); ++k) {
             AreaMapProjection map = areaMapProjection(eyes[k], axis, light.up, bounds);
+            if (viewClip && viewClip[k].valid) {
+                // srt: an occluder beside the visible points throws penumbra onto them from
+                // light points up to Rbig off the eye (penumbra_mask.comp.glsl), so the map
+                // widens by that angle seen from the nearest geometry.
+                float spreadTan = 0.0f;
+                if (settings.shadows == ShadowMethod::Selective) {
+                    const float rBig = glm::length(light.position - eyes[k]) + data.areaV.w;
+                    const float nearest = glm::length(glm::clamp(eyes[k], bounds.min, bounds.max) - eyes[k]);
+                    const float sine = nearest > 0.0f ? 1.05f * rBig / nearest : 1.0f;
+                    spreadTan = sine < 0.9f ? sine / std::sqrt(1.0f - sine * sine) : -1.0f; // -1: too near, stays model-fitted
+                }
+                map = fitAreaMapToView(map, eyes[k], light.up, bounds, glm::vec2(viewClip[k].min), glm::vec2(viewClip[k].max), spreadTan,
+                                       settings.shadowMapSize);
+            }
             data.viewProj[k] = map.viewProj;
             data.mapEye[k] = glm::vec4(eyes[k], map.nearPlane);
             data.mapRange[k] = glm::vec4(map.farPlane, map.footprint, map.capped ? 1.0f : 0.0f, 0.0f);
@@ -301,8 +323,8 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderS
         data.spotCosLayers = glm::vec4(1.0f, 1.0f, 1.0f, float(eyes.size()));
     } else {
         LightProjection projection = lightProjection(light, bounds);
-        if (viewClip)
-            projection = fitDirectionalToView(projection, viewClip[0], viewClip[1], settings.shadowMapSize);
+        if (viewClip && viewClip[0].valid)
+            projection = fitDirectionalToView(projection, viewClip[0].min, viewClip[0].max, settings.shadowMapSize);
         std::copy(std::begin(projection.viewProj), std::end(projection.viewProj), std::begin(data.viewProj));
         data.shadowParams = glm::vec4(projection.nearPlane, projection.farPlane, projection.perspective ? 1.0f : 0.0f, projection.footprint);
         data.spotCosLayers = glm::vec4(std::cos(glm::radians(light.innerConeDegrees)), std::cos(glm::radians(light.outerConeDegrees)),
@@ -470,7 +492,7 @@ struct Renderer::Impl {
                                  vk::MemoryUse::DeviceLocal);
         readbackStats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                          vk::MemoryUse::Readback);
-        viewBounds = vk::createBuffer(device, PENUMBRA_MAX_LIGHTS * 8 * sizeof(uint32_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+        viewBounds = vk::createBuffer(device, PENUMBRA_MAX_LIGHTS * 6 * 8 * sizeof(uint32_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                       vk::MemoryUse::Readback, vk::Addressable::Yes);
     }
 
@@ -710,11 +732,13 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         }
         shadowCulling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, std::move(cullViews));
     };
-    // Directional lights whose maps are fitted to what the camera sees.
+    // Lights whose maps are fitted to what the camera sees: directional lights,
+    // and area lights whose maps are drawn (not soft frt).
     uint32_t viewFitMask = 0;
-    if (settings.fitDirectionalToView)
+    if (settings.fitShadowMapsToView)
         for (uint32_t i = 0; i < frameLights.size(); ++i)
-            if (frameLights[i].type == LightType::Directional)
+            if (frameLights[i].type == LightType::Directional ||
+                (isAreaLight(frameLights[i]) && settings.shadows != ShadowMethod::FullRayTrace))
                 viewFitMask |= 1u << i;
     if (!viewFitMask)
         planShadowViews();
@@ -814,7 +838,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         VK_CHECK(vkQueueSubmit(device.queue, 1, &submit, fence));
         VK_CHECK(vkWaitForFences(device.device, 1, &fence, VK_TRUE, UINT64_MAX));
 
-        // Keys back to floats (view_bounds.comp.glsl): min x, y, z, then -max x, y, z.
+        // Keys back to floats (view_bounds.comp.glsl): min x, y, z, then -max x, y, z, then the behind flag.
         const uint32_t* keys = static_cast<const uint32_t*>(viewBounds.mapped);
         auto fromKey = [](uint32_t key) {
             uint32_t bits = key & 0x80000000u ? key & 0x7FFFFFFFu : ~key;
@@ -825,10 +849,14 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         for (uint32_t i = 0; i < frameLights.size(); ++i) {
             if (!(viewFitMask & (1u << i)))
                 continue;
-            const uint32_t* k = keys + 8 * i;
-            glm::vec3 clip[2] = {{fromKey(k[0]), fromKey(k[1]), fromKey(k[2])}, {-fromKey(k[3]), -fromKey(k[4]), -fromKey(k[5])}};
-            if (k[0] == ~0u) // nothing covered: the model-fitted map stays
-                continue;
+            ViewClip clip[6];
+            for (uint32_t map = 0; map < 6; ++map) {
+                const uint32_t* k = keys + 8 * (6 * i + map);
+                // Nothing covered, or a pixel behind a perspective map's eye: the model-fitted map stays.
+                clip[map].valid = k[0] != ~0u && k[6] == ~0u;
+                clip[map].min = {fromKey(k[0]), fromKey(k[1]), fromKey(k[2])};
+                clip[map].max = {-fromKey(k[3]), -fromKey(k[4]), -fromKey(k[5])};
+            }
             frameData.lights[i] = packLight(frameLights[i], bounds, settings, clip);
         }
         std::memcpy(frameUniforms.mapped, &frameData, sizeof(frameData));

@@ -243,7 +243,7 @@ TEST(Culling, CullsClustersOutsideTheFrustumAndBehindOccluders)
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 
-// The sun's map fitted to the view (RenderSettings::fitDirectionalToView)
+// The sun's map fitted to the view (RenderSettings::fitShadowMapsToView)
 // covers only the light-space footprint of what the camera sees, so frustum
 // culling drops the casters beside it; fitted to the model, the map holds
 // every cluster. A camera that sees nothing keeps the model-fitted map.
@@ -264,7 +264,7 @@ TEST(Culling, SunMapFittedToTheViewDropsCastersBesideIt)
     settings.shadowMapSize = 256;
     settings.cull = CullMode::Frustum;
     auto sunView = [&](bool fit) {
-        settings.fitDirectionalToView = fit;
+        settings.fitShadowMapsToView = fit;
         Frame frame = renderer.render(settings);
         EXPECT_EQ(frame.stats.views.size(), 2u);
         bool timed = false;
@@ -282,7 +282,7 @@ TEST(Culling, SunMapFittedToTheViewDropsCastersBesideIt)
     camera.target = camera.position + (camera.position - camera.target);
     camera.position += 2.0f * (camera.position - bounds.center());
     renderer.setCamera(camera);
-    settings.fitDirectionalToView = true;
+    settings.fitShadowMapsToView = true;
     Frame away = renderer.render(settings);
     EXPECT_EQ(away.stats.coveredPixels, 0u);
     EXPECT_EQ(away.stats.views.at(1).clustersCulled, 0u);

@@ -100,6 +100,16 @@ std::vector<SoftCase> softCases()
     sphere.intensity = 40.0f;
     cases.push_back({"cube, sphere light", test::cubeOverFloor(0.7f), camera, sphere});
 
+    // Only the floor at the penumbra's outer part is in view, not the cube: the
+    // centre map, fitted to the view (RenderSettings::fitShadowMapsToView),
+    // must still hold the cube's edge, widened by the penumbra's spread.
+    Camera floorOnly;
+    floorOnly.position = {3.4f, 1.6f, 1.2f};
+    floorOnly.target = {1.8f, 0.0f, -0.2f};
+    floorOnly.yfovDegrees = 50.0f;
+    cases.push_back({"floor beside the cube, rectangle light", test::cubeOverFloor(0.5f), floorOnly,
+                     rectangleLight({0.5f, 7.0f, 0.3f}, 2.0f, 1.0f)});
+
     GenerateOptions options;
     options.triangles = 60'000;
     Scene city = generateScene("city", options);

@@ -87,12 +87,14 @@ struct RenderSettings {
     uint32_t penumbraMaps = 1;          // srt: shadow maps whose masks mark the penumbra: 1 (centre) or 5 (centre and corners)
     uint32_t softShadowMaps = 4;        // sm: point-light shadow maps averaged over the light, 1..6
     CullMode cull = CullMode::All;      // culling of the camera and shadow-map raster passes
-    // Directional lights: fit the orthographic shadow map to what the camera
-    // sees (the G-buffer's light-space bounds, read back before the shadow
-    // pass) instead of the whole model: finer texels, and the frustum culling
-    // drops the casters that cannot shadow a visible pixel. The image depends
-    // only on the camera and light, never on culling or earlier frames.
-    bool fitDirectionalToView = true;
+    // Fit the shadow maps of directional and area lights to what the camera
+    // sees (the G-buffer's bounds in each map, read back before the shadow
+    // pass) instead of the whole model: finer texels, and frustum culling
+    // drops the casters that cannot shadow a visible pixel (area lights, srt:
+    // the map is widened by the angle at which a penumbra can still reach
+    // them). The image depends only on the camera and lights, never on
+    // culling or earlier frames. Point and spot lights keep their maps.
+    bool fitShadowMapsToView = true;
     // CullMode::All: a view whose occlusion queries cull little goes frustum-only
     // for a few frames. false (tests): queries in every view, every frame.
     bool adaptiveOcclusion = true;
