@@ -70,7 +70,8 @@ PENUMBRA_STRUCT(LightData)
     vec4 positionType;       // xyz position (point-like lights), w = PENUMBRA_LIGHT_* as float
     vec4 directionRange;     // xyz direction light travels, w = range (0 = infinite)
     vec4 colorIntensity;     // rgb colour, w = intensity
-    vec4 spotCosLayers;      // x = cos(inner), y = cos(outer), z = shadow-map layers, w = shadow maps of an area light
+    vec4 spotCosLayers;      // x = cos(inner), y = cos(outer), z = shadow-map layers, w = shadow maps of an area light,
+                             // other lights: texel size over the model-fitted map's (the PIP threshold's scale)
     vec4 shadowParams;       // x = near, y = far (light-view depth), z = 1 perspective / 0 orthographic,
                              // w = footprint: perspective 2 tan(fov/2) (map width at depth 1), orthographic map width in model units
     // Area lights (penumbra/light_sampling.h): half-extent vectors; areaU.w = 1 when it emits on one side only (rectangle,

@@ -323,12 +323,13 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderS
         data.spotCosLayers = glm::vec4(1.0f, 1.0f, 1.0f, float(eyes.size()));
     } else {
         LightProjection projection = lightProjection(light, bounds);
+        const float modelFootprint = projection.footprint;
         if (viewClip && viewClip[0].valid)
             projection = fitDirectionalToView(projection, viewClip[0].min, viewClip[0].max, settings.shadowMapSize);
         std::copy(std::begin(projection.viewProj), std::end(projection.viewProj), std::begin(data.viewProj));
         data.shadowParams = glm::vec4(projection.nearPlane, projection.farPlane, projection.perspective ? 1.0f : 0.0f, projection.footprint);
         data.spotCosLayers = glm::vec4(std::cos(glm::radians(light.innerConeDegrees)), std::cos(glm::radians(light.outerConeDegrees)),
-                                       float(projection.layers), 0.0f);
+                                       float(projection.layers), projection.footprint / modelFootprint);
     }
     uint32_t type = 0;
     switch (light.type) {
