@@ -667,6 +667,17 @@ struct Renderer::Impl {
         vkCmdSetScissor(cmd, 0, 1, &scissor);
     }
 
+    // Submits the frame's command buffer and waits for it (the frame's fence).
+    void submitAndWait(VkCommandBuffer cmd)
+    {
+        VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+        submit.commandBufferCount = 1;
+        submit.pCommandBuffers = &cmd;
+        VK_CHECK(vkResetFences(device.device, 1, &fence));
+        VK_CHECK(vkQueueSubmit(device.queue, 1, &submit, fence));
+        VK_CHECK(vkWaitForFences(device.device, 1, &fence, VK_TRUE, UINT64_MAX));
+    }
+
     Frame render(const RenderSettings& settings);
 };
 
@@ -832,12 +843,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         vkCmdDispatch(cmd, (width + tile - 1) / tile, (height + tile - 1) / tile, 1);
         vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
         VK_CHECK(vkEndCommandBuffer(cmd));
-        VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-        submit.commandBufferCount = 1;
-        submit.pCommandBuffers = &cmd;
-        VK_CHECK(vkResetFences(device.device, 1, &fence));
-        VK_CHECK(vkQueueSubmit(device.queue, 1, &submit, fence));
-        VK_CHECK(vkWaitForFences(device.device, 1, &fence, VK_TRUE, UINT64_MAX));
+        submitAndWait(cmd);
 
         // Keys back to floats (view_bounds.comp.glsl): min x, y, z, then -max x, y, z, then the behind flag.
         const uint32_t* keys = static_cast<const uint32_t*>(viewBounds.mapped);
@@ -1114,12 +1120,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     timestamp(PassReadback);
     VK_CHECK(vkEndCommandBuffer(cmd));
 
-    VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-    submit.commandBufferCount = 1;
-    submit.pCommandBuffers = &cmd;
-    VK_CHECK(vkResetFences(device.device, 1, &fence));
-    VK_CHECK(vkQueueSubmit(device.queue, 1, &submit, fence));
-    VK_CHECK(vkWaitForFences(device.device, 1, &fence, VK_TRUE, UINT64_MAX));
+    submitAndWait(cmd);
 
     Frame frame;
     frame.color.width = width;
