@@ -22,6 +22,8 @@
 #define PENUMBRA_MASK_TARGET_TEXELS 16.0 // penumbra splats are drawn at the mask level where they span at most this many texels
 #define PENUMBRA_RECEIVER_TILE 8u        // penumbra mask: camera pixels' deepest map depth is kept per tile of this many texels a side
 #define PENUMBRA_VIEW_FIT_MARGIN_TEXELS 4 // directional maps fitted to the view: texels added around the receivers' bounds
+#define PENUMBRA_RECEIVER_GRID 512       // directional maps fitted to the view: cells a side of the receiver grid over the model-fitted map
+#define PENUMBRA_RECEIVER_GRID_WORDS (PENUMBRA_RECEIVER_GRID * PENUMBRA_RECEIVER_GRID / 32) // its bits, in uints per light
 #define PENUMBRA_AREA_MAX_HALF_FOV 60.0  // area-light shadow maps: widest half field of view (degrees); pixels outside get rays
 #define PENUMBRA_MAX_SAMPLES 256         // soft shadows: most light samples per pixel
 

@@ -12,6 +12,12 @@
 // Output per map k of light l: 8 uints at 8 (6 l + k): order keys of min x,
 // y, z, then of -max x, y, z (so that one atomicMin and one clear value serve
 // all six); then 0 when some pixel lies behind a perspective map's eye plane.
+// Directional lights in gridMask also get their receiver grid: one bit per
+// cell of a PENUMBRA_RECEIVER_GRID^2 grid over the model-fitted map's clip
+// x, y in [-1, 1] (row y, bit x; positions outside clamp to the border
+// cells), set where a pixel's point lies. The shadow views cull the casters
+// whose footprint, grown by the texels the classification reads, covers no
+// set cell (culling.h: ReceiverMask).
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -29,9 +35,13 @@ layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
 
 layout(buffer_reference, std430) buffer Keys { uint keys[]; };
 
+layout(buffer_reference, std430) buffer Grid { uint bits[]; };
+
 layout(push_constant) uniform ViewBoundsPush {
     uint64_t keys;   // Keys, PENUMBRA_MAX_LIGHTS * 6 * 8 uints, cleared to 0xFFFFFFFF
+    uint64_t grid;   // Grid, PENUMBRA_RECEIVER_GRID_WORDS uints per light, cleared to 0
     uint lightMask;  // bit l: light l is fitted
+    uint gridMask;   // bit l: light l (directional) also writes its receiver grid
 } push;
 
 shared vec3 sharedLo[GROUP_INVOCATIONS], sharedNegHi[GROUP_INVOCATIONS];
@@ -59,6 +69,9 @@ void main()
             const mat4 viewProj = frame.lights[l].viewProj[k];
             vec3 lo = vec3(inf), negHi = vec3(inf);
             bool behind = false;
+            const bool grid = !perspective && (push.gridMask & (1u << l)) != 0u;
+            Grid cells = Grid(push.grid + uint64_t(l) * (PENUMBRA_RECEIVER_GRID_WORDS * 4u));
+            uint lastCell = ~0u;
             for (int y = 0; y < VIEW_BOUNDS_BLOCK; ++y)
                 for (int x = 0; x < VIEW_BOUNDS_BLOCK; ++x) {
                     ivec2 pixel = origin + ivec2(x, y);
@@ -75,6 +88,14 @@ void main()
                     vec3 c = clip.xyz / clip.w;
                     lo = min(lo, c);
                     negHi = min(negHi, -c);
+                    if (grid) {
+                        ivec2 cell = clamp(ivec2(floor((c.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID))), ivec2(0),
+                                           ivec2(PENUMBRA_RECEIVER_GRID - 1));
+                        uint index = uint(cell.y * PENUMBRA_RECEIVER_GRID + cell.x);
+                        if (index != lastCell) // neighbouring pixels mostly share a cell
+                            atomicOr(cells.bits[index >> 5u], 1u << (index & 31u));
+                        lastCell = index;
+                    }
                 }
             lo = subgroupMin(lo);
             negHi = subgroupMin(negHi);

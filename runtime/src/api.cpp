@@ -206,6 +206,7 @@ std::string statsJson(const FrameStats& stats)
                          {"clusters_drawn", view.clustersDrawn},
                          {"clusters_culled", view.clustersCulled},
                          {"clusters_occluded", view.clustersOccluded},
+                         {"clusters_beside_receivers", view.clustersBesideReceivers},
                          {"triangles_drawn", view.trianglesDrawn},
                          {"triangles_culled", view.trianglesCulled},
                          {"queries_issued", view.queriesIssued},

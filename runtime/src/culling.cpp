@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include <glm/mat4x4.hpp>
 
@@ -133,6 +134,42 @@ void ensureBuffer(vk::Device& device, vk::Buffer& buffer, VkDeviceSize bytes, Vk
 }
 
 } // namespace
+
+void ReceiverMask::build(const uint32_t* bits, uint32_t cellsPerSide)
+{
+    resolution = cellsPerSide;
+    const uint32_t stride = resolution + 1;
+    prefix.assign(size_t(stride) * stride, 0);
+    for (uint32_t y = 0; y < resolution; ++y) {
+        uint32_t row = 0;
+        for (uint32_t x = 0; x < resolution; ++x) {
+            const uint32_t index = y * resolution + x;
+            row += (bits[index >> 5] >> (index & 31)) & 1u;
+            prefix[size_t(y + 1) * stride + x + 1] = prefix[size_t(y) * stride + x + 1] + row;
+        }
+    }
+}
+
+bool ReceiverMask::mayCover(const glm::vec3& lo, const glm::vec3& hi) const
+{
+    glm::dvec2 footMin(std::numeric_limits<double>::max()), footMax(-std::numeric_limits<double>::max());
+    for (int i = 0; i < 8; ++i) {
+        glm::dvec4 c = viewProj * glm::dvec4(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z, 1.0);
+        footMin = glm::min(footMin, glm::dvec2(c) / c.w);
+        footMax = glm::max(footMax, glm::dvec2(c) / c.w);
+    }
+    // Cells from clip units, clamped like the pixels' (view_bounds.comp.glsl).
+    auto cell = [&](double clip) {
+        const double c = std::floor((clip * 0.5 + 0.5) * double(resolution));
+        return uint32_t(std::clamp(c, 0.0, double(resolution - 1)));
+    };
+    const uint32_t x0 = cell(footMin.x - margin.x), x1 = cell(footMax.x + margin.x);
+    const uint32_t y0 = cell(footMin.y - margin.y), y1 = cell(footMax.y + margin.y);
+    const size_t stride = resolution + 1;
+    const uint32_t count = prefix[(y1 + 1) * stride + x1 + 1] - prefix[y0 * stride + x1 + 1] -
+                           prefix[(y1 + 1) * stride + x0] + prefix[y0 * stride + x0];
+    return count != 0;
+}
 
 void Culling::create(vk::Device& device, const std::vector<VkFormat>& cameraColorFormats, VkFormat depthFormat)
 {
@@ -302,6 +339,10 @@ void Culling::planView(ViewPlan& plan)
         BoxTest test = testBox(viewProj, node.min - margin, node.max + margin);
         if (test.outside)
             continue;
+        if (plan.view.receivers && !plan.view.receivers->mayCover(node.min - margin, node.max + margin)) {
+            plan.clustersBesideReceivers += node.clusterCount;
+            continue;
+        }
         Role role = item.role;
         if (occlusion && role == Role::Free) {
             if (!test.crossesNear && historyBelow[item.node] == 0 &&
@@ -600,6 +641,7 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
         ViewCullStats stats;
         stats.name = plan.view.name;
         stats.nodesTested = plan.nodesTested;
+        stats.clustersBesideReceivers = plan.clustersBesideReceivers;
         stats.cpuMs = plan.cpuMs;
         const size_t v = &plan - plans.data();
         stats.gpuMs = double(ticks[2 * v + 1] - ticks[2 * v]) * timestampPeriodNs * 1e-6;

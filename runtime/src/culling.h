@@ -26,9 +26,17 @@
 // visible is dropped, with or without history (first frame, jumps).
 // Query results for the history are read on the CPU after the frame's fence
 // (no extra sync). The ray tracer never sees any of this.
+// Receiver masks (directional maps fitted to the view): a caster can change
+// only the texels its projection covers, and the frame reads a directional
+// map only at the texel of a camera pixel's point and its 8 neighbours
+// (classify.comp.glsl, shadow_common.glsli). So a box whose footprint in the
+// map, grown by 2 texels, holds no visible point cannot change a texel that
+// is read: it is culled before the frustum's occlusion tests, and the image
+// stays the same.
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -41,6 +49,21 @@
 
 namespace penumbra {
 
+// Where the camera's visible points lie in a directional light's map: the
+// cells of a grid over the model-fitted map's clip x, y in [-1, 1] that hold
+// one (view_bounds.comp.glsl), as a summed-area table.
+struct ReceiverMask {
+    glm::dmat4 viewProj{1.0}; // the grid's clip space (orthographic)
+    uint32_t resolution = 0;  // cells a side
+    glm::dvec2 margin{0.0};   // clip units added to a footprint on each side
+    std::vector<uint32_t> prefix; // (resolution + 1)^2: set cells below and left of each corner
+
+    // bits: resolution^2 bits, row y, bit x (view_bounds.comp.glsl).
+    void build(const uint32_t* bits, uint32_t cellsPerSide);
+    // False when the box's footprint, grown by margin, holds no set cell.
+    bool mayCover(const glm::vec3& lo, const glm::vec3& hi) const;
+};
+
 // One raster view of a frame.
 struct CullView {
     std::string name;         // stats name: "camera", "light0", "light0.face3"
@@ -48,6 +71,7 @@ struct CullView {
     glm::mat4 viewProj{1.0f}; // clip = viewProj * world, Vulkan depth 0..1
     bool camera = false;      // G-buffer target (two colour attachments) and order-preserving second phase
     bool occlusion = false;   // occlusion queries allowed (CullMode::All; shadow maps need a non-negative depth bias)
+    std::shared_ptr<const ReceiverMask> receivers; // directional maps fitted to the view: casters beside them are culled
 };
 
 struct Culling {
@@ -103,6 +127,7 @@ struct Culling {
         uint32_t firstQuery = 0;                 // group queries, then history tests
         uint32_t firstCommand = 0;               // first-phase commands, then final-phase commands
         uint64_t nodesTested = 0;
+        uint64_t clustersBesideReceivers = 0; // culled by the receiver mask
         double cpuMs = 0;
     };
     static constexpr uint32_t kNoQuery = ~0u;

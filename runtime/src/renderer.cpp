@@ -167,9 +167,14 @@ static_assert(sizeof(ThinDetectPush) == 128);
 
 struct ViewBoundsPush {
     VkDeviceAddress keys; // view_bounds.comp.glsl
+    VkDeviceAddress grid;
     uint32_t lightMask;
-    uint32_t pad;
+    uint32_t gridMask;
 };
+
+// viewBounds (readback): the keys of view_bounds.comp.glsl, then each light's receiver grid.
+constexpr VkDeviceSize kViewBoundsKeyBytes = PENUMBRA_MAX_LIGHTS * 6 * 8 * sizeof(uint32_t);
+constexpr VkDeviceSize kReceiverGridBytes = PENUMBRA_RECEIVER_GRID_WORDS * sizeof(uint32_t);
 
 struct ClassifyPush {
     uint32_t lightIndex;
@@ -386,6 +391,7 @@ struct Renderer::Impl {
     vk::Image position, normal, depth, color, visibility, shadowMap, thinMap;
     vk::Buffer frameUniforms, stats, readbackStats, marks, rayList;
     vk::Buffer viewBounds; // view_bounds.comp.glsl: light-space bounds of the G-buffer, read before the shadow pass
+    vk::Buffer receiverGrids; // view_bounds.comp.glsl: per light, its receiver grid (device-local; copied into viewBounds)
     // Per shadow-map size (penumbra_mask.comp.glsl): penumbra mask, nearest-edge pyramid, deepest camera pixel per tile.
     vk::Buffer penumbraMask, penumbraPyramid, penumbraReceivers, penumbraJobs;
     uint32_t penumbraMaxJobs = 0;
@@ -493,8 +499,11 @@ struct Renderer::Impl {
                                  vk::MemoryUse::DeviceLocal);
         readbackStats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                          vk::MemoryUse::Readback);
-        viewBounds = vk::createBuffer(device, PENUMBRA_MAX_LIGHTS * 6 * 8 * sizeof(uint32_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                      vk::MemoryUse::Readback, vk::Addressable::Yes);
+        viewBounds = vk::createBuffer(device, kViewBoundsKeyBytes + PENUMBRA_MAX_LIGHTS * kReceiverGridBytes,
+                                      VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback, vk::Addressable::Yes);
+        receiverGrids = vk::createBuffer(device, PENUMBRA_MAX_LIGHTS * kReceiverGridBytes,
+                                         VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal,
+                                         vk::Addressable::Yes);
     }
 
     void destroyTargets()
@@ -525,6 +534,7 @@ struct Renderer::Impl {
         culling.destroy(device);
         shadowCulling.destroy(device);
         vk::destroyBuffer(device, viewBounds);
+        vk::destroyBuffer(device, receiverGrids);
         vk::destroyBuffer(device, frameUniforms);
         vk::destroyBuffer(device, stats);
         vk::destroyBuffer(device, readbackStats);
@@ -729,6 +739,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     // shadow-map layers once the directional maps are fitted to the view.
     culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, view.viewProj, true, true}});
     std::vector<uint32_t> lightFirstView(frameLights.size());
+    std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks(frameLights.size()); // directional lights fitted to the view
     auto planShadowViews = [&] {
         std::vector<CullView> cullViews;
         const bool shadowOcclusion = settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
@@ -740,7 +751,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                                        : uint32_t(frameData.lights[i].spotCosLayers.z);
             for (uint32_t k = 0; k < maps; ++k)
                 cullViews.push_back({"light" + std::to_string(i) + (maps > 1 ? (area ? ".map" : ".face") + std::to_string(k) : ""),
-                                     1 + 6 * i + k, frameData.lights[i].viewProj[k], false, shadowOcclusion});
+                                     1 + 6 * i + k, frameData.lights[i].viewProj[k], false, shadowOcclusion, receiverMasks[i]});
         }
         shadowCulling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, std::move(cullViews));
     };
@@ -752,6 +763,12 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             if (frameLights[i].type == LightType::Directional ||
                 (isAreaLight(frameLights[i]) && settings.shadows != ShadowMethod::FullRayTrace))
                 viewFitMask |= 1u << i;
+    // Of those, the directional lights that also cull the casters beside the visible points.
+    uint32_t receiverGridMask = 0;
+    if (settings.cullBesideReceivers && settings.cull != CullMode::None && geometry.encoding == GeometryEncoding::Compressed)
+        for (uint32_t i = 0; i < frameLights.size(); ++i)
+            if (frameLights[i].type == LightType::Directional && (viewFitMask & (1u << i)))
+                receiverGridMask |= 1u << i;
     if (!viewFitMask)
         planShadowViews();
 
@@ -833,15 +850,29 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         // Fit the directional maps to the view: the light-space bounds of the
         // G-buffer, read back here (the frame's one extra submission), narrow
         // each map before its views are planned and drawn.
-        vkCmdFillBuffer(cmd, viewBounds.buffer, 0, VK_WHOLE_SIZE, ~0u);
+        vkCmdFillBuffer(cmd, viewBounds.buffer, 0, kViewBoundsKeyBytes, ~0u);
+        for (uint32_t i = 0; i < frameLights.size(); ++i)
+            if (receiverGridMask & (1u << i))
+                vkCmdFillBuffer(cmd, receiverGrids.buffer, i * kReceiverGridBytes, kReceiverGridBytes, 0u);
         vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, viewBoundsPipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, viewBoundsLayout, 0, 1, &classifySet, 0, nullptr);
-        ViewBoundsPush push{vk::bufferAddress(device, viewBounds), viewFitMask, 0};
+        ViewBoundsPush push{vk::bufferAddress(device, viewBounds), vk::bufferAddress(device, receiverGrids), viewFitMask,
+                            receiverGridMask};
         vkCmdPushConstants(cmd, viewBoundsLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
         const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * 4; // view_bounds.comp.glsl: VIEW_BOUNDS_BLOCK pixels per invocation
         vkCmdDispatch(cmd, (width + tile - 1) / tile, (height + tile - 1) / tile, 1);
-        vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
+        if (receiverGridMask) {
+            // The grids are written with many atomics: in device memory, then copied out.
+            vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCopy, VK_ACCESS_2_TRANSFER_READ_BIT);
+            for (uint32_t i = 0; i < frameLights.size(); ++i)
+                if (receiverGridMask & (1u << i)) {
+                    VkBufferCopy region{i * kReceiverGridBytes, kViewBoundsKeyBytes + i * kReceiverGridBytes, kReceiverGridBytes};
+                    vkCmdCopyBuffer(cmd, receiverGrids.buffer, viewBounds.buffer, 1, &region);
+                }
+        }
+        vk::memoryBarrier(cmd, kCompute | kCopy, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                          VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
         VK_CHECK(vkEndCommandBuffer(cmd));
         submitAndWait(cmd);
 
@@ -864,7 +895,19 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                 clip[map].min = {fromKey(k[0]), fromKey(k[1]), fromKey(k[2])};
                 clip[map].max = {-fromKey(k[3]), -fromKey(k[4]), -fromKey(k[5])};
             }
+            const glm::mat4 modelFit = frameData.lights[i].viewProj[0];
             frameData.lights[i] = packLight(frameLights[i], bounds, settings, clip);
+            if ((receiverGridMask & (1u << i)) && clip[0].valid) {
+                // Margin: 2 texels of the fitted map (the classification reads the
+                // 3x3 texels around a point's), in the grid's clip units.
+                auto mask = std::make_shared<ReceiverMask>();
+                mask->viewProj = glm::dmat4(modelFit);
+                const glm::dmat4 toFitted = glm::dmat4(frameData.lights[i].viewProj[0]) * glm::inverse(mask->viewProj);
+                const glm::dvec2 fittedPerGrid(std::abs(toFitted[0][0]), std::abs(toFitted[1][1])); // orthographic: scale and offset
+                mask->margin = 2.0 * (2.0 / double(shadowSize)) / fittedPerGrid + 1e-5;
+                mask->build(keys + kViewBoundsKeyBytes / sizeof(uint32_t) + i * PENUMBRA_RECEIVER_GRID_WORDS, PENUMBRA_RECEIVER_GRID);
+                receiverMasks[i] = std::move(mask);
+            }
         }
         std::memcpy(frameUniforms.mapped, &frameData, sizeof(frameData));
         planShadowViews();

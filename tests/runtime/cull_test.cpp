@@ -96,8 +96,13 @@ void expectSameBits(const std::vector<float>& expected, const std::vector<float>
 
 // Renders the same frames with --cull none and --cull all (each renderer keeps
 // its own history) and compares them bit for bit. Returns the clusters that
-// occlusion queries culled over the sequence. chunkBytes: RendererOptions::maxModelBufferBytes.
-uint64_t compareSequence(const TestScene& scene, ShadowMethod method, bool moveCamera, uint32_t frameCount = kFrames,
+// occlusion queries and the suns' receiver masks culled over the sequence.
+// chunkBytes: RendererOptions::maxModelBufferBytes.
+struct SequenceCulling {
+    uint64_t occluded = 0;
+    uint64_t besideReceivers = 0;
+};
+SequenceCulling compareSequence(const TestScene& scene, ShadowMethod method, bool moveCamera, uint32_t frameCount = kFrames,
                          uint64_t chunkBytes = 0, bool soft = false)
 {
     RendererOptions options;
@@ -111,7 +116,7 @@ uint64_t compareSequence(const TestScene& scene, ShadowMethod method, bool moveC
     settings.shadows = method;
     settings.readbackGBuffer = true;
     settings.adaptiveOcclusion = false; // queries in every view and frame, also where they do not pay
-    uint64_t culledClusters = 0, occludedClusters = 0, penumbraPixels = 0;
+    uint64_t culledClusters = 0, occludedClusters = 0, besideReceivers = 0, penumbraPixels = 0;
     for (uint32_t f = 0; f < frameCount; ++f) {
         const Camera camera = pathCamera(scene, moveCamera ? f : 3);
         const std::vector<Light> lights = pathLights(scene, moveCamera ? 3 : f, soft);
@@ -135,6 +140,7 @@ uint64_t compareSequence(const TestScene& scene, ShadowMethod method, bool moveC
         for (const ViewCullStats& view : frames[1].stats.views) {
             culledClusters += view.clustersCulled;
             occludedClusters += view.clustersOccluded;
+            besideReceivers += view.clustersBesideReceivers;
         }
     }
     if (soft) {
@@ -146,31 +152,40 @@ uint64_t compareSequence(const TestScene& scene, ShadowMethod method, bool moveC
     }
     EXPECT_EQ(reference.validationMessageCount(), 0u);
     EXPECT_EQ(culled.validationMessageCount(), 0u);
-    return occludedClusters;
+    return {occludedClusters, besideReceivers};
 }
 
 // Hard shadows (and soft shadows, SoftShadowsAreBitIdenticalToNoCulling): sm and srt.
 const ShadowMethod kMethods[] = {ShadowMethod::ShadowMap, ShadowMethod::Selective};
 
-// Occlusion queries culled something in every sequence set (the city's
-// streets; the small interior's few cells are mostly all in view).
+// Occlusion queries and the sun's receiver mask culled something in every
+// sequence set (the city's streets; the small interior's few cells are mostly
+// all in view).
 TEST(Culling, CameraPathIsBitIdenticalToNoCulling)
 {
     for (ShadowMethod method : kMethods) {
-        uint64_t occluded = 0;
-        for (const TestScene& scene : testScenes())
-            occluded += compareSequence(scene, method, true);
-        EXPECT_GT(occluded, 0u) << shadowMethodName(method);
+        SequenceCulling total;
+        for (const TestScene& scene : testScenes()) {
+            SequenceCulling sequence = compareSequence(scene, method, true);
+            total.occluded += sequence.occluded;
+            total.besideReceivers += sequence.besideReceivers;
+        }
+        EXPECT_GT(total.occluded, 0u) << shadowMethodName(method);
+        EXPECT_GT(total.besideReceivers, 0u) << shadowMethodName(method);
     }
 }
 
 TEST(Culling, LightPathIsBitIdenticalToNoCulling)
 {
     for (ShadowMethod method : kMethods) {
-        uint64_t occluded = 0;
-        for (const TestScene& scene : testScenes())
-            occluded += compareSequence(scene, method, false);
-        EXPECT_GT(occluded, 0u) << shadowMethodName(method);
+        SequenceCulling total;
+        for (const TestScene& scene : testScenes()) {
+            SequenceCulling sequence = compareSequence(scene, method, false);
+            total.occluded += sequence.occluded;
+            total.besideReceivers += sequence.besideReceivers;
+        }
+        EXPECT_GT(total.occluded, 0u) << shadowMethodName(method);
+        EXPECT_GT(total.besideReceivers, 0u) << shadowMethodName(method);
     }
 }
 
@@ -286,6 +301,46 @@ TEST(Culling, SunMapFittedToTheViewDropsCastersBesideIt)
     Frame away = renderer.render(settings);
     EXPECT_EQ(away.stats.coveredPixels, 0u);
     EXPECT_EQ(away.stats.views.at(1).clustersCulled, 0u);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+}
+
+// The fitted sun's map is a rectangle around the visible points; of the
+// casters inside it, the receiver mask also drops those whose footprint holds
+// none of them (a street seen at a slant covers a wedge of its rectangle).
+// Selective ray tracing reads the 3x3 texels around each point's: with and
+// without the mask it marks the same pixels and draws the same image.
+TEST(Culling, SunCullsCastersBesideTheVisiblePoints)
+{
+    GenerateOptions options;
+    options.triangles = 200'000;
+    Scene scene = generateScene("city", options);
+    Bounds bounds = computeBounds(scene.mesh);
+    Camera camera;
+    // Over a corner of the city, looking across it to the opposite corner.
+    camera.position = {bounds.min.x + 0.1f * bounds.extent().x, bounds.min.y + 20.0f, bounds.min.z + 0.1f * bounds.extent().z};
+    camera.target = {bounds.max.x, bounds.min.y + 20.0f, bounds.max.z};
+    Renderer renderer;
+    renderer.loadModel(scene.mesh);
+    renderer.setCamera(camera);
+    RenderSettings settings;
+    settings.width = settings.height = 128;
+    settings.shadowMapSize = 512;
+    settings.shadows = ShadowMethod::Selective;
+    settings.cull = CullMode::Frustum;
+    Frame frames[2];
+    for (int withMask = 0; withMask < 2; ++withMask) {
+        settings.cullBesideReceivers = withMask == 1;
+        frames[withMask] = renderer.render(settings);
+    }
+    const ViewCullStats &rectangle = frames[0].stats.views.at(1), &mask = frames[1].stats.views.at(1);
+    EXPECT_EQ(rectangle.clustersBesideReceivers, 0u);
+    EXPECT_GT(mask.clustersBesideReceivers, 0u);
+    EXPECT_GT(mask.clustersCulled, rectangle.clustersCulled);
+    EXPECT_LE(mask.clustersCulled, rectangle.clustersCulled + mask.clustersBesideReceivers); // some would fail the frustum lower down
+    EXPECT_GT(frames[1].stats.pipPixels, 0u);
+    EXPECT_EQ(frames[0].stats.pipPixels, frames[1].stats.pipPixels);
+    EXPECT_EQ(frames[0].stats.rays, frames[1].stats.rays);
+    expectSameBits(frames[0].color.rgba, frames[1].color.rgba, "city street, srt: color with and without the receiver mask");
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 
