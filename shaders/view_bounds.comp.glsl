@@ -12,12 +12,14 @@
 // Output per map k of light l: 8 uints at 8 (6 l + k): order keys of min x,
 // y, z, then of -max x, y, z (so that one atomicMin and one clear value serve
 // all six); then 0 when some pixel lies behind a perspective map's eye plane.
-// Directional lights in gridMask also get their receiver grid: one bit per
-// cell of a PENUMBRA_RECEIVER_GRID^2 grid over the model-fitted map's clip
-// x, y in [-1, 1] (row y, bit x; positions outside clamp to the border
-// cells), set where a pixel's point lies. The shadow views cull the casters
-// whose footprint, grown by the texels the classification reads, covers no
-// set cell (culling.h: ReceiverMask).
+// Lights in gridMask (directional, point, spot) also get a receiver grid per
+// shadow-map layer: one bit per cell of a PENUMBRA_RECEIVER_GRID^2 grid over
+// the layer's clip x, y in [-1, 1] (a directional light's model-fitted map;
+// row y, bit x), set where a pixel's point is looked up (projectToShadowMap:
+// the layer of its cube face, clamped to the border cells; a point or spot
+// light's points outside the map read nothing and are left out). The shadow
+// views cull the casters whose footprint, grown by the texels the
+// classification reads, covers no set cell (culling.h: ReceiverMask).
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -39,9 +41,9 @@ layout(buffer_reference, std430) buffer Grid { uint bits[]; };
 
 layout(push_constant) uniform ViewBoundsPush {
     uint64_t keys;   // Keys, PENUMBRA_MAX_LIGHTS * 6 * 8 uints, cleared to 0xFFFFFFFF
-    uint64_t grid;   // Grid, PENUMBRA_RECEIVER_GRID_WORDS uints per light, cleared to 0
-    uint lightMask;  // bit l: light l is fitted
-    uint gridMask;   // bit l: light l (directional) also writes its receiver grid
+    uint64_t grid;   // Grid, PENUMBRA_RECEIVER_GRID_WORDS uints per layer 6 l + k, cleared to 0
+    uint lightMask;  // bit l: light l is fitted (directional, area)
+    uint gridMask;   // bit l: light l writes its receiver grids (directional, point, spot)
 } push;
 
 shared vec3 sharedLo[GROUP_INVOCATIONS], sharedNegHi[GROUP_INVOCATIONS];
@@ -54,11 +56,55 @@ uint orderKey(float f)
     return (bits & 0x80000000u) != 0u ? ~bits : bits | 0x80000000u;
 }
 
+// The receiver grids of light l. The lookup is projectToShadowMap's, written
+// out on the uniform's fields: a copy of the whole LightData per pixel is
+// slow on lavapipe.
+void markReceivers(uint l, ivec2 origin, ivec2 size)
+{
+    const uint type = uint(frame.lights[l].positionType.w);
+    const vec3 lightPosition = frame.lights[l].positionType.xyz;
+    Grid cells = Grid(push.grid);
+    uint lastBit = ~0u;
+    for (int y = 0; y < VIEW_BOUNDS_BLOCK; ++y)
+        for (int x = 0; x < VIEW_BOUNDS_BLOCK; ++x) {
+            ivec2 pixel = origin + ivec2(x, y);
+            if (any(greaterThanEqual(pixel, size)))
+                continue;
+            vec4 g = imageLoad(gPosition, pixel);
+            if (g.w <= 0.0)
+                continue;
+            uint layer = 0u; // shadowLayer: a point light's cube face
+            if (type == PENUMBRA_LIGHT_POINT) {
+                vec3 d = g.xyz - lightPosition;
+                vec3 a = abs(d);
+                if (a.x >= a.y && a.x >= a.z)
+                    layer = d.x >= 0.0 ? 0u : 1u;
+                else if (a.y >= a.z)
+                    layer = d.y >= 0.0 ? 2u : 3u;
+                else
+                    layer = d.z >= 0.0 ? 4u : 5u;
+            }
+            vec4 clip = frame.lights[l].viewProj[layer] * vec4(g.xyz, 1.0);
+            vec3 ndc = clip.xyz / clip.w;
+            bool inside = clip.w > 0.0 && all(lessThanEqual(abs(ndc.xy), vec2(1.0))) && ndc.z <= 1.0;
+            if (!inside && type != PENUMBRA_LIGHT_DIRECTIONAL)
+                continue;
+            ivec2 cell = clamp(ivec2((ndc.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID)), ivec2(0), ivec2(PENUMBRA_RECEIVER_GRID - 1));
+            uint bit = ((6u * l + layer) * PENUMBRA_RECEIVER_GRID + uint(cell.y)) * PENUMBRA_RECEIVER_GRID + uint(cell.x);
+            if (bit != lastBit) // neighbouring pixels mostly share a cell
+                atomicOr(cells.bits[bit >> 5u], 1u << (bit & 31u));
+            lastBit = bit;
+        }
+}
+
 void main()
 {
     const float inf = uintBitsToFloat(0x7F800000u);
     const ivec2 size = imageSize(gPosition);
     const ivec2 origin = ivec2(gl_GlobalInvocationID.xy) * VIEW_BOUNDS_BLOCK;
+    for (uint l = 0u; l < PENUMBRA_MAX_LIGHTS; ++l)
+        if ((push.gridMask & (1u << l)) != 0u)
+            markReceivers(l, origin, size);
     Keys out_ = Keys(push.keys);
     for (uint l = 0u; l < PENUMBRA_MAX_LIGHTS; ++l) {
         if ((push.lightMask & (1u << l)) == 0u)
@@ -69,9 +115,7 @@ void main()
             const mat4 viewProj = frame.lights[l].viewProj[k];
             vec3 lo = vec3(inf), negHi = vec3(inf);
             bool behind = false;
-            const bool grid = !perspective && (push.gridMask & (1u << l)) != 0u;
-            Grid cells = Grid(push.grid + uint64_t(l) * (PENUMBRA_RECEIVER_GRID_WORDS * 4u));
-            uint lastCell = ~0u;
+
             for (int y = 0; y < VIEW_BOUNDS_BLOCK; ++y)
                 for (int x = 0; x < VIEW_BOUNDS_BLOCK; ++x) {
                     ivec2 pixel = origin + ivec2(x, y);
@@ -88,14 +132,7 @@ void main()
                     vec3 c = clip.xyz / clip.w;
                     lo = min(lo, c);
                     negHi = min(negHi, -c);
-                    if (grid) {
-                        ivec2 cell = clamp(ivec2(floor((c.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID))), ivec2(0),
-                                           ivec2(PENUMBRA_RECEIVER_GRID - 1));
-                        uint index = uint(cell.y * PENUMBRA_RECEIVER_GRID + cell.x);
-                        if (index != lastCell) // neighbouring pixels mostly share a cell
-                            atomicOr(cells.bits[index >> 5u], 1u << (index & 31u));
-                        lastCell = index;
-                    }
+
                 }
             lo = subgroupMin(lo);
             negHi = subgroupMin(negHi);

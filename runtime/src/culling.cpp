@@ -155,6 +155,8 @@ bool ReceiverMask::mayCover(const glm::vec3& lo, const glm::vec3& hi) const
     glm::dvec2 footMin(std::numeric_limits<double>::max()), footMax(-std::numeric_limits<double>::max());
     for (int i = 0; i < 8; ++i) {
         glm::dvec4 c = viewProj * glm::dvec4(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z, 1.0);
+        if (c.w <= 1e-9 * (std::abs(c.x) + std::abs(c.y) + std::abs(c.z)) || c.w <= 0.0)
+            return true; // reaches the eye plane of a perspective map: no bounded footprint
         footMin = glm::min(footMin, glm::dvec2(c) / c.w);
         footMax = glm::max(footMax, glm::dvec2(c) / c.w);
     }

@@ -26,13 +26,13 @@
 // visible is dropped, with or without history (first frame, jumps).
 // Query results for the history are read on the CPU after the frame's fence
 // (no extra sync). The ray tracer never sees any of this.
-// Receiver masks (directional maps fitted to the view): a caster can change
-// only the texels its projection covers, and the frame reads a directional
-// map only at the texel of a camera pixel's point and its 8 neighbours
-// (classify.comp.glsl, shadow_common.glsli). So a box whose footprint in the
-// map, grown by 2 texels, holds no visible point cannot change a texel that
-// is read: it is culled before the frustum's occlusion tests, and the image
-// stays the same.
+// Receiver masks (directional, point and spot lights): a caster can change
+// only the texels its projection covers, and the frame reads such a map only
+// at the texel of a camera pixel's point and its 8 neighbours, in the layer
+// the point is looked up in (classify.comp.glsl, shadow_common.glsli). So a
+// box whose footprint in a layer, grown by 2 texels, holds no visible point
+// cannot change a texel that is read: it is culled before the occlusion
+// tests, and the image stays the same.
 #pragma once
 
 #include <functional>
@@ -49,11 +49,12 @@
 
 namespace penumbra {
 
-// Where the camera's visible points lie in a directional light's map: the
-// cells of a grid over the model-fitted map's clip x, y in [-1, 1] that hold
-// one (view_bounds.comp.glsl), as a summed-area table.
+// Where the camera's visible points are looked up in one shadow-map layer of
+// a directional, point or spot light: the cells of a grid over the layer's
+// clip x, y in [-1, 1] (a directional light's model-fitted map) that hold one
+// (view_bounds.comp.glsl), as a summed-area table.
 struct ReceiverMask {
-    glm::dmat4 viewProj{1.0}; // the grid's clip space (orthographic)
+    glm::dmat4 viewProj{1.0}; // the grid's clip space
     uint32_t resolution = 0;  // cells a side
     glm::dvec2 margin{0.0};   // clip units added to a footprint on each side
     std::vector<uint32_t> prefix; // (resolution + 1)^2: set cells below and left of each corner
@@ -71,7 +72,7 @@ struct CullView {
     glm::mat4 viewProj{1.0f}; // clip = viewProj * world, Vulkan depth 0..1
     bool camera = false;      // G-buffer target (two colour attachments) and order-preserving second phase
     bool occlusion = false;   // occlusion queries allowed (CullMode::All; shadow maps need a non-negative depth bias)
-    std::shared_ptr<const ReceiverMask> receivers; // directional maps fitted to the view: casters beside them are culled
+    std::shared_ptr<const ReceiverMask> receivers; // shadow views: the casters beside them are culled (null: none)
 };
 
 struct Culling {

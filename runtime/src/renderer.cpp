@@ -172,9 +172,11 @@ struct ViewBoundsPush {
     uint32_t gridMask;
 };
 
-// viewBounds (readback): the keys of view_bounds.comp.glsl, then each light's receiver grid.
+// viewBounds (readback): the keys of view_bounds.comp.glsl, then the receiver
+// grid of each shadow-map layer (layer k of light l at 6 l + k).
 constexpr VkDeviceSize kViewBoundsKeyBytes = PENUMBRA_MAX_LIGHTS * 6 * 8 * sizeof(uint32_t);
 constexpr VkDeviceSize kReceiverGridBytes = PENUMBRA_RECEIVER_GRID_WORDS * sizeof(uint32_t);
+constexpr VkDeviceSize kReceiverGridsBytes = PENUMBRA_MAX_LIGHTS * 6 * kReceiverGridBytes;
 
 struct ClassifyPush {
     uint32_t lightIndex;
@@ -499,9 +501,9 @@ struct Renderer::Impl {
                                  vk::MemoryUse::DeviceLocal);
         readbackStats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                          vk::MemoryUse::Readback);
-        viewBounds = vk::createBuffer(device, kViewBoundsKeyBytes + PENUMBRA_MAX_LIGHTS * kReceiverGridBytes,
-                                      VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback, vk::Addressable::Yes);
-        receiverGrids = vk::createBuffer(device, PENUMBRA_MAX_LIGHTS * kReceiverGridBytes,
+        viewBounds = vk::createBuffer(device, kViewBoundsKeyBytes + kReceiverGridsBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                      vk::MemoryUse::Readback, vk::Addressable::Yes);
+        receiverGrids = vk::createBuffer(device, kReceiverGridsBytes,
                                          VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal,
                                          vk::Addressable::Yes);
     }
@@ -739,7 +741,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     // shadow-map layers once the directional maps are fitted to the view.
     culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, view.viewProj, true, true}});
     std::vector<uint32_t> lightFirstView(frameLights.size());
-    std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks(frameLights.size()); // directional lights fitted to the view
+    std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks(6 * frameLights.size()); // layer k of light i at 6 i + k
     auto planShadowViews = [&] {
         std::vector<CullView> cullViews;
         const bool shadowOcclusion = settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
@@ -751,7 +753,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                                        : uint32_t(frameData.lights[i].spotCosLayers.z);
             for (uint32_t k = 0; k < maps; ++k)
                 cullViews.push_back({"light" + std::to_string(i) + (maps > 1 ? (area ? ".map" : ".face") + std::to_string(k) : ""),
-                                     1 + 6 * i + k, frameData.lights[i].viewProj[k], false, shadowOcclusion, receiverMasks[i]});
+                                     1 + 6 * i + k, frameData.lights[i].viewProj[k], false, shadowOcclusion,
+                                     area ? nullptr : receiverMasks[6 * i + k]});
         }
         shadowCulling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, std::move(cullViews));
     };
@@ -763,13 +766,15 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             if (frameLights[i].type == LightType::Directional ||
                 (isAreaLight(frameLights[i]) && settings.shadows != ShadowMethod::FullRayTrace))
                 viewFitMask |= 1u << i;
-    // Of those, the directional lights that also cull the casters beside the visible points.
+    // Lights whose shadow views cull the casters beside the points the camera
+    // sees (receiver grids, read back with the fit): every light but area lights.
     uint32_t receiverGridMask = 0;
     if (settings.cullBesideReceivers && settings.cull != CullMode::None && geometry.encoding == GeometryEncoding::Compressed)
         for (uint32_t i = 0; i < frameLights.size(); ++i)
-            if (frameLights[i].type == LightType::Directional && (viewFitMask & (1u << i)))
+            if (!isAreaLight(frameLights[i]))
                 receiverGridMask |= 1u << i;
-    if (!viewFitMask)
+    const bool readBack = viewFitMask || receiverGridMask;
+    if (!readBack)
         planShadowViews();
 
     VkCommandBuffer cmd = commandBuffer;
@@ -779,7 +784,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
     vkCmdResetQueryPool(cmd, queryPool, 0, kMaxTimestamps);
     culling.resetQueries(cmd);
-    if (!viewFitMask)
+    if (!readBack)
         shadowCulling.resetQueries(cmd);
 
     std::vector<Pass> timestampPass;   // pass of the interval ending at timestamp i
@@ -846,14 +851,19 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     for (vk::Image* image : {&color, &visibility})
         transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);
 
-    if (viewFitMask) {
-        // Fit the directional maps to the view: the light-space bounds of the
-        // G-buffer, read back here (the frame's one extra submission), narrow
-        // each map before its views are planned and drawn.
+    if (readBack) {
+        // Fit the directional and area maps to the view: the light-space bounds
+        // of the G-buffer, read back here (the frame's one extra submission),
+        // narrow each map before its views are planned and drawn; and where the
+        // camera's points lie in each map (receiver grids) for the culling.
+        auto gridRegion = [&](uint32_t i) { // light i's grids: one per layer
+            return std::pair<VkDeviceSize, VkDeviceSize>{6 * i * kReceiverGridBytes,
+                                                         uint32_t(frameData.lights[i].spotCosLayers.z) * kReceiverGridBytes};
+        };
         vkCmdFillBuffer(cmd, viewBounds.buffer, 0, kViewBoundsKeyBytes, ~0u);
         for (uint32_t i = 0; i < frameLights.size(); ++i)
             if (receiverGridMask & (1u << i))
-                vkCmdFillBuffer(cmd, receiverGrids.buffer, i * kReceiverGridBytes, kReceiverGridBytes, 0u);
+                vkCmdFillBuffer(cmd, receiverGrids.buffer, gridRegion(i).first, gridRegion(i).second, 0u);
         vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, viewBoundsPipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, viewBoundsLayout, 0, 1, &classifySet, 0, nullptr);
@@ -867,7 +877,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCopy, VK_ACCESS_2_TRANSFER_READ_BIT);
             for (uint32_t i = 0; i < frameLights.size(); ++i)
                 if (receiverGridMask & (1u << i)) {
-                    VkBufferCopy region{i * kReceiverGridBytes, kViewBoundsKeyBytes + i * kReceiverGridBytes, kReceiverGridBytes};
+                    VkBufferCopy region{gridRegion(i).first, kViewBoundsKeyBytes + gridRegion(i).first, gridRegion(i).second};
                     vkCmdCopyBuffer(cmd, receiverGrids.buffer, viewBounds.buffer, 1, &region);
                 }
         }
@@ -884,29 +894,34 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
             std::memcpy(&f, &bits, sizeof(f));
             return f;
         };
+        const uint32_t* grids = keys + kViewBoundsKeyBytes / sizeof(uint32_t);
         for (uint32_t i = 0; i < frameLights.size(); ++i) {
-            if (!(viewFitMask & (1u << i)))
-                continue;
-            ViewClip clip[6];
-            for (uint32_t map = 0; map < 6; ++map) {
-                const uint32_t* k = keys + 8 * (6 * i + map);
-                // Nothing covered, or a pixel behind a perspective map's eye: the model-fitted map stays.
-                clip[map].valid = k[0] != ~0u && k[6] == ~0u;
-                clip[map].min = {fromKey(k[0]), fromKey(k[1]), fromKey(k[2])};
-                clip[map].max = {-fromKey(k[3]), -fromKey(k[4]), -fromKey(k[5])};
+            const glm::mat4 gridViewProj = frameData.lights[i].viewProj[0]; // a directional light's model-fitted map
+            if (viewFitMask & (1u << i)) {
+                ViewClip clip[6];
+                for (uint32_t map = 0; map < 6; ++map) {
+                    const uint32_t* k = keys + 8 * (6 * i + map);
+                    // Nothing covered, or a pixel behind a perspective map's eye: the model-fitted map stays.
+                    clip[map].valid = k[0] != ~0u && k[6] == ~0u;
+                    clip[map].min = {fromKey(k[0]), fromKey(k[1]), fromKey(k[2])};
+                    clip[map].max = {-fromKey(k[3]), -fromKey(k[4]), -fromKey(k[5])};
+                }
+                frameData.lights[i] = packLight(frameLights[i], bounds, settings, clip);
             }
-            const glm::mat4 modelFit = frameData.lights[i].viewProj[0];
-            frameData.lights[i] = packLight(frameLights[i], bounds, settings, clip);
-            if ((receiverGridMask & (1u << i)) && clip[0].valid) {
-                // Margin: 2 texels of the fitted map (the classification reads the
-                // 3x3 texels around a point's), in the grid's clip units.
+            if (!(receiverGridMask & (1u << i)))
+                continue;
+            for (uint32_t layer = 0; layer < uint32_t(frameData.lights[i].spotCosLayers.z); ++layer) {
+                // Margin: 2 texels of the map drawn (the classification reads the
+                // 3x3 texels around a point's), in the grid's clip units; a
+                // directional map fitted to the view is the grid's map scaled and
+                // shifted in x and y.
                 auto mask = std::make_shared<ReceiverMask>();
-                mask->viewProj = glm::dmat4(modelFit);
-                const glm::dmat4 toFitted = glm::dmat4(frameData.lights[i].viewProj[0]) * glm::inverse(mask->viewProj);
-                const glm::dvec2 fittedPerGrid(std::abs(toFitted[0][0]), std::abs(toFitted[1][1])); // orthographic: scale and offset
-                mask->margin = 2.0 * (2.0 / double(shadowSize)) / fittedPerGrid + 1e-5;
-                mask->build(keys + kViewBoundsKeyBytes / sizeof(uint32_t) + i * PENUMBRA_RECEIVER_GRID_WORDS, PENUMBRA_RECEIVER_GRID);
-                receiverMasks[i] = std::move(mask);
+                mask->viewProj = glm::dmat4(layer == 0 ? gridViewProj : frameData.lights[i].viewProj[layer]);
+                const glm::dmat4 toDrawn = glm::dmat4(frameData.lights[i].viewProj[layer]) * glm::inverse(mask->viewProj);
+                const glm::dvec2 drawnPerGrid(std::abs(toDrawn[0][0]), std::abs(toDrawn[1][1]));
+                mask->margin = 2.0 * (2.0 / double(shadowSize)) / drawnPerGrid + 1e-5;
+                mask->build(grids + (6 * i + layer) * PENUMBRA_RECEIVER_GRID_WORDS, PENUMBRA_RECEIVER_GRID);
+                receiverMasks[6 * i + layer] = std::move(mask);
             }
         }
         std::memcpy(frameUniforms.mapped, &frameData, sizeof(frameData));

@@ -278,6 +278,7 @@ TEST(Culling, SunMapFittedToTheViewDropsCastersBesideIt)
     settings.width = settings.height = 128;
     settings.shadowMapSize = 256;
     settings.cull = CullMode::Frustum;
+    settings.cullBesideReceivers = false; // the fit alone (SunCullsCastersBesideTheVisiblePoints: the mask)
     auto sunView = [&](bool fit) {
         settings.fitShadowMapsToView = fit;
         Frame frame = renderer.render(settings);
@@ -293,23 +294,30 @@ TEST(Culling, SunMapFittedToTheViewDropsCastersBesideIt)
     EXPECT_EQ(model.clustersCulled, 0u) << "the model-fitted map holds the whole model";
     EXPECT_GT(view.clustersCulled, view.clustersDrawn) << "a street-level view needs few of the city's casters";
 
-    // Looking away from the model: nothing covered, the map stays model-fitted.
+    // Looking away from the model: nothing covered, the map stays model-fitted
+    // (and, with the receiver mask, draws nothing: no point reads it).
     camera.target = camera.position + (camera.position - camera.target);
     camera.position += 2.0f * (camera.position - bounds.center());
     renderer.setCamera(camera);
     settings.fitShadowMapsToView = true;
+    settings.cullBesideReceivers = false;
     Frame away = renderer.render(settings);
     EXPECT_EQ(away.stats.coveredPixels, 0u);
     EXPECT_EQ(away.stats.views.at(1).clustersCulled, 0u);
+    settings.cullBesideReceivers = true;
+    away = renderer.render(settings);
+    EXPECT_EQ(away.stats.views.at(1).clustersDrawn, 0u);
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 
 // The fitted sun's map is a rectangle around the visible points; of the
 // casters inside it, the receiver mask also drops those whose footprint holds
-// none of them (a street seen at a slant covers a wedge of its rectangle).
-// Selective ray tracing reads the 3x3 texels around each point's: with and
-// without the mask it marks the same pixels and draws the same image.
-TEST(Culling, SunCullsCastersBesideTheVisiblePoints)
+// none of them (a view across the city at a slant covers a wedge of its
+// rectangle). A point light's cube faces drop the casters that throw their
+// shadows where the camera does not look. Selective ray tracing reads the 3x3
+// texels around each point's: with and without the masks it marks the same
+// pixels and draws the same image.
+TEST(Culling, ShadowViewsCullCastersBesideTheVisiblePoints)
 {
     GenerateOptions options;
     options.triangles = 200'000;
@@ -319,6 +327,10 @@ TEST(Culling, SunCullsCastersBesideTheVisiblePoints)
     // Over a corner of the city, looking across it to the opposite corner.
     camera.position = {bounds.min.x + 0.1f * bounds.extent().x, bounds.min.y + 20.0f, bounds.min.z + 0.1f * bounds.extent().z};
     camera.target = {bounds.max.x, bounds.min.y + 20.0f, bounds.max.z};
+    Light lamp;
+    lamp.type = LightType::Point;
+    lamp.position = bounds.center() + glm::vec3(0.0f, 0.2f * bounds.extent().y, 0.0f);
+    lamp.intensity = 20.0f;
     Renderer renderer;
     renderer.loadModel(scene.mesh);
     renderer.setCamera(camera);
@@ -327,20 +339,29 @@ TEST(Culling, SunCullsCastersBesideTheVisiblePoints)
     settings.shadowMapSize = 512;
     settings.shadows = ShadowMethod::Selective;
     settings.cull = CullMode::Frustum;
-    Frame frames[2];
-    for (int withMask = 0; withMask < 2; ++withMask) {
-        settings.cullBesideReceivers = withMask == 1;
-        frames[withMask] = renderer.render(settings);
+    for (const Light& light : {scene.lights.at(0), lamp}) {
+        renderer.setLights({light});
+        Frame frames[2];
+        for (int withMask = 0; withMask < 2; ++withMask) {
+            settings.cullBesideReceivers = withMask == 1;
+            frames[withMask] = renderer.render(settings);
+        }
+        const std::string what = light.type == LightType::Point ? "city, point light" : "city, sun";
+        uint64_t culled[2] = {0, 0}, beside[2] = {0, 0};
+        for (int withMask = 0; withMask < 2; ++withMask)
+            for (size_t v = 1; v < frames[withMask].stats.views.size(); ++v) {
+                culled[withMask] += frames[withMask].stats.views[v].clustersCulled;
+                beside[withMask] += frames[withMask].stats.views[v].clustersBesideReceivers;
+            }
+        EXPECT_EQ(beside[0], 0u) << what;
+        EXPECT_GT(beside[1], 0u) << what;
+        EXPECT_GT(culled[1], culled[0]) << what;
+        EXPECT_LE(culled[1], culled[0] + beside[1]) << what << ": some would fail the frustum lower down";
+        EXPECT_GT(frames[1].stats.pipPixels, 0u) << what;
+        EXPECT_EQ(frames[0].stats.pipPixels, frames[1].stats.pipPixels) << what;
+        EXPECT_EQ(frames[0].stats.rays, frames[1].stats.rays) << what;
+        expectSameBits(frames[0].color.rgba, frames[1].color.rgba, what + ", srt: color with and without the receiver masks");
     }
-    const ViewCullStats &rectangle = frames[0].stats.views.at(1), &mask = frames[1].stats.views.at(1);
-    EXPECT_EQ(rectangle.clustersBesideReceivers, 0u);
-    EXPECT_GT(mask.clustersBesideReceivers, 0u);
-    EXPECT_GT(mask.clustersCulled, rectangle.clustersCulled);
-    EXPECT_LE(mask.clustersCulled, rectangle.clustersCulled + mask.clustersBesideReceivers); // some would fail the frustum lower down
-    EXPECT_GT(frames[1].stats.pipPixels, 0u);
-    EXPECT_EQ(frames[0].stats.pipPixels, frames[1].stats.pipPixels);
-    EXPECT_EQ(frames[0].stats.rays, frames[1].stats.rays);
-    expectSameBits(frames[0].color.rgba, frames[1].color.rgba, "city street, srt: color with and without the receiver mask");
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 

@@ -95,9 +95,10 @@ struct RenderSettings {
     // them). The image depends only on the camera and lights, never on
     // culling or earlier frames. Point and spot lights keep their maps.
     bool fitShadowMapsToView = true;
-    // Directional maps fitted to the view, CullMode Frustum and All: also cull
-    // the casters whose footprint in the map holds no visible point (a grid of
-    // the visible points read back with the fit). Same image either way.
+    // CullMode Frustum and All: the shadow maps of directional, point and spot
+    // lights also cull the casters whose footprint in the map holds no point
+    // the camera sees (a grid of those points per map layer, read back with
+    // the fit: one host round trip per frame). Same image either way.
     bool cullBesideReceivers = true;
     // CullMode::All: a view whose occlusion queries cull little goes frustum-only
     // for a few frames. false (tests): queries in every view, every frame.
@@ -124,7 +125,7 @@ struct ViewCullStats {
     uint64_t clustersDrawn = 0;    // clusters drawn in the view's final pass
     uint64_t clustersCulled = 0;   // clusters of the model not drawn
     uint64_t clustersOccluded = 0; // of those, the ones in the frustum culled by occlusion queries
-    uint64_t clustersBesideReceivers = 0; // of those, the ones in a sun's frustum that can shadow no visible point
+    uint64_t clustersBesideReceivers = 0; // of those, shadow views: the ones in the frustum that can shadow no visible point
     uint64_t trianglesDrawn = 0;
     uint64_t trianglesCulled = 0;
     uint64_t queriesIssued = 0;    // occlusion queries (node/cluster boxes)
