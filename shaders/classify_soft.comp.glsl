@@ -88,7 +88,7 @@ uvec2 classifyPixel()
 
     if (push.mode == 0u) {
         // One point-light shadow map of K: the point must be above the pixel's plane.
-        vec3 eye = light.mapEye[push.slot].xyz;
+        vec3 eye = lightMapEye(light, push.slot).xyz;
         bool lit = reached && dot(n, eye - p) > 0.0 && s.inside && s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r;
         float previous = push.first != 0u ? 0.0 : imageLoad(outVisibility, pixel).r;
         imageStore(outVisibility, pixel, vec4(previous + (lit ? push.weight : 0.0)));

@@ -139,7 +139,7 @@ void splat(uvec2 c, uint level, float z)
         markWholeMap(); // an occluder within the light's reach: its penumbra can cover anything
         return;
     }
-    vec3 eye = gLight.mapEye[push.slot].xyz;
+    vec3 eye = lightMapEye(gLight, push.slot).xyz;
     float ndcZ = gFar * (z - gNear) / (z * (gFar - gNear));
     vec4 world = push.invViewProj * vec4(centreTexel / float(S) * 2.0 - 1.0, ndcZ, 1.0);
     vec3 e = world.xyz / world.w - eye;
@@ -184,7 +184,7 @@ void splat(uvec2 c, uint level, float z)
     SplatPolygon polygon;
     polygon.count = count;
     for (uint j = 0u; j < count; ++j) {
-        vec4 clip = gLight.viewProj[push.slot] * vec4(eye + corners[j], 1.0);
+        vec4 clip = lightViewProj(gLight, push.slot) * vec4(eye + corners[j], 1.0);
         if (clip.w <= 1e-6 * gNear) {
             markWholeMap(); // reaches behind the eye: unbounded in the map
             return;
@@ -192,7 +192,7 @@ void splat(uvec2 c, uint level, float z)
         polygon.points[j] = (clip.xy / clip.w * 0.5 + 0.5) * float(S);
     }
     preparePolygon(polygon);
-    vec4 centreClip = gLight.viewProj[push.slot] * vec4(eye + e, 1.0);
+    vec4 centreClip = lightViewProj(gLight, push.slot) * vec4(eye + e, 1.0);
     vec2 centre = (centreClip.xy / centreClip.w * 0.5 + 0.5) * float(S);
     // The polygon's interval on each axis relative to the centre (scales linearly).
     vec2 relative[8];
@@ -318,10 +318,10 @@ void appendJob(bool valid, uvec2 c, uint level, float z)
 void main()
 {
     gLight = frame.lights[push.lightIndex];
-    gNear = gLight.mapEye[push.slot].w;
-    gFar = gLight.mapRange[push.slot].x;
-    gRbig = length(gLight.positionType.xyz - gLight.mapEye[push.slot].xyz) + gLight.areaV.w;
-    gTexelAngle = gLight.mapRange[push.slot].y / float(push.mapSize);
+    gNear = lightMapEye(gLight, push.slot).w;
+    gFar = lightMapRange(gLight, push.slot).x;
+    gRbig = length(gLight.positionType.xyz - lightMapEye(gLight, push.slot).xyz) + gLight.areaV.w;
+    gTexelAngle = lightMapRange(gLight, push.slot).y / float(push.mapSize);
     uint S = push.mapSize;
 
     if (push.level == kWriteDispatch) {
