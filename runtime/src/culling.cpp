@@ -208,22 +208,20 @@ void Culling::destroy(vk::Device& device)
 
 void Culling::clearModel()
 {
-    enabled = false;
-    topNodes.clear();
-    clusterMin.clear();
-    clusterMax.clear();
-    clusterTriangles.clear();
-    commands.clear();
-    clusterChunk.clear();
+    model.reset();
     history.clear();
     plans.clear();
     queryCount = 0;
-    totalTriangles = 0;
 }
 
-void Culling::setModel(const CompressedModel& model, const GpuGeometry& geometry)
+void Culling::setModel(std::shared_ptr<const CullModel> cullModel)
 {
     clearModel();
+    model = std::move(cullModel);
+}
+
+CullModel::CullModel(const CompressedModel& model, const GpuGeometry& geometry)
+{
     const size_t clusterCount = model.clusters.size();
     clusterMin.resize(clusterCount);
     clusterMax.resize(clusterCount);
@@ -272,7 +270,7 @@ void Culling::setModel(const CompressedModel& model, const GpuGeometry& geometry
         }
     }
     for (size_t t = topNodes.size(); t-- > 0;) {
-        TopNode& node = topNodes[t];
+        CullModel::TopNode& node = topNodes[t];
         if (node.childCount == 0) {
             node.min = clusterMin[node.cluster];
             node.max = clusterMax[node.cluster];
@@ -282,14 +280,13 @@ void Culling::setModel(const CompressedModel& model, const GpuGeometry& geometry
         node.min = topNodes[node.firstChild].min;
         node.max = topNodes[node.firstChild].max;
         for (uint32_t c = 0; c < node.childCount; ++c) {
-            const TopNode& child = topNodes[node.firstChild + c];
+            const CullModel::TopNode& child = topNodes[node.firstChild + c];
             node.min = glm::min(node.min, child.min);
             node.max = glm::max(node.max, child.max);
             node.clusterCount += child.clusterCount;
         }
     }
     boxMargin = 1e-5f * glm::length(topNodes[0].max - topNodes[0].min) + 1e-7f;
-    enabled = true;
 }
 
 void Culling::planView(ViewPlan& plan)
@@ -299,15 +296,15 @@ void Culling::planView(ViewPlan& plan)
     const bool occlusion = plan.view.occlusion;
     History& state = history[plan.view.slot];
     std::vector<uint8_t>& visible = state.visible;
-    visible.resize(clusterMin.size(), 0);
-    const glm::vec3 margin(boxMargin);
+    visible.resize(model->clusterMin.size(), 0);
+    const glm::vec3 margin(model->boxMargin);
 
     // Clusters of last frame's set below each node (children after parents).
     std::vector<uint32_t> historyBelow;
     if (occlusion) {
-        historyBelow.assign(topNodes.size(), 0);
-        for (size_t t = topNodes.size(); t-- > 0;) {
-            const TopNode& node = topNodes[t];
+        historyBelow.assign(model->topNodes.size(), 0);
+        for (size_t t = model->topNodes.size(); t-- > 0;) {
+            const CullModel::TopNode& node = model->topNodes[t];
             if (node.childCount == 0)
                 historyBelow[t] = visible[node.cluster];
             else
@@ -336,7 +333,7 @@ void Culling::planView(ViewPlan& plan)
     while (!stack.empty()) {
         Item item = stack.back();
         stack.pop_back();
-        const TopNode& node = topNodes[item.node];
+        const CullModel::TopNode& node = model->topNodes[item.node];
         ++plan.nodesTested;
         BoxTest test = testBox(viewProj, node.min - margin, node.max + margin);
         if (test.outside)
@@ -389,7 +386,7 @@ void Culling::planView(ViewPlan& plan)
     // Group queries are numbered per view here; beginFrame makes them global.
     // Boxes: the groups' (above, in query order), then the history cells'.
     for (uint32_t cell : historyCells)
-        addQueryBox(topNodes[cell].min, topNodes[cell].max);
+        addQueryBox(model->topNodes[cell].min, model->topNodes[cell].max);
     std::sort(plan.firstPhase.begin(), plan.firstPhase.end());
     if (plan.view.camera)
         for (uint32_t cluster : plan.firstPhase)
@@ -408,7 +405,7 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
     plans.clear();
     queryBoxes.clear();
     queryCount = 0;
-    if (!enabled)
+    if (!model)
         return;
     uint32_t commandCount = 0;
     for (CullView& view : views) {
@@ -459,11 +456,11 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
     for (const ViewPlan& plan : plans) {
         uint32_t i = plan.firstCommand;
         for (uint32_t cluster : plan.firstPhase) {
-            commandOut[i] = commands[cluster];
+            commandOut[i] = model->commands[cluster];
             queryOut[i++] = kNoQuery;
         }
         for (const Entry& entry : plan.finalPhase) {
-            commandOut[i] = commands[entry.cluster];
+            commandOut[i] = model->commands[entry.cluster];
             commandOut[i].instanceCount = entry.query == kNoQuery ? 1 : 0; // the predicate pass decides
             queryOut[i++] = entry.query;
         }
@@ -503,9 +500,9 @@ void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_
     // One multi-draw per run of clusters in the same chunk (the list is ascending).
     size_t begin = 0;
     while (begin < clusters.size()) {
-        const uint32_t chunkIndex = clusterChunk[clusters[begin]];
+        const uint32_t chunkIndex = model->clusterChunk[clusters[begin]];
         size_t end = begin + 1;
-        while (end < clusters.size() && clusterChunk[clusters[end]] == chunkIndex)
+        while (end < clusters.size() && model->clusterChunk[clusters[end]] == chunkIndex)
             ++end;
         const GpuGeometry::Chunk& chunk = geometry.chunks[chunkIndex];
         VkBuffer buffers[2] = {chunk.vertices.buffer, geometry.clusters.buffer};
@@ -532,7 +529,7 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
 void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry,
                            const BeginRendering& begin, const EndRendering& end)
 {
-    if (!enabled || mode == CullMode::None || viewIndex >= plans.size()) {
+    if (!model || mode == CullMode::None || viewIndex >= plans.size()) {
         begin(true);
         drawGeometry(cmd, geometry);
         end();
@@ -545,7 +542,7 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
     const uint32_t firstFinal = plan.firstCommand + uint32_t(plan.firstPhase.size());
     if (!plan.view.occlusion) {
         begin(true);
-        if (finalClusters.size() == commands.size())
+        if (finalClusters.size() == model->commands.size())
             drawGeometry(cmd, geometry); // the frustum holds everything (a sun's map): the model's own list
         else
             drawList(cmd, geometry, firstFinal, finalClusters);
@@ -628,7 +625,7 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
 std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
 {
     std::vector<ViewCullStats> out;
-    if (!enabled)
+    if (!model)
         return out;
     std::vector<uint32_t> results(queryCount);
     std::vector<uint64_t> ticks(2 * plans.size());
@@ -657,10 +654,10 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
         }
         auto drawn = [&](uint32_t cluster) {
             ++stats.clustersDrawn;
-            stats.trianglesDrawn += clusterTriangles[cluster];
+            stats.trianglesDrawn += model->clusterTriangles[cluster];
         };
         if (mode == CullMode::None) {
-            for (uint32_t cluster = 0; cluster < clusterTriangles.size(); ++cluster)
+            for (uint32_t cluster = 0; cluster < model->clusterTriangles.size(); ++cluster)
                 drawn(cluster);
         } else if (!plan.view.occlusion) {
             for (const Entry& entry : plan.finalPhase)
@@ -701,8 +698,8 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
                 double(stats.clustersOccluded + hiddenHistory) < PENUMBRA_CULL_MIN_OCCLUDED * double(inFrustum))
                 history[plan.view.slot].frustumOnlyFrames = PENUMBRA_CULL_RETRY_FRAMES;
         }
-        stats.clustersCulled = clusterTriangles.size() - stats.clustersDrawn;
-        stats.trianglesCulled = totalTriangles - stats.trianglesDrawn;
+        stats.clustersCulled = model->clusterTriangles.size() - stats.clustersDrawn;
+        stats.trianglesCulled = model->totalTriangles - stats.trianglesDrawn;
         out.push_back(std::move(stats));
     }
     return out;

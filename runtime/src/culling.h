@@ -65,6 +65,29 @@ struct ReceiverMask {
     bool mayCover(const glm::vec3& lo, const glm::vec3& hi) const;
 };
 
+// The model as the culling sees it, built once per model and shared by every
+// Culling of a renderer (camera, shadow views): CPU copies of the cluster
+// boxes, triangle counts and draw commands, and the BVH top (every node down
+// to the Cluster nodes).
+struct CullModel {
+    struct TopNode {
+        glm::vec3 min, max;        // union of the boxes below (cluster quantization boxes)
+        uint32_t firstChild = 0;   // index in topNodes; Interior only
+        uint32_t childCount = 0;   // 0: a Cluster node
+        uint32_t cluster = 0;      // Cluster nodes: cluster index
+        uint32_t clusterCount = 0; // clusters in the subtree
+    };
+    std::vector<TopNode> topNodes;                 // index 0: root
+    std::vector<glm::vec3> clusterMin, clusterMax; // quantization boxes
+    std::vector<uint32_t> clusterTriangles;
+    std::vector<VkDrawIndexedIndirectCommand> commands; // per cluster, as in GpuGeometry::indirect
+    std::vector<uint32_t> clusterChunk;                 // chunk of each cluster
+    uint64_t totalTriangles = 0;
+    float boxMargin = 0; // added to every queried box (model units)
+
+    CullModel(const CompressedModel& model, const GpuGeometry& geometry);
+};
+
 // One raster view of a frame.
 struct CullView {
     std::string name;         // stats name: "camera", "light0", "light0.face3"
@@ -87,10 +110,9 @@ struct Culling {
     void create(vk::Device& device, const std::vector<VkFormat>& cameraColorFormats, VkFormat depthFormat);
     void destroy(vk::Device& device);
 
-    // CPU copy of the cluster boxes, triangle counts, draw commands and the BVH
-    // top (every node down to the Cluster nodes) of the model just uploaded;
-    // clears every view's history. clearModel: the uncompressed reference (no culling).
-    void setModel(const CompressedModel& model, const GpuGeometry& geometry);
+    // The model just uploaded; clears every view's history. clearModel: the
+    // uncompressed reference (no culling).
+    void setModel(std::shared_ptr<const CullModel> model);
     void clearModel();
 
     // Plans every view of the frame on the CPU (frustum traversal, draw lists,
@@ -105,13 +127,6 @@ struct Culling {
     // returns per-view stats (empty without a compressed model).
     std::vector<ViewCullStats> endFrame(vk::Device& device);
 
-    struct TopNode {
-        glm::vec3 min, max;        // union of the boxes below (cluster quantization boxes)
-        uint32_t firstChild = 0;   // index in topNodes; Interior only
-        uint32_t childCount = 0;   // 0: a Cluster node
-        uint32_t cluster = 0;      // Cluster nodes: cluster index
-        uint32_t clusterCount = 0; // clusters in the subtree
-    };
     struct Entry {
         uint32_t cluster;
         uint32_t query; // kNoQuery: drawn unconditionally
@@ -134,14 +149,7 @@ struct Culling {
     static constexpr uint32_t kNoQuery = ~0u;
 
     // Model
-    bool enabled = false;
-    std::vector<TopNode> topNodes;                 // index 0: root
-    std::vector<glm::vec3> clusterMin, clusterMax; // quantization boxes
-    std::vector<uint32_t> clusterTriangles;
-    std::vector<VkDrawIndexedIndirectCommand> commands; // per cluster, as in GpuGeometry::indirect
-    std::vector<uint32_t> clusterChunk;                 // chunk of each cluster
-    uint64_t totalTriangles = 0;
-    float boxMargin = 0; // added to every queried box (model units)
+    std::shared_ptr<const CullModel> model; // null: no culling
     struct History {
         std::vector<uint8_t> visible;   // per cluster: visible last frame
         uint32_t frustumOnlyFrames = 0; // occlusion did not pay in this view: frames left culled by the frustum only

@@ -1328,8 +1328,9 @@ const DeviceInfo& Renderer::device() const { return impl->device.info; }
 void Renderer::loadModel(const CompressedModel& model)
 {
     impl->setGeometry(uploadCompressed(impl->device, model));
-    impl->culling.setModel(model, impl->geometry);
-    impl->shadowCulling.setModel(model, impl->geometry);
+    auto cullModel = std::make_shared<const CullModel>(model, impl->geometry);
+    impl->culling.setModel(cullModel);
+    impl->shadowCulling.setModel(cullModel);
 }
 
 void Renderer::loadModel(const Mesh& mesh)
