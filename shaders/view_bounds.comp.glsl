@@ -56,6 +56,19 @@ uint orderKey(float f)
     return (bits & 0x80000000u) != 0u ? ~bits : bits | 0x80000000u;
 }
 
+// Point i of the invocation's block of pixels; false where there is none
+// (outside the image, or background).
+bool blockPoint(ivec2 origin, ivec2 size, int i, out vec3 p)
+{
+    ivec2 pixel = origin + ivec2(i % VIEW_BOUNDS_BLOCK, i / VIEW_BOUNDS_BLOCK);
+    p = vec3(0.0);
+    if (any(greaterThanEqual(pixel, size)))
+        return false;
+    vec4 g = imageLoad(gPosition, pixel);
+    p = g.xyz;
+    return g.w > 0.0;
+}
+
 // The receiver grids of light l. The lookup is projectToShadowMap's, written
 // out on the uniform's fields: a copy of the whole LightData per pixel is
 // slow on lavapipe.
@@ -65,36 +78,32 @@ void markReceivers(uint l, ivec2 origin, ivec2 size)
     const vec3 lightPosition = frame.lights[l].positionType.xyz;
     Grid cells = Grid(push.grid);
     uint lastBit = ~0u;
-    for (int y = 0; y < VIEW_BOUNDS_BLOCK; ++y)
-        for (int x = 0; x < VIEW_BOUNDS_BLOCK; ++x) {
-            ivec2 pixel = origin + ivec2(x, y);
-            if (any(greaterThanEqual(pixel, size)))
-                continue;
-            vec4 g = imageLoad(gPosition, pixel);
-            if (g.w <= 0.0)
-                continue;
-            uint layer = 0u; // shadowLayer: a point light's cube face
-            if (type == PENUMBRA_LIGHT_POINT) {
-                vec3 d = g.xyz - lightPosition;
-                vec3 a = abs(d);
-                if (a.x >= a.y && a.x >= a.z)
-                    layer = d.x >= 0.0 ? 0u : 1u;
-                else if (a.y >= a.z)
-                    layer = d.y >= 0.0 ? 2u : 3u;
-                else
-                    layer = d.z >= 0.0 ? 4u : 5u;
-            }
-            vec4 clip = frame.lights[l].viewProj[layer] * vec4(g.xyz, 1.0);
-            vec3 ndc = clip.xyz / clip.w;
-            bool inside = clip.w > 0.0 && all(lessThanEqual(abs(ndc.xy), vec2(1.0))) && ndc.z <= 1.0;
-            if (!inside && type != PENUMBRA_LIGHT_DIRECTIONAL)
-                continue;
-            ivec2 cell = clamp(ivec2((ndc.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID)), ivec2(0), ivec2(PENUMBRA_RECEIVER_GRID - 1));
-            uint bit = ((6u * l + layer) * PENUMBRA_RECEIVER_GRID + uint(cell.y)) * PENUMBRA_RECEIVER_GRID + uint(cell.x);
-            if (bit != lastBit) // neighbouring pixels mostly share a cell
-                atomicOr(cells.bits[bit >> 5u], 1u << (bit & 31u));
-            lastBit = bit;
+    for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
+        vec3 p;
+        if (!blockPoint(origin, size, i, p))
+            continue;
+        uint layer = 0u; // shadowLayer: a point light's cube face
+        if (type == PENUMBRA_LIGHT_POINT) {
+            vec3 d = p - lightPosition;
+            vec3 a = abs(d);
+            if (a.x >= a.y && a.x >= a.z)
+                layer = d.x >= 0.0 ? 0u : 1u;
+            else if (a.y >= a.z)
+                layer = d.y >= 0.0 ? 2u : 3u;
+            else
+                layer = d.z >= 0.0 ? 4u : 5u;
         }
+        vec4 clip = frame.lights[l].viewProj[layer] * vec4(p, 1.0);
+        vec3 ndc = clip.xyz / clip.w;
+        bool inside = clip.w > 0.0 && all(lessThanEqual(abs(ndc.xy), vec2(1.0))) && ndc.z <= 1.0;
+        if (!inside && type != PENUMBRA_LIGHT_DIRECTIONAL)
+            continue;
+        ivec2 cell = clamp(ivec2((ndc.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID)), ivec2(0), ivec2(PENUMBRA_RECEIVER_GRID - 1));
+        uint bit = ((6u * l + layer) * PENUMBRA_RECEIVER_GRID + uint(cell.y)) * PENUMBRA_RECEIVER_GRID + uint(cell.x);
+        if (bit != lastBit) // neighbouring pixels mostly share a cell
+            atomicOr(cells.bits[bit >> 5u], 1u << (bit & 31u));
+        lastBit = bit;
+    }
 }
 
 void main()
@@ -115,25 +124,19 @@ void main()
             const mat4 viewProj = frame.lights[l].viewProj[k];
             vec3 lo = vec3(inf), negHi = vec3(inf);
             bool behind = false;
-
-            for (int y = 0; y < VIEW_BOUNDS_BLOCK; ++y)
-                for (int x = 0; x < VIEW_BOUNDS_BLOCK; ++x) {
-                    ivec2 pixel = origin + ivec2(x, y);
-                    if (any(greaterThanEqual(pixel, size)))
-                        continue;
-                    vec4 g = imageLoad(gPosition, pixel);
-                    if (g.w <= 0.0)
-                        continue;
-                    vec4 clip = viewProj * vec4(g.xyz, 1.0); // orthographic: w = 1
-                    if (clip.w <= 0.0) {
-                        behind = true;
-                        continue;
-                    }
-                    vec3 c = clip.xyz / clip.w;
-                    lo = min(lo, c);
-                    negHi = min(negHi, -c);
-
+            for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
+                vec3 p;
+                if (!blockPoint(origin, size, i, p))
+                    continue;
+                vec4 clip = viewProj * vec4(p, 1.0); // orthographic: w = 1
+                if (clip.w <= 0.0) {
+                    behind = true;
+                    continue;
                 }
+                vec3 c = clip.xyz / clip.w;
+                lo = min(lo, c);
+                negHi = min(negHi, -c);
+            }
             lo = subgroupMin(lo);
             negHi = subgroupMin(negHi);
             behind = subgroupMax(behind ? 1u : 0u) != 0u; // the device offers arithmetic, not vote
