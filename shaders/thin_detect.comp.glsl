@@ -44,8 +44,11 @@ layout(push_constant) uniform ThinDetectPush
     uint64_t leafAltitudes; // LeafAltitudes, 0: skip no leaf
     vec4 light;          // xyz position; w: 0 orthographic, else a lower bound of light-view depth / distance
     float texelSize;     // orthographic: texel size; perspective: texel size per unit of light-view depth
-    float pad0, pad1, pad2;
+    float pad;
+    uint64_t clusterMask; // ClusterMask: bit per cluster, set where its footprint may reach a receiver; 0: all may
 } push;
+
+layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer ClusterMask { uint bits[]; };
 
 // Narrows [xLo, xHi] to the X with a * X in [lo, hi].
 void clipLinear(float a, float lo, float hi, inout float xLo, inout float xHi)
@@ -156,7 +159,11 @@ void main()
     NodeChunks nodeChunks = NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift);
     if (index < push.nodeCount) {
         uvec4 node = loadNode(nodeChunks, index);
-        if (((node.y >> 16) & 0xFFu) == PENUMBRA_NODE_LEAF && mayHoldSlivers(table, index, node))
+        // node.z: the leaf's cluster. A cluster whose footprint lies 2 texels or more from every
+        // camera pixel's point cannot write a texel that is read (receiver masks, culling.h).
+        if (((node.y >> 16) & 0xFFu) == PENUMBRA_NODE_LEAF &&
+            (push.clusterMask == 0ul || (ClusterMask(push.clusterMask).bits[node.z >> 5u] & (1u << (node.z & 31u))) != 0u) &&
+            mayHoldSlivers(table, index, node))
             passingLeaves[atomicAdd(passingCount, 1u)] = node;
     }
     barrier();

@@ -398,6 +398,24 @@ void Culling::planView(ViewPlan& plan)
     plan.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
+void Culling::markClustersNearReceivers(const ReceiverMask& mask, uint32_t* bits) const
+{
+    if (!model)
+        return;
+    const glm::vec3 margin(model->boxMargin);
+    std::vector<uint32_t> stack{0};
+    while (!stack.empty()) {
+        const CullModel::TopNode& node = model->topNodes[stack.back()];
+        stack.pop_back();
+        if (!mask.mayCover(node.min - margin, node.max + margin))
+            continue;
+        if (node.childCount == 0)
+            bits[node.cluster >> 5] |= 1u << (node.cluster & 31);
+        for (uint32_t c = 0; c < node.childCount; ++c)
+            stack.push_back(node.firstChild + c);
+    }
+}
+
 void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcclusion, std::vector<CullView> views)
 {
     mode = cullMode;

@@ -126,6 +126,13 @@ struct Culling {
     // After the frame's fence: reads the queries, updates the histories and
     // returns per-view stats (empty without a compressed model).
     std::vector<ViewCullStats> endFrame(vk::Device& device);
+    // Sets bit c of bits ((clusters + 31) / 32 words, cleared by the caller)
+    // for every cluster whose footprint may cover a cell of the mask (a BVH
+    // traversal with mask.mayCover; no frustum test). The thin-triangle pass
+    // skips the others: their conservative rectangles reach at most 0.71
+    // texel beyond the footprint, and a receiver reads the thin map at its own
+    // texel only.
+    void markClustersNearReceivers(const ReceiverMask& mask, uint32_t* bits) const;
 
     struct Entry {
         uint32_t cluster;

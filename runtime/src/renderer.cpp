@@ -161,7 +161,8 @@ struct ThinDetectPush {
     VkDeviceAddress leafAltitudes; // 0: skip no leaf
     glm::vec4 light;               // xyz light position; w: 0 orthographic, else a lower bound of light-view depth / distance
     float texelSize;               // orthographic: texel size; perspective: texel size per unit of light-view depth
-    float pad[3];
+    float pad;
+    VkDeviceAddress clusterMask;   // bit per cluster: may reach a receiver (Culling::markClustersNearReceivers); 0: all may
 };
 static_assert(sizeof(ThinDetectPush) == 128);
 
@@ -394,6 +395,7 @@ struct Renderer::Impl {
     vk::Buffer frameUniforms, stats, readbackStats, marks, rayList;
     vk::Buffer viewBounds; // view_bounds.comp.glsl: light-space bounds of the G-buffer, read before the shadow pass
     vk::Buffer receiverGrids; // view_bounds.comp.glsl: per light, its receiver grid (device-local; copied into viewBounds)
+    vk::Buffer thinClusterMasks; // srt: per light layer, the clusters the thin-triangle pass decodes (host-written each frame)
     // Per shadow-map size (penumbra_mask.comp.glsl): penumbra mask, nearest-edge pyramid, deepest camera pixel per tile.
     vk::Buffer penumbraMask, penumbraPyramid, penumbraReceivers, penumbraJobs;
     uint32_t penumbraMaxJobs = 0;
@@ -537,6 +539,7 @@ struct Renderer::Impl {
         shadowCulling.destroy(device);
         vk::destroyBuffer(device, viewBounds);
         vk::destroyBuffer(device, receiverGrids);
+        vk::destroyBuffer(device, thinClusterMasks);
         vk::destroyBuffer(device, frameUniforms);
         vk::destroyBuffer(device, stats);
         vk::destroyBuffer(device, readbackStats);
@@ -742,6 +745,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, view.viewProj, true, true}});
     std::vector<uint32_t> lightFirstView(frameLights.size());
     std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks(6 * frameLights.size()); // layer k of light i at 6 i + k
+    std::vector<VkDeviceAddress> thinClusterMask(6 * frameLights.size(), 0);              // the same layers; 0: every cluster
     auto planShadowViews = [&] {
         std::vector<CullView> cullViews;
         const bool shadowOcclusion = settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
@@ -924,6 +928,24 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                 receiverMasks[6 * i + layer] = std::move(mask);
             }
         }
+        if (selective && receiverGridMask) {
+            // The clusters whose thin triangles may reach a receiver's texel, per light layer.
+            const size_t words = (shadowCulling.model->clusterMin.size() + 31) / 32;
+            const VkDeviceSize bytes = 6 * frameLights.size() * words * sizeof(uint32_t);
+            if (thinClusterMasks.size < bytes) {
+                vk::destroyBuffer(device, thinClusterMasks);
+                thinClusterMasks = vk::createBuffer(device, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Upload,
+                                                    vk::Addressable::Yes);
+            }
+            auto* bits = static_cast<uint32_t*>(thinClusterMasks.mapped);
+            std::memset(bits, 0, bytes);
+            const VkDeviceAddress base = vk::bufferAddress(device, thinClusterMasks);
+            for (size_t l = 0; l < receiverMasks.size(); ++l)
+                if (receiverMasks[l]) {
+                    shadowCulling.markClustersNearReceivers(*receiverMasks[l], bits + l * words);
+                    thinClusterMask[l] = base + l * words * sizeof(uint32_t);
+                }
+        }
         std::memcpy(frameUniforms.mapped, &frameData, sizeof(frameData));
         planShadowViews();
 
@@ -974,7 +996,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     // with z >= distance * depthPerDistance (the cosine of half the frustum's
     // diagonal angle: 1/sqrt(3) for cube faces, cos(outer) for spots).
     auto detectThinTriangles = [&](const glm::mat4& viewProj, uint32_t layer, glm::vec3 eye, bool perspective, float depthPerDistance,
-                                   float footprint) {
+                                   float footprint, VkDeviceAddress clusterMask) {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectLayout, 0, 1, &thinDetectSet, 0, nullptr);
         const uint32_t detectGroups =
@@ -989,7 +1011,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                               geometry.leafAltitudes.buffer ? vk::bufferAddress(device, geometry.leafAltitudes) : 0,
                               glm::vec4(eye, perspective ? depthPerDistance : 0.0f),
                               footprint / float(shadowSize),
-                              {}};
+                              0.0f,
+                              clusterMask};
         vkCmdPushConstants(cmd, thinDetectLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(detect), &detect);
         vkCmdDispatch(cmd, groupsXDetect, groupsYDetect, 1);
     };
@@ -1091,7 +1114,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                     clearThin();
                     float halfTan = 0.5f * light.mapRange[slot].y;
                     detectThinTriangles(light.viewProj[slot], 0, glm::vec3(light.mapEye[slot]), true,
-                                        1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan), light.mapRange[slot].y);
+                                        1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan), light.mapRange[slot].y, 0);
                     vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
                     timestamp(PassThinTriangles);
                     buildPenumbraMask(lightIndex, slot, true);
@@ -1121,7 +1144,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                 const float depthPerDistance = uint32_t(light.positionType.w) == PENUMBRA_LIGHT_SPOT ? light.spotCosLayers.y : 0.57735f;
                 for (uint32_t layer = 0; layer < layers; ++layer)
                     detectThinTriangles(light.viewProj[layer], layer, glm::vec3(light.positionType), perspective, depthPerDistance,
-                                        light.shadowParams.w);
+                                        light.shadowParams.w, thinClusterMask[6 * lightIndex + layer]);
                 vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
                 timestamp(PassThinTriangles);
             }
