@@ -14,7 +14,8 @@
 //    pixels only the hard-shadow tests mark get PENUMBRA_MARK_ONE_SAMPLE (one ray);
 //  mode 3 (frt): mark every pixel with a light sample above its plane;
 //  mode 4 (before the mask of map `slot` is built): per tile of the map, the
-//    deepest light-view depth of the pixels that project there.
+//    deepest light-view depth of the pixels that project there, and of those
+//    the map does not hide (mapHides).
 // Pixels with no light sample above their plane, or behind a one-sided emitter,
 // get visibility 0 and no rays.
 
@@ -33,7 +34,8 @@ layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 6, std430) buffer Marks { uint marks[]; };
 layout(set = 0, binding = 7, std430) buffer Stats { uint64_t stats[]; };
 layout(set = 0, binding = 8, std430) readonly buffer Mask { uint mask[]; }; // penumbra_mask.comp.glsl
-layout(set = 0, binding = 9, std430) buffer Receivers { uint receivers[]; };  // mode 4: per map tile, the deepest pixel
+layout(set = 0, binding = 9, std430) buffer Receivers { uint receivers[]; };  // mode 4: per map tile, the deepest pixel; then
+                                                                              // the deepest the map does not hide
 
 layout(push_constant) uniform ClassifySoftPush {
     uint lightIndex;
@@ -46,7 +48,22 @@ layout(push_constant) uniform ClassifySoftPush {
     uint pad;
 } push;
 
-// In the penumbra mask of the map: some splat over the pixel's texel reaches its depth.
+// The map hides the pixel: it lies deeper than every depth of its texel's 3x3
+// neighbourhood by more than the edge threshold, so behind a surface of the
+// map; thin triangles' splats do not apply to it (penumbra_mask.comp.glsl).
+bool mapHides(LightData light, ShadowLookup s)
+{
+    ivec2 size = textureSize(shadowMap, 0).xy;
+    float deepest = 0.0;
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+            deepest = max(deepest, texelFetch(shadowMap, ivec3(clamp(s.texel + ivec2(dx, dy), ivec2(0), size - 1), 0), 0).r);
+    float threshold = frame.pip.x * (lightMapRange(light, push.slot).x - lightMapEye(light, push.slot).w);
+    return areaMapLinearDepth(light, push.slot, s.depth) > areaMapLinearDepth(light, push.slot, deepest) + threshold;
+}
+
+// In the penumbra mask of the map: some splat over the pixel's texel reaches
+// its depth (thin triangles' splats only where the map does not hide it).
 bool inMask(LightData light, ShadowLookup s)
 {
     if ((mask[0] & 1u) != 0u)
@@ -54,13 +71,16 @@ bool inMask(LightData light, ShadowLookup s)
     float depth = areaMapLinearDepth(light, push.slot, s.depth) * (1.0 + 1e-3);
     uint S = push.mapSize;
     uvec2 t = uvec2(s.texel);
-    uint offset = 0u;
-    for (uint level = 0u; level <= push.topLevel; ++level) {
-        uint size = maskLevelSize(S, level);
-        uvec2 c = t >> level;
-        if (depth >= uintBitsToFloat(mask[1u + offset + c.y * size + c.x]))
-            return true;
-        offset += size * size;
+    uint kinds = mapHides(light, s) ? 1u : 2u;
+    for (uint kind = 0u; kind < kinds; ++kind) {
+        uint offset = kind * maskTexelCount(S, push.topLevel);
+        for (uint level = 0u; level <= push.topLevel; ++level) {
+            uint size = maskLevelSize(S, level);
+            uvec2 c = t >> level;
+            if (depth >= uintBitsToFloat(mask[1u + offset + c.y * size + c.x]))
+                return true;
+            offset += size * size;
+        }
     }
     return false;
 }
@@ -100,7 +120,10 @@ uvec2 classifyPixel()
         if (reached && s.inside) {
             uint tiles = (push.mapSize + PENUMBRA_RECEIVER_TILE - 1u) / PENUMBRA_RECEIVER_TILE;
             uvec2 tile = uvec2(s.texel) / PENUMBRA_RECEIVER_TILE;
-            atomicMax(receivers[tile.y * tiles + tile.x], floatBitsToUint(areaMapLinearDepth(light, push.slot, s.depth)));
+            uint depthBits = floatBitsToUint(areaMapLinearDepth(light, push.slot, s.depth));
+            atomicMax(receivers[tile.y * tiles + tile.x], depthBits);
+            if (!mapHides(light, s))
+                atomicMax(receivers[tiles * tiles + tile.y * tiles + tile.x], depthBits);
         }
         return uvec2(0u);
     }

@@ -43,7 +43,18 @@
 // indirectly; kWriteDispatch writes its size) rather than idling the
 // neighbouring invocations of a SIMD group.
 // Splats skip regions where no camera pixel lies behind the occluder (the
-// receivers buffer, written by classify_soft mode 4 before this pass).
+// receivers buffer, written by classify_soft mode 4 before this pass), and
+// are drawn only as far as the deepest such pixel can reach (the polygon
+// scaled down about its centre), at the mask level that extent asks for.
+//
+// Thin triangles splat into a mask of their own that classify_soft applies
+// only to pixels the map does not hide: a pixel deeper than every depth of
+// its texel's 3x3 neighbourhood (by the edge threshold) lies behind a
+// surface of the map, so a ray from it toward the light can reach the light
+// only where the map's depths break (a depth-discontinuity edge, whose
+// splats are in the first mask); an occluder in front of that surface
+// changes nothing. The deepest receiver per tile is kept for both sets of
+// pixels (receivers[] then receivers[tiles^2 + ...]).
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -54,16 +65,19 @@ layout(local_size_x = PENUMBRA_MASK_GROUP_SIZE, local_size_y = PENUMBRA_MASK_GRO
 layout(set = 0, binding = 0) uniform sampler2DArray shadowMap;
 layout(set = 0, binding = 1, r32ui) uniform readonly uimage2DArray thinMap;
 layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
-layout(set = 0, binding = 3, std430) buffer Pyramid { float pyramid[]; }; // min occluder depth, levels 1..top
+layout(set = 0, binding = 3, std430) buffer Pyramid { float pyramid[]; }; // min occluder depth, levels 1..top, per edge kind
 layout(set = 0, binding = 6, std430) buffer Jobs
 {
     uint jobCount;
     uint jobDispatch[3];   // indirect dispatch of the splat pass
-    uvec2 jobs[];          // x: level << 28 | y << 14 | x of the block; y: float bits of its nearest edge depth
+    uvec2 jobs[];          // x: level << 28 | y << 14 | x of the block; y: float bits of its nearest edge depth,
+                           // | 0x80000000 for thin triangles
 };
-layout(set = 0, binding = 5, std430) readonly buffer Receivers { uint receivers[]; }; // per tile: float bits of the deepest camera pixel
+layout(set = 0, binding = 5, std430) readonly buffer Receivers { uint receivers[]; }; // per tile: float bits of the deepest camera
+                                                                                     // pixel; then of those the map does not hide
 layout(set = 0, binding = 4, std430) buffer Mask { uint mask[]; };        // word 0: flags; then per texel of levels 0..top the
-                                                                          // float bits of the nearest receiver depth reached
+                                                                          // float bits of the nearest receiver depth reached;
+                                                                          // depth edges' mask, then thin triangles' 
 
 layout(push_constant) uniform MaskPush {
     mat4 invViewProj;  // inverse of the map's viewProj
@@ -103,11 +117,13 @@ void setReceiverDepth(uint texel, float depth)
         atomicMin(mask[1u + texel], bits);
 }
 
-// Deepest camera pixel (light-view depth) over the texels [lo, hi) of the map;
-// +inf when the region spans too many tiles to look at.
-float deepestReceiver(vec2 lo, vec2 hi)
+// Deepest camera pixel (light-view depth) over the texels [lo, hi) of the map,
+// of all pixels (kind 0) or of those the map does not hide (kind 1); +inf
+// when the region spans too many tiles to look at.
+float deepestReceiver(uint kind, vec2 lo, vec2 hi)
 {
     uint tiles = (push.mapSize + PENUMBRA_RECEIVER_TILE - 1u) / PENUMBRA_RECEIVER_TILE;
+    uint base = kind * tiles * tiles;
     uvec2 first = uvec2(max(lo, vec2(0.0))) / PENUMBRA_RECEIVER_TILE;
     uvec2 last = min(uvec2(max(hi - 1e-3, lo)) / PENUMBRA_RECEIVER_TILE, uvec2(tiles - 1u));
     if ((last.x - first.x + 1u) * (last.y - first.y + 1u) > 64u)
@@ -115,7 +131,7 @@ float deepestReceiver(vec2 lo, vec2 hi)
     float deepest = 0.0;
     for (uint y = first.y; y <= last.y; ++y)
         for (uint x = first.x; x <= last.x; ++x)
-            deepest = max(deepest, uintBitsToFloat(receivers[y * tiles + x]));
+            deepest = max(deepest, uintBitsToFloat(receivers[base + y * tiles + x]));
     return deepest;
 }
 
@@ -124,9 +140,9 @@ void markWholeMap()
     atomicOr(mask[0], 1u);
 }
 
-// Splats the block c of `level` whose nearest edge lies at light-view depth z.
-// Level 0: c is the occluder's texel.
-void splat(uvec2 c, uint level, float z)
+// Splats the block c of `level` whose nearest edge of `kind` lies at light-view
+// depth z. Level 0: c is the occluder's texel.
+void splat(uvec2 c, uint level, float z, uint kind)
 {
     uint S = push.mapSize;
     float blockSize = float(1u << level);
@@ -203,20 +219,30 @@ void splat(uvec2 c, uint level, float z)
     vec2 boxMax = min(polygon.hi + dilation, vec2(float(S)));
     if (any(greaterThanEqual(boxMin, boxMax)))
         return;
-    // Only camera pixels behind the occluder can be in its penumbra.
-    if (deepestReceiver(boxMin, boxMax) < z)
+    // Only camera pixels behind the occluder can be in its penumbra, and a
+    // receiver at depth d reaches the polygon scaled by at most k(d) / (0.9 k)
+    // (see the receiver depth below): the deepest one bounds the extent.
+    float deepest = deepestReceiver(kind, boxMin, boxMax);
+    if (deepest < z)
         return;
+    if (deepest < 1.0e38) {
+        float reach = min((deepest - z) / max(deepest - gRbig, 1e-30) / (0.9 * max(k, 1e-30)), 1.0);
+        boxMin = max(centre + reach * relativeLo - dilation, boxMin);
+        boxMax = min(centre + reach * relativeHi + dilation, boxMax);
+        if (any(greaterThanEqual(boxMin, boxMax)))
+            return;
+    }
     float extent = max(boxMax.x - boxMin.x, boxMax.y - boxMin.y);
     uint target = uint(clamp(ceil(log2(max(extent / PENUMBRA_MASK_TARGET_TEXELS, 1.0))), 0.0, float(push.topLevel)));
     float targetSize = float(1u << target);
     uint size = maskLevelSize(S, target);
     uvec2 first = uvec2(boxMin / targetSize);
     uvec2 last = min(uvec2(max(ceil(boxMax / targetSize) - 1.0, vec2(0.0))), uvec2(size - 1u));
-    uint base = maskLevelOffset(S, target);
+    uint base = kind * maskTexelCount(S, push.topLevel) + maskLevelOffset(S, target);
     for (uint y = first.y; y <= last.y; ++y)
         for (uint x = first.x; x <= last.x; ++x) {
-            float deepest = deepestReceiver(vec2(x, y) * targetSize, vec2(x + 1u, y + 1u) * targetSize);
-            if (deepest < z)
+            float deepestHere = deepestReceiver(kind, vec2(x, y) * targetSize, vec2(x + 1u, y + 1u) * targetSize);
+            if (deepestHere < z)
                 continue;
             vec2 texelLo = vec2(x, y) * targetSize - dilation;
             vec2 texelHi = vec2(x + 1u, y + 1u) * targetSize + dilation;
@@ -243,7 +269,7 @@ void splat(uvec2 c, uint level, float z)
             // 10% slack for the projection's departure from a uniform scaling.
             float kReach = min(lambda * 0.9, 1.0) * k;
             float receiver = kReach >= 1.0 ? 3.0e38 : (z - kReach * gRbig) / (1.0 - kReach);
-            if (receiver <= deepest)
+            if (receiver <= deepestHere)
                 setReceiverDepth(base + y * size + x, receiver);
         }
 }
@@ -254,7 +280,8 @@ float linearDepth(float ndc)
 }
 
 // Level 0: the depth of texel t when it is the near side of an edge (it
-// occludes, so it splats), else kNoEdge. An edge is a depth discontinuity: a
+// occludes, so it splats), else kNoEdge; x: depth discontinuities, y: thin
+// triangles. An edge is a depth discontinuity: a
 // neighbour of the 3x3 neighbourhood deeper by more than the threshold, where
 // the depths are not the slope of one plane. NDC depth is affine in the texel
 // coordinates over a plane, so its second difference along each of the four
@@ -262,7 +289,7 @@ float linearDepth(float ndc)
 // are no edges); it is scaled back to model units with the derivative of
 // linear depth by NDC depth at the centre. The far side of an edge does not
 // splat: its occluder is the neighbour, which does.
-float edgeDepth(ivec2 t)
+vec2 edgeDepths(ivec2 t)
 {
     int S = int(push.mapSize);
     float d[9];
@@ -279,24 +306,26 @@ float edgeDepth(ivec2 t)
     float scale = zc * zc * (gFar - gNear) / (gFar * gNear);
     float bend = max(max(abs(d[3] + d[5] - 2.0 * centre), abs(d[1] + d[7] - 2.0 * centre)),
                      max(abs(d[0] + d[8] - 2.0 * centre), abs(d[2] + d[6] - 2.0 * centre)));
-    if (deeper > push.edgeDelta && bend * scale > push.edgeDelta)
-        return zc;
+    vec2 edges = vec2(deeper > push.edgeDelta && bend * scale > push.edgeDelta ? zc : kNoEdge, kNoEdge);
     // A thin triangle is an edge where it lies in front of everything the map
     // sampled around it: an occluder the rasterizer dropped (slivers of
-    // surfaces seen at grazing angles are in the map's neighbourhood).
+    // surfaces seen at grazing angles are in the map's neighbourhood). No
+    // threshold: a thin occluder just above a surface (a railing's bars near
+    // the ground) has a penumbra there too, and its splats reach only the
+    // pixels the map does not hide (the second mask).
     if (push.useThin != 0u) {
         float thin = linearDepth(uintBitsToFloat(imageLoad(thinMap, ivec3(t, 0)).r));
         float nearest = zc;
         for (int i = 0; i < 9; ++i)
             nearest = min(nearest, linearDepth(d[i]));
-        if (thin < nearest - push.edgeDelta)
-            return thin;
+        if (thin < nearest)
+            edges.y = thin;
     }
-    return kNoEdge;
+    return edges;
 }
 
 // Appends a splat job; one atomic per subgroup. A full list marks the whole map (conservative).
-void appendJob(bool valid, uvec2 c, uint level, float z)
+void appendJob(bool valid, uvec2 c, uint level, float z, uint kind)
 {
     uvec4 ballot = subgroupBallot(valid);
     uint total = subgroupBallotBitCount(ballot);
@@ -310,7 +339,7 @@ void appendJob(bool valid, uvec2 c, uint level, float z)
         return;
     uint slot = base + subgroupBallotExclusiveBitCount(ballot);
     if (slot < push.maxJobs)
-        jobs[slot] = uvec2(level << 28u | c.y << 14u | c.x, floatBitsToUint(z));
+        jobs[slot] = uvec2(level << 28u | c.y << 14u | c.x, floatBitsToUint(z) | kind << 31u);
     else
         markWholeMap();
 }
@@ -339,7 +368,7 @@ void main()
         if (index >= min(jobCount, push.maxJobs))
             return;
         uvec2 job = jobs[index];
-        splat(uvec2(job.x & 0x3FFFu, (job.x >> 14u) & 0x3FFFu), job.x >> 28u, uintBitsToFloat(job.y));
+        splat(uvec2(job.x & 0x3FFFu, (job.x >> 14u) & 0x3FFFu), job.x >> 28u, uintBitsToFloat(job.y & 0x7FFFFFFFu), job.y >> 31u);
         return;
     }
 
@@ -348,18 +377,25 @@ void main()
     uvec2 p = gl_GlobalInvocationID.xy;
     bool inside = p.x < parentSize && p.y < parentSize;
     uint childSize = maskLevelSize(S, push.level);
-    float nearest = kNoEdge;
+    uint top = push.topLevel;
+    vec2 nearest = vec2(kNoEdge);
     for (uint j = 0u; j < 4u; ++j) {
         uvec2 c = p * 2u + uvec2(j & 1u, j >> 1u);
-        float z = kNoEdge;
+        vec2 z = vec2(kNoEdge);
         if (inside && c.x < childSize && c.y < childSize)
-            z = push.level == 0u ? edgeDepth(ivec2(c)) : pyramid[pyramidIndex(S, push.level, c)];
+            z = push.level == 0u ? edgeDepths(ivec2(c))
+                                 : vec2(pyramid[pyramidIndex(S, top, 0u, push.level, c)], pyramid[pyramidIndex(S, top, 1u, push.level, c)]);
         nearest = min(nearest, z);
-        float r = z < kNoEdge ? splatRadius(z, push.level) : 0.0;
-        appendJob(z < kNoEdge && (push.level == 0u ? r < 4.0 : (r >= 2.0 && r < 4.0)), c, push.level, z);
+        for (uint kind = 0u; kind < 2u; ++kind) {
+            float r = z[kind] < kNoEdge ? splatRadius(z[kind], push.level) : 0.0;
+            appendJob(z[kind] < kNoEdge && (push.level == 0u ? r < 4.0 : (r >= 2.0 && r < 4.0)), c, push.level, z[kind], kind);
+        }
     }
-    if (inside)
-        pyramid[pyramidIndex(S, parentLevel, p)] = nearest;
-    appendJob(inside && parentLevel == push.topLevel && nearest < kNoEdge && splatRadius(nearest, parentLevel) >= 2.0, p, parentLevel,
-              nearest);
+    if (inside) {
+        pyramid[pyramidIndex(S, top, 0u, parentLevel, p)] = nearest.x;
+        pyramid[pyramidIndex(S, top, 1u, parentLevel, p)] = nearest.y;
+    }
+    for (uint kind = 0u; kind < 2u; ++kind)
+        appendJob(inside && parentLevel == top && nearest[kind] < kNoEdge && splatRadius(nearest[kind], parentLevel) >= 2.0, p,
+                  parentLevel, nearest[kind], kind);
 }

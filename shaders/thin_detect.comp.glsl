@@ -10,8 +10,11 @@
 // shadow map, so every texel whose centre lies in the rectangle around its
 // longest edge, grown by the texel square's half width in each direction of
 // the edge's frame (so every texel the triangle touches is included), takes
-// the triangle's nearest NDC depth with imageAtomicMin into the thin map
-// (R32_UINT: float bits of depths in [0, 1] order like the floats). Triangles
+// with imageAtomicMin into the thin map (R32_UINT: float bits of depths in
+// [0, 1] order like the floats) the nearest NDC depth of the part of the
+// triangle that can lie over the texel: the slab across the longest edge as
+// wide as the texel square along it. A long sliver seen at a slant keeps its
+// depth per texel, not its nearest vertex's everywhere. Triangles
 // with a vertex at w <= 0 are skipped (the shadow map clips them too), as are
 // rectangles whose depth would be clipped.
 #version 460
@@ -63,6 +66,30 @@ void clipLinear(float a, float lo, float hi, inout float xLo, inout float xHi)
     xHi = min(xHi, max(b0, b1));
 }
 
+// Nearest depth on segment (t0, z0) - (t1, z1) over t in [lo, hi] (NDC depth is
+// affine on the projected segment); 2 when no point of it lies there.
+float nearestOnSegment(float lo, float hi, float t0, float z0, float t1, float z1)
+{
+    float a = max(lo, min(t0, t1)), b = min(hi, max(t0, t1));
+    if (a > b)
+        return 2.0;
+    if (t1 == t0)
+        return min(z0, z1);
+    float slope = (z1 - z0) / (t1 - t0);
+    return min(z0 + slope * (a - t0), z0 + slope * (b - t0));
+}
+
+// Nearest depth of the triangle A B C over the slab t in [lo, hi] across its
+// longest edge A B (t: distance along it from A; C lies at t = along). NDC
+// depth is affine over the projected triangle, so the minimum over its part in
+// the slab lies on a vertex of that part: a vertex of the triangle or where an
+// edge leaves the slab.
+float nearestDepthInSlab(float lo, float hi, float longest, float along, float zA, float zB, float zC)
+{
+    return min(nearestOnSegment(lo, hi, 0.0, zA, longest, zB),
+               min(nearestOnSegment(lo, hi, longest, zB, along, zC), nearestOnSegment(lo, hi, along, zC, 0.0, zA)));
+}
+
 // Appends the conservative rectangle of triangle (v0, v1, v2) when it is thin.
 void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
 {
@@ -70,10 +97,12 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     if (clip[0].w <= 0.0 || clip[1].w <= 0.0 || clip[2].w <= 0.0)
         return; // crosses the light's near plane: the shadow map clips it too
     vec2 p[3];
+    float z[3];
     float zMin = 1.0;
     for (int i = 0; i < 3; ++i) {
         vec3 ndc = clip[i].xyz / clip[i].w;
         p[i] = (ndc.xy * 0.5 + 0.5) * push.mapSize;
+        z[i] = ndc.z;
         zMin = min(zMin, ndc.z);
     }
     if (!(zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
@@ -89,6 +118,7 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
         }
     }
     vec2 A = p[a], B = p[(a + 1) % 3], C = p[(a + 2) % 3];
+    float zA = z[a], zB = z[(a + 1) % 3], zC = z[(a + 2) % 3];
     float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
     float height = longest > 0.0 ? twiceArea / longest : 0.0;
     // Slivers only (long and narrow: wires, poles, bars). Triangles small in
@@ -110,15 +140,18 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     // {A + d t + nrm u : t in [d0, d1], u in [n0, n1]}.
     ivec2 size = ivec2(push.mapSize);
     int yBegin = max(int(ceil(lo.y - 0.5)), 0), yEnd = min(int(floor(hi.y - 0.5)), size.y - 1);
-    uint depthBits = floatBitsToUint(zMin);
     for (int y = yBegin; y <= yEnd; ++y) {
         float cy = float(y) + 0.5 - A.y;
         float xLo = lo.x - A.x - 1.0, xHi = hi.x - A.x + 1.0; // X = x + 0.5 - A.x
         clipLinear(d.x, d0 - d.y * cy, d1 - d.y * cy, xLo, xHi);     // t = d.x X + d.y cy
         clipLinear(-d.y, n0 - d.x * cy, n1 - d.x * cy, xLo, xHi);    // u = -d.y X + d.x cy
         int xBegin = max(int(ceil(xLo + A.x - 0.5)), 0), xEnd = min(int(floor(xHi + A.x - 0.5)), size.x - 1);
-        for (int x = xBegin; x <= xEnd; ++x)
-            imageAtomicMin(thinMap, ivec3(x, y, int(push.layer)), depthBits);
+        for (int x = xBegin; x <= xEnd; ++x) {
+            float t = dot(vec2(float(x) + 0.5, float(y) + 0.5) - A, d);
+            float depth = nearestDepthInSlab(t - e_d, t + e_d, longest, along, zA, zB, zC);
+            depth = depth > 1.0 ? zMin : depth; // rounding at the rectangle's ends
+            imageAtomicMin(thinMap, ivec3(x, y, int(push.layer)), floatBitsToUint(depth));
+        }
     }
 }
 

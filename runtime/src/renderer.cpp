@@ -598,16 +598,17 @@ struct Renderer::Impl {
             vk::destroyBuffer(device, penumbraJobs);
             shadowSize = shadowLayers = 0; // stays 0 if a creation below throws
             uint64_t maskLevels = maskTexels(smSize);
-            penumbraMask = vk::createBuffer(device, (1 + maskLevels) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+            // Two masks and two pyramids: depth discontinuities' splats and thin triangles' (penumbra_mask.glsli).
+            penumbraMask = vk::createBuffer(device, (1 + 2 * maskLevels) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                             vk::MemoryUse::DeviceLocal);
-            penumbraPyramid = vk::createBuffer(device, std::max<uint64_t>(maskLevels - uint64_t(smSize) * smSize, 1) * 4,
+            penumbraPyramid = vk::createBuffer(device, std::max<uint64_t>(maskLevels - uint64_t(smSize) * smSize, 1) * 2 * 4,
                                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
             uint64_t tiles = (smSize + PENUMBRA_RECEIVER_TILE - 1) / PENUMBRA_RECEIVER_TILE;
-            penumbraReceivers = vk::createBuffer(device, tiles * tiles * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+            penumbraReceivers = vk::createBuffer(device, 2 * tiles * tiles * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                                  vk::MemoryUse::DeviceLocal);
-            // Splat jobs: at most one per texel of all levels, 8 bytes each, within one storage binding.
+            // Splat jobs: at most two per texel of all levels (one per edge kind), 8 bytes each, within one storage binding.
             uint64_t bindingJobs = (std::min<uint64_t>(device.properties.limits.maxStorageBufferRange, device.maxAllocationSize) - 16) / 8;
-            penumbraMaxJobs = uint32_t(std::min<uint64_t>({maskLevels, bindingJobs, 1u << 26}));
+            penumbraMaxJobs = uint32_t(std::min<uint64_t>({2 * maskLevels, bindingJobs, 1u << 26}));
             penumbraJobs = vk::createBuffer(device, 16 + uint64_t(penumbraMaxJobs) * 8,
                                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                             vk::MemoryUse::DeviceLocal);
