@@ -36,6 +36,7 @@ layout(set = 0, binding = 7, std430) buffer Stats { uint64_t stats[]; };
 layout(set = 0, binding = 8, std430) readonly buffer Mask { uint mask[]; }; // penumbra_mask.comp.glsl
 layout(set = 0, binding = 9, std430) buffer Receivers { uint receivers[]; };  // mode 4: per map tile, the deepest pixel; then
                                                                               // the deepest the map does not hide
+layout(set = 0, binding = 10, std430) readonly buffer ThinMask { uint thinMask[]; }; // thin triangles' splats (no flags)
 
 layout(push_constant) uniform ClassifySoftPush {
     uint lightIndex;
@@ -73,11 +74,12 @@ bool inMask(LightData light, ShadowLookup s)
     uvec2 t = uvec2(s.texel);
     uint kinds = mapHides(light, s) ? 1u : 2u;
     for (uint kind = 0u; kind < kinds; ++kind) {
-        uint offset = kind * maskTexelCount(S, push.topLevel);
+        uint offset = 0u;
         for (uint level = 0u; level <= push.topLevel; ++level) {
             uint size = maskLevelSize(S, level);
             uvec2 c = t >> level;
-            if (depth >= uintBitsToFloat(mask[1u + offset + c.y * size + c.x]))
+            uint texel = offset + c.y * size + c.x;
+            if (depth >= uintBitsToFloat(kind == 0u ? mask[1u + texel] : thinMask[texel]))
                 return true;
             offset += size * size;
         }

@@ -63,7 +63,7 @@
 layout(local_size_x = PENUMBRA_MASK_GROUP_SIZE, local_size_y = PENUMBRA_MASK_GROUP_SIZE) in;
 
 layout(set = 0, binding = 0) uniform sampler2DArray shadowMap;
-layout(set = 0, binding = 1, r32ui) uniform readonly uimage2DArray thinMap;
+layout(set = 0, binding = 1, r32ui) uniform readonly uimage2DArray thinMap; // last layer: per-texel sliver depths
 layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 3, std430) buffer Pyramid { float pyramid[]; }; // min occluder depth, levels 1..top, per edge kind
 layout(set = 0, binding = 6, std430) buffer Jobs
@@ -76,8 +76,8 @@ layout(set = 0, binding = 6, std430) buffer Jobs
 layout(set = 0, binding = 5, std430) readonly buffer Receivers { uint receivers[]; }; // per tile: float bits of the deepest camera
                                                                                      // pixel; then of those the map does not hide
 layout(set = 0, binding = 4, std430) buffer Mask { uint mask[]; };        // word 0: flags; then per texel of levels 0..top the
-                                                                          // float bits of the nearest receiver depth reached;
-                                                                          // depth edges' mask, then thin triangles' 
+                                                                          // float bits of the nearest receiver depth reached
+layout(set = 0, binding = 7, std430) buffer ThinMask { uint thinMask[]; }; // the same for thin triangles' splats (no flags)
 
 layout(push_constant) uniform MaskPush {
     mat4 invViewProj;  // inverse of the map's viewProj
@@ -110,11 +110,15 @@ float splatRadius(float z, uint level)
     return kMax(z) * gRbig / max(z, 1e-30) / (gTexelAngle * float(1u << level));
 }
 
-void setReceiverDepth(uint texel, float depth)
+void setReceiverDepth(uint kind, uint texel, float depth)
 {
     uint bits = floatBitsToUint(max(depth, 0.0));
-    if (mask[1u + texel] > bits) // most splats overlap: skip the atomic when it would change nothing
-        atomicMin(mask[1u + texel], bits);
+    // Most splats overlap: skip the atomic when it would change nothing.
+    if (kind == 0u) {
+        if (mask[1u + texel] > bits)
+            atomicMin(mask[1u + texel], bits);
+    } else if (thinMask[texel] > bits)
+        atomicMin(thinMask[texel], bits);
 }
 
 // Deepest camera pixel (light-view depth) over the texels [lo, hi) of the map,
@@ -238,7 +242,7 @@ void splat(uvec2 c, uint level, float z, uint kind)
     uint size = maskLevelSize(S, target);
     uvec2 first = uvec2(boxMin / targetSize);
     uvec2 last = min(uvec2(max(ceil(boxMax / targetSize) - 1.0, vec2(0.0))), uvec2(size - 1u));
-    uint base = kind * maskTexelCount(S, push.topLevel) + maskLevelOffset(S, target);
+    uint base = maskLevelOffset(S, target);
     for (uint y = first.y; y <= last.y; ++y)
         for (uint x = first.x; x <= last.x; ++x) {
             float deepestHere = deepestReceiver(kind, vec2(x, y) * targetSize, vec2(x + 1u, y + 1u) * targetSize);
@@ -270,7 +274,7 @@ void splat(uvec2 c, uint level, float z, uint kind)
             float kReach = min(lambda * 0.9, 1.0) * k;
             float receiver = kReach >= 1.0 ? 3.0e38 : (z - kReach * gRbig) / (1.0 - kReach);
             if (receiver <= deepestHere)
-                setReceiverDepth(base + y * size + x, receiver);
+                setReceiverDepth(kind, base + y * size + x, receiver);
         }
 }
 
@@ -314,7 +318,8 @@ vec2 edgeDepths(ivec2 t)
     // the ground) has a penumbra there too, and its splats reach only the
     // pixels the map does not hide (the second mask).
     if (push.useThin != 0u) {
-        float thin = linearDepth(uintBitsToFloat(imageLoad(thinMap, ivec3(t, 0)).r));
+        // The last layer: each texel's own depth of the slivers over it (thin_detect.comp.glsl).
+        float thin = linearDepth(uintBitsToFloat(imageLoad(thinMap, ivec3(t, imageSize(thinMap).z - 1)).r));
         float nearest = zc;
         for (int i = 0; i < 9; ++i)
             nearest = min(nearest, linearDepth(d[i]));

@@ -161,7 +161,7 @@ struct ThinDetectPush {
     VkDeviceAddress leafAltitudes; // 0: skip no leaf
     glm::vec4 light;               // xyz light position; w: 0 orthographic, else a lower bound of light-view depth / distance
     float texelSize;               // orthographic: texel size; perspective: texel size per unit of light-view depth
-    float pad;
+    uint32_t localLayer;           // also write each texel's own depth of the sliver here (area lights); ~0u: no
     VkDeviceAddress clusterMask;   // bit per cluster: may reach a receiver (Culling::markClustersNearReceivers); 0: all may
 };
 static_assert(sizeof(ThinDetectPush) == 128);
@@ -397,7 +397,7 @@ struct Renderer::Impl {
     vk::Buffer receiverGrids; // view_bounds.comp.glsl: per light, its receiver grid (device-local; copied into viewBounds)
     vk::Buffer thinClusterMasks; // srt: per light layer, the clusters the thin-triangle pass decodes (host-written each frame)
     // Per shadow-map size (penumbra_mask.comp.glsl): penumbra mask, nearest-edge pyramid, deepest camera pixel per tile.
-    vk::Buffer penumbraMask, penumbraPyramid, penumbraReceivers, penumbraJobs;
+    vk::Buffer penumbraMask, penumbraThinMask, penumbraPyramid, penumbraReceivers, penumbraJobs;
     uint32_t penumbraMaxJobs = 0;
     vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
 
@@ -416,8 +416,8 @@ struct Renderer::Impl {
     void createPipelines()
     {
         const VkShaderStageFlags compute = VK_SHADER_STAGE_COMPUTE_BIT;
-        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage}, compute);
-        maskSetLayout = createSetLayout(device, {kSampled, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage}, compute);
+        classifySetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kSampled, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage, kStorage}, compute);
+        maskSetLayout = createSetLayout(device, {kSampled, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage, kStorage}, compute);
         thinDetectSetLayout = createSetLayout(device, {kStorageImage}, compute);
         compactSetLayout = createSetLayout(device, {kStorage, kStorage}, compute);
         shadeSetLayout = createSetLayout(device, {kStorageImage, kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage}, compute);
@@ -530,6 +530,7 @@ struct Renderer::Impl {
         vk::destroyImage(device, shadowMap);
         vk::destroyImage(device, thinMap);
         vk::destroyBuffer(device, penumbraMask);
+        vk::destroyBuffer(device, penumbraThinMask);
         vk::destroyBuffer(device, penumbraPyramid);
         vk::destroyBuffer(device, penumbraReceivers);
         vk::destroyBuffer(device, penumbraJobs);
@@ -593,14 +594,17 @@ struct Renderer::Impl {
             vk::destroyImage(device, shadowMap);
             vk::destroyImage(device, thinMap);
             vk::destroyBuffer(device, penumbraMask);
+            vk::destroyBuffer(device, penumbraThinMask);
             vk::destroyBuffer(device, penumbraPyramid);
             vk::destroyBuffer(device, penumbraReceivers);
             vk::destroyBuffer(device, penumbraJobs);
             shadowSize = shadowLayers = 0; // stays 0 if a creation below throws
             uint64_t maskLevels = maskTexels(smSize);
             // Two masks and two pyramids: depth discontinuities' splats and thin triangles' (penumbra_mask.glsli).
-            penumbraMask = vk::createBuffer(device, (1 + 2 * maskLevels) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+            penumbraMask = vk::createBuffer(device, (1 + maskLevels) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                             vk::MemoryUse::DeviceLocal);
+            penumbraThinMask = vk::createBuffer(device, maskLevels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                                vk::MemoryUse::DeviceLocal);
             penumbraPyramid = vk::createBuffer(device, std::max<uint64_t>(maskLevels - uint64_t(smSize) * smSize, 1) * 2 * 4,
                                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
             uint64_t tiles = (smSize + PENUMBRA_RECEIVER_TILE - 1) / PENUMBRA_RECEIVER_TILE;
@@ -615,7 +619,9 @@ struct Renderer::Impl {
             shadowMap = vk::createImage(device, smSize, smSize, smLayers, kDepthFormat,
                                         VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT, true);
             // The thin map stays in GENERAL: written in srt frames, read (cleared to "nothing thin") otherwise.
-            thinMap = vk::createImage(device, smSize, smSize, smLayers, kThinFormat,
+            // Layers: per shadow-map layer the slivers' nearest depths, then one of per-texel depths for
+            // the penumbra mask of an area light (thin_detect.comp.glsl).
+            thinMap = vk::createImage(device, smSize, smSize, smLayers + 1, kThinFormat,
                                       VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, true);
             vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
                 vk::transition(cmd, shadowMap, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, 0,
@@ -634,12 +640,16 @@ struct Renderer::Impl {
                                        {kStorageImage, thinMap.view},
                                        {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
                                        {kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, stats.buffer},
-                                       {kStorage, {}, {}, penumbraMask.buffer}, {kStorage, {}, {}, penumbraReceivers.buffer}});
+                                       {kStorage, {}, {}, penumbraMask.buffer, {}, storageRange(penumbraMask)},
+                                       {kStorage, {}, {}, penumbraReceivers.buffer},
+                                       {kStorage, {}, {}, penumbraThinMask.buffer, {}, storageRange(penumbraThinMask)}});
         writeSet(device, thinDetectSet, {{kStorageImage, thinMap.view}});
         writeSet(device, maskSet, {{kSampled, shadowMap.view, nearestSampler, {}, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
                                    {kStorageImage, thinMap.view}, {kUniform, {}, {}, frameUniforms.buffer},
-                                   {kStorage, {}, {}, penumbraPyramid.buffer}, {kStorage, {}, {}, penumbraMask.buffer},
-                                   {kStorage, {}, {}, penumbraReceivers.buffer}, {kStorage, {}, {}, penumbraJobs.buffer}});
+                                   {kStorage, {}, {}, penumbraPyramid.buffer, {}, storageRange(penumbraPyramid)},
+                                   {kStorage, {}, {}, penumbraMask.buffer, {}, storageRange(penumbraMask)},
+                                   {kStorage, {}, {}, penumbraReceivers.buffer}, {kStorage, {}, {}, penumbraJobs.buffer},
+                                   {kStorage, {}, {}, penumbraThinMask.buffer, {}, storageRange(penumbraThinMask)}});
         writeSet(device, compactSet, {{kStorage, {}, {}, marks.buffer}, {kStorage, {}, {}, rayList.buffer}});
         writeSet(device, shadeSet, {{kStorageImage, position.view}, {kStorageImage, normal.view}, {kStorageImage, color.view},
                                     {kStorageImage, visibility.view}, {kUniform, {}, {}, frameUniforms.buffer},
@@ -655,6 +665,13 @@ struct Renderer::Impl {
     }
 
     // Every layer of the thin map to "nothing thin": the bits of 1.0f (the far plane).
+    // A storage binding of the whole buffer, or of as much as the device allows
+    // (render() refuses the frames that would need more).
+    VkDeviceSize storageRange(const vk::Buffer& buffer) const
+    {
+        return std::min<VkDeviceSize>(buffer.size, device.properties.limits.maxStorageBufferRange);
+    }
+
     void clearThinMap(VkCommandBuffer cmd)
     {
         VkClearColorValue far{};
@@ -715,6 +732,18 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         fail("render", "penumbra maps must be 1 (the light's centre) or 5 (centre and corners)");
     if (settings.softShadowMaps < 1 || settings.softShadowMaps > 6)
         fail("render", "soft shadow maps (sm) must be 1..6");
+    // srt soft shadows bind a penumbra mask of every level of the map (4/3 x 4 bytes per texel) as one storage buffer.
+    const uint64_t maskBytes = (1 + maskTexels(settings.shadowMapSize)) * 4;
+    if (settings.shadows == ShadowMethod::Selective && maskBytes > device.properties.limits.maxStorageBufferRange &&
+        std::any_of(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); })) {
+        uint32_t largest = settings.shadowMapSize;
+        while (largest > 16 && (1 + maskTexels(largest)) * 4 > device.properties.limits.maxStorageBufferRange)
+            largest /= 2;
+        fail("render", "shadow-map size " + std::to_string(settings.shadowMapSize) + " is too large for srt soft shadows on this device: the penumbra mask (" +
+                           std::to_string(maskBytes >> 20) + " MiB) exceeds its storage-buffer limit (" +
+                           std::to_string(device.properties.limits.maxStorageBufferRange >> 20) + " MiB); use " + std::to_string(largest) +
+                           " or less");
+    }
     if (settings.shadows != ShadowMethod::ShadowMap && geometry.encoding != GeometryEncoding::Compressed)
         fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
     auto cpuStart = std::chrono::steady_clock::now();
@@ -997,7 +1026,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     // with z >= distance * depthPerDistance (the cosine of half the frustum's
     // diagonal angle: 1/sqrt(3) for cube faces, cos(outer) for spots).
     auto detectThinTriangles = [&](const glm::mat4& viewProj, uint32_t layer, glm::vec3 eye, bool perspective, float depthPerDistance,
-                                   float footprint, VkDeviceAddress clusterMask) {
+                                   float footprint, VkDeviceAddress clusterMask, bool areaLight) {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectPipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, thinDetectLayout, 0, 1, &thinDetectSet, 0, nullptr);
         const uint32_t detectGroups =
@@ -1012,7 +1041,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                               geometry.leafAltitudes.buffer ? vk::bufferAddress(device, geometry.leafAltitudes) : 0,
                               glm::vec4(eye, perspective ? depthPerDistance : 0.0f),
                               footprint / float(shadowSize),
-                              0.0f,
+                              areaLight ? thinMap.layers - 1 : ~0u,
                               clusterMask};
         vkCmdPushConstants(cmd, thinDetectLayout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(detect), &detect);
         vkCmdDispatch(cmd, groupsXDetect, groupsYDetect, 1);
@@ -1059,6 +1088,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT);
         vkCmdFillBuffer(cmd, penumbraMask.buffer, 0, 4, 0);
         vkCmdFillBuffer(cmd, penumbraMask.buffer, 4, VK_WHOLE_SIZE, 0x7F800000u); // +inf: no receiver depth reached
+        vkCmdFillBuffer(cmd, penumbraThinMask.buffer, 0, VK_WHOLE_SIZE, 0x7F800000u);
         vkCmdFillBuffer(cmd, penumbraReceivers.buffer, 0, VK_WHOLE_SIZE, 0);
         vkCmdFillBuffer(cmd, penumbraJobs.buffer, 0, 16, 0);
         vk::memoryBarrier(cmd, kClear, VK_ACCESS_2_TRANSFER_WRITE_BIT, kCompute, kStorageRW);
@@ -1115,7 +1145,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                     clearThin();
                     float halfTan = 0.5f * light.mapRange[slot].y;
                     detectThinTriangles(light.viewProj[slot], 0, glm::vec3(light.mapEye[slot]), true,
-                                        1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan), light.mapRange[slot].y, 0);
+                                        1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan), light.mapRange[slot].y, 0, true);
                     vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
                     timestamp(PassThinTriangles);
                     buildPenumbraMask(lightIndex, slot, true);
@@ -1145,7 +1175,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
                 const float depthPerDistance = uint32_t(light.positionType.w) == PENUMBRA_LIGHT_SPOT ? light.spotCosLayers.y : 0.57735f;
                 for (uint32_t layer = 0; layer < layers; ++layer)
                     detectThinTriangles(light.viewProj[layer], layer, glm::vec3(light.positionType), perspective, depthPerDistance,
-                                        light.shadowParams.w, thinClusterMask[6 * lightIndex + layer]);
+                                        light.shadowParams.w, thinClusterMask[6 * lightIndex + layer], false);
                 vk::memoryBarrier(cmd, kCompute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, kCompute, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
                 timestamp(PassThinTriangles);
             }
