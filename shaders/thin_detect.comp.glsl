@@ -72,28 +72,39 @@ void clipLinear(float a, float lo, float hi, inout float xLo, inout float xHi)
     xHi = min(xHi, max(b0, b1));
 }
 
-// Nearest depth on segment (t0, z0) - (t1, z1) over t in [lo, hi] (NDC depth is
-// affine on the projected segment); 2 when no point of it lies there.
-float nearestOnSegment(float lo, float hi, float t0, float z0, float t1, float z1)
+// A projected edge of a triangle: its range of t (distance along the longest
+// edge), and its NDC depth there, affine: depth(t) = z + slope (t - t0).
+struct EdgeDepth {
+    float t0, t1; // t0 <= t1
+    float z, slope;
+};
+
+EdgeDepth edgeDepth(float ta, float za, float tb, float zb)
 {
-    float a = max(lo, min(t0, t1)), b = min(hi, max(t0, t1));
-    if (a > b)
-        return 2.0;
-    if (t1 == t0)
-        return min(z0, z1);
-    float slope = (z1 - z0) / (t1 - t0);
-    return min(z0 + slope * (a - t0), z0 + slope * (b - t0));
+    EdgeDepth e;
+    e.t0 = min(ta, tb);
+    e.t1 = max(ta, tb);
+    e.slope = tb != ta ? (zb - za) / (tb - ta) : 0.0;
+    e.z = ta <= tb ? za : zb;
+    if (tb == ta)
+        e.z = min(za, zb);
+    return e;
 }
 
-// Nearest depth of the triangle A B C over the slab t in [lo, hi] across its
-// longest edge A B (t: distance along it from A; C lies at t = along). NDC
-// depth is affine over the projected triangle, so the minimum over its part in
-// the slab lies on a vertex of that part: a vertex of the triangle or where an
-// edge leaves the slab.
-float nearestDepthInSlab(float lo, float hi, float longest, float along, float zA, float zB, float zC)
+// Nearest depth on the edge over t in [lo, hi]; 2 when no point of it lies there.
+float nearestOnEdge(EdgeDepth e, float lo, float hi)
 {
-    return min(nearestOnSegment(lo, hi, 0.0, zA, longest, zB),
-               min(nearestOnSegment(lo, hi, longest, zB, along, zC), nearestOnSegment(lo, hi, along, zC, 0.0, zA)));
+    float a = max(lo, e.t0), b = min(hi, e.t1);
+    return a > b ? 2.0 : e.z + e.slope * (e.slope > 0.0 ? a - e.t0 : b - e.t0);
+}
+
+// Nearest depth of a triangle over the slab t in [lo, hi] across its longest
+// edge. NDC depth is affine over the projected triangle, so the minimum over
+// its part in the slab lies on a vertex of that part: a vertex of the
+// triangle or where an edge leaves the slab.
+float nearestDepthInSlab(EdgeDepth edges[3], float lo, float hi)
+{
+    return min(nearestOnEdge(edges[0], lo, hi), min(nearestOnEdge(edges[1], lo, hi), nearestOnEdge(edges[2], lo, hi)));
 }
 
 // Appends the conservative rectangle of triangle (v0, v1, v2) when it is thin.
@@ -142,6 +153,8 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     vec2 corners[4] = vec2[4](A + d * d0 + nrm * n0, A + d * d1 + nrm * n0, A + d * d0 + nrm * n1, A + d * d1 + nrm * n1);
     vec2 lo = min(min(corners[0], corners[1]), min(corners[2], corners[3]));
     vec2 hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]));
+    // The edges' depths along the longest edge: A at t = 0, B at longest, C at along.
+    EdgeDepth edges[3] = EdgeDepth[3](edgeDepth(0.0, zA, longest, zB), edgeDepth(longest, zB, along, zC), edgeDepth(along, zC, 0.0, zA));
     // Scanline fill of the texel centres inside the rectangle
     // {A + d t + nrm u : t in [d0, d1], u in [n0, n1]}.
     ivec2 size = ivec2(push.mapSize);
@@ -152,13 +165,19 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
         clipLinear(d.x, d0 - d.y * cy, d1 - d.y * cy, xLo, xHi);     // t = d.x X + d.y cy
         clipLinear(-d.y, n0 - d.x * cy, n1 - d.x * cy, xLo, xHi);    // u = -d.y X + d.x cy
         int xBegin = max(int(ceil(xLo + A.x - 0.5)), 0), xEnd = min(int(floor(xHi + A.x - 0.5)), size.x - 1);
+        // Slivers overlap (a strip's neighbours, a grating's bars): the atomics are skipped where
+        // they would change nothing.
         for (int x = xBegin; x <= xEnd; ++x) {
-            imageAtomicMin(thinMap, ivec3(x, y, int(push.layer)), floatBitsToUint(zMin));
+            ivec3 texel = ivec3(x, y, int(push.layer));
+            if (imageLoad(thinMap, texel).r > floatBitsToUint(zMin))
+                imageAtomicMin(thinMap, texel, floatBitsToUint(zMin));
             if (push.localLayer != 0xFFFFFFFFu) {
                 float t = dot(vec2(float(x) + 0.5, float(y) + 0.5) - A, d);
-                float depth = nearestDepthInSlab(t - e_d, t + e_d, longest, along, zA, zB, zC);
+                float depth = nearestDepthInSlab(edges, t - e_d, t + e_d);
                 depth = depth > 1.0 ? zMin : depth; // rounding at the rectangle's ends
-                imageAtomicMin(thinMap, ivec3(x, y, int(push.localLayer)), floatBitsToUint(depth));
+                texel.z = int(push.localLayer);
+                if (imageLoad(thinMap, texel).r > floatBitsToUint(depth))
+                    imageAtomicMin(thinMap, texel, floatBitsToUint(depth));
             }
         }
     }
