@@ -153,32 +153,39 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     vec2 corners[4] = vec2[4](A + d * d0 + nrm * n0, A + d * d1 + nrm * n0, A + d * d0 + nrm * n1, A + d * d1 + nrm * n1);
     vec2 lo = min(min(corners[0], corners[1]), min(corners[2], corners[3]));
     vec2 hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]));
-    // The edges' depths along the longest edge: A at t = 0, B at longest, C at along.
-    EdgeDepth edges[3] = EdgeDepth[3](edgeDepth(0.0, zA, longest, zB), edgeDepth(longest, zB, along, zC), edgeDepth(along, zC, 0.0, zA));
     // Scanline fill of the texel centres inside the rectangle
     // {A + d t + nrm u : t in [d0, d1], u in [n0, n1]}.
     ivec2 size = ivec2(push.mapSize);
     int yBegin = max(int(ceil(lo.y - 0.5)), 0), yEnd = min(int(floor(hi.y - 0.5)), size.y - 1);
+    const bool local = push.localLayer != 0xFFFFFFFFu;
+    // The edges' depths along the longest edge: A at t = 0, B at longest, C at along.
+    EdgeDepth edges[3];
+    if (local)
+        edges = EdgeDepth[3](edgeDepth(0.0, zA, longest, zB), edgeDepth(longest, zB, along, zC), edgeDepth(along, zC, 0.0, zA));
     for (int y = yBegin; y <= yEnd; ++y) {
         float cy = float(y) + 0.5 - A.y;
         float xLo = lo.x - A.x - 1.0, xHi = hi.x - A.x + 1.0; // X = x + 0.5 - A.x
         clipLinear(d.x, d0 - d.y * cy, d1 - d.y * cy, xLo, xHi);     // t = d.x X + d.y cy
         clipLinear(-d.y, n0 - d.x * cy, n1 - d.x * cy, xLo, xHi);    // u = -d.y X + d.x cy
         int xBegin = max(int(ceil(xLo + A.x - 0.5)), 0), xEnd = min(int(floor(xHi + A.x - 0.5)), size.x - 1);
-        // Slivers overlap (a strip's neighbours, a grating's bars): the atomics are skipped where
-        // they would change nothing.
+        // Two loops, so that the hard-shadow maps' fill stays as lean as it was.
+        if (!local) {
+            for (int x = xBegin; x <= xEnd; ++x)
+                imageAtomicMin(thinMap, ivec3(x, y, int(push.layer)), floatBitsToUint(zMin));
+            continue;
+        }
+        // Area lights' slivers overlap (a grating's bars, a strip's neighbours): here skipping the
+        // atomics that would change nothing pays (interior 512^2: about 350 -> 320 ms on lavapipe).
         for (int x = xBegin; x <= xEnd; ++x) {
             ivec3 texel = ivec3(x, y, int(push.layer));
             if (imageLoad(thinMap, texel).r > floatBitsToUint(zMin))
                 imageAtomicMin(thinMap, texel, floatBitsToUint(zMin));
-            if (push.localLayer != 0xFFFFFFFFu) {
-                float t = dot(vec2(float(x) + 0.5, float(y) + 0.5) - A, d);
-                float depth = nearestDepthInSlab(edges, t - e_d, t + e_d);
-                depth = depth > 1.0 ? zMin : depth; // rounding at the rectangle's ends
-                texel.z = int(push.localLayer);
-                if (imageLoad(thinMap, texel).r > floatBitsToUint(depth))
-                    imageAtomicMin(thinMap, texel, floatBitsToUint(depth));
-            }
+            float t = dot(vec2(float(x) + 0.5, float(y) + 0.5) - A, d);
+            float depth = nearestDepthInSlab(edges, t - e_d, t + e_d);
+            depth = depth > 1.0 ? zMin : depth; // rounding at the rectangle's ends
+            texel.z = int(push.localLayer);
+            if (imageLoad(thinMap, texel).r > floatBitsToUint(depth))
+                imageAtomicMin(thinMap, texel, floatBitsToUint(depth));
         }
     }
 }
