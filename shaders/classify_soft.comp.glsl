@@ -63,6 +63,22 @@ bool mapHides(LightData light, ShadowLookup s)
     return areaMapLinearDepth(light, push.slot, s.depth) > areaMapLinearDepth(light, push.slot, deepest) + threshold;
 }
 
+// Some splat of `kind` (0: depth discontinuities, 1: thin triangles) over texel
+// t, on any level, reaches light-view depth `depth`.
+bool splatReaches(uint kind, uvec2 t, float depth)
+{
+    uint offset = 0u;
+    for (uint level = 0u; level <= push.topLevel; ++level) {
+        uint size = maskLevelSize(push.mapSize, level);
+        uvec2 c = t >> level;
+        uint texel = offset + c.y * size + c.x;
+        if (depth >= uintBitsToFloat(kind == 0u ? mask[1u + texel] : thinMask[texel]))
+            return true;
+        offset += size * size;
+    }
+    return false;
+}
+
 // In the penumbra mask of the map: some splat over the pixel's texel reaches
 // its depth (thin triangles' splats only where the map does not hide it).
 bool inMask(LightData light, ShadowLookup s)
@@ -70,21 +86,7 @@ bool inMask(LightData light, ShadowLookup s)
     if ((mask[0] & 1u) != 0u)
         return true;
     float depth = areaMapLinearDepth(light, push.slot, s.depth) * (1.0 + 1e-3);
-    uint S = push.mapSize;
-    uvec2 t = uvec2(s.texel);
-    uint kinds = mapHides(light, s) ? 1u : 2u;
-    for (uint kind = 0u; kind < kinds; ++kind) {
-        uint offset = 0u;
-        for (uint level = 0u; level <= push.topLevel; ++level) {
-            uint size = maskLevelSize(S, level);
-            uvec2 c = t >> level;
-            uint texel = offset + c.y * size + c.x;
-            if (depth >= uintBitsToFloat(kind == 0u ? mask[1u + texel] : thinMask[texel]))
-                return true;
-            offset += size * size;
-        }
-    }
-    return false;
+    return splatReaches(0u, uvec2(s.texel), depth) || (!mapHides(light, s) && splatReaches(1u, uvec2(s.texel), depth));
 }
 
 uvec2 classifyPixel()

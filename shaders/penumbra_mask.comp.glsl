@@ -382,14 +382,13 @@ void main()
     uvec2 p = gl_GlobalInvocationID.xy;
     bool inside = p.x < parentSize && p.y < parentSize;
     uint childSize = maskLevelSize(S, push.level);
-    uint top = push.topLevel;
     vec2 nearest = vec2(kNoEdge);
     for (uint j = 0u; j < 4u; ++j) {
         uvec2 c = p * 2u + uvec2(j & 1u, j >> 1u);
         vec2 z = vec2(kNoEdge);
         if (inside && c.x < childSize && c.y < childSize)
             z = push.level == 0u ? edgeDepths(ivec2(c))
-                                 : vec2(pyramid[pyramidIndex(S, top, 0u, push.level, c)], pyramid[pyramidIndex(S, top, 1u, push.level, c)]);
+                                 : vec2(pyramid[pyramidIndex(S, 0u, push.level, c)], pyramid[pyramidIndex(S, 1u, push.level, c)]);
         nearest = min(nearest, z);
         for (uint kind = 0u; kind < 2u; ++kind) {
             float r = z[kind] < kNoEdge ? splatRadius(z[kind], push.level) : 0.0;
@@ -397,10 +396,10 @@ void main()
         }
     }
     if (inside) {
-        pyramid[pyramidIndex(S, top, 0u, parentLevel, p)] = nearest.x;
-        pyramid[pyramidIndex(S, top, 1u, parentLevel, p)] = nearest.y;
+        pyramid[pyramidIndex(S, 0u, parentLevel, p)] = nearest.x;
+        pyramid[pyramidIndex(S, 1u, parentLevel, p)] = nearest.y;
     }
     for (uint kind = 0u; kind < 2u; ++kind)
-        appendJob(inside && parentLevel == top && nearest[kind] < kNoEdge && splatRadius(nearest[kind], parentLevel) >= 2.0, p,
+        appendJob(inside && parentLevel == push.topLevel && nearest[kind] < kNoEdge && splatRadius(nearest[kind], parentLevel) >= 2.0, p,
                   parentLevel, nearest[kind], kind);
 }

@@ -85,9 +85,7 @@ EdgeDepth edgeDepth(float ta, float za, float tb, float zb)
     e.t0 = min(ta, tb);
     e.t1 = max(ta, tb);
     e.slope = tb != ta ? (zb - za) / (tb - ta) : 0.0;
-    e.z = ta <= tb ? za : zb;
-    if (tb == ta)
-        e.z = min(za, zb);
+    e.z = ta < tb ? za : tb < ta ? zb : min(za, zb); // across the slab (ta == tb): its nearest end
     return e;
 }
 

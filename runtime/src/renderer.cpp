@@ -664,7 +664,6 @@ struct Renderer::Impl {
         bindRayTracerTargets(device, tracer, trace);
     }
 
-    // Every layer of the thin map to "nothing thin": the bits of 1.0f (the far plane).
     // A storage binding of the whole buffer, or of as much as the device allows
     // (render() refuses the frames that would need more).
     VkDeviceSize storageRange(const vk::Buffer& buffer) const
@@ -672,6 +671,7 @@ struct Renderer::Impl {
         return std::min<VkDeviceSize>(buffer.size, device.properties.limits.maxStorageBufferRange);
     }
 
+    // Every layer of the thin map to "nothing thin": the bits of 1.0f (the far plane).
     void clearThinMap(VkCommandBuffer cmd)
     {
         VkClearColorValue far{};
