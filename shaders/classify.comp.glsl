@@ -11,7 +11,7 @@
 //    angle beta between surface and light: d^ = d sin(beta) / sin(alpha + beta);
 //    for directional lights d^ = d - w cos(beta) / sin(beta), w the texel width), or
 //  - the shadow map calls the pixel lit but a thin triangle, rasterized
-//    conservatively into the thin map (thin_detect.comp.glsl), lies in front
+//    conservatively into the thin map (thin_triangles.comp.glsl), lies in front
 //    of it within its texel (a dropped thin occluder can only darken a pixel).
 // frt mode marks every light-facing pixel; sm mode marks none.
 
@@ -20,31 +20,27 @@
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
 
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
-layout(set = 0, binding = 2) uniform sampler2DArray shadowMap;
-layout(set = 0, binding = 3, r32ui) uniform readonly uimage2DArray thinMap; // float bits of the nearest thin depth
-layout(set = 0, binding = 4, r32f) uniform writeonly image2D outVisibility;
-layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
-layout(set = 0, binding = 6, std430) writeonly buffer Marks { uint marks[]; };
-layout(set = 0, binding = 7, std430) buffer Stats { uint64_t stats[]; };
+#define PIXEL_VISIBILITY_ACCESS writeonly
+#define PIXEL_MARKS_ACCESS writeonly
+#include "pixel_bindings.glsli"
+#include "classify_bindings.glsli"
 
 layout(push_constant) uniform ClassifyPush {
     uint lightIndex;
-    uint mode;     // 0 sm, 1 srt, 2 frt
+    uint mode;     // PENUMBRA_CLASSIFY_LOOKUP (sm), _PIP (srt), _ALL (frt)
 } push;
 
 // Returns (covered, marked) for this invocation's pixel.
 uvec2 classifyPixel()
 {
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 imageSizeXY = imageSize(outVisibility);
+    ivec2 imageSizeXY = imageSize(visibilityImage);
     if (any(greaterThanEqual(pixel, imageSizeXY)))
         return uvec2(0u);
     uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
     if (position.w == 0.0) {
-        imageStore(outVisibility, pixel, vec4(-1.0));
+        imageStore(visibilityImage, pixel, vec4(-1.0));
         marks[index] = 0u;
         return uvec2(0u);
     }
@@ -60,12 +56,12 @@ uvec2 classifyPixel()
     float visibility = 1.0;
     if (s.inside)
         visibility = s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
-    imageStore(outVisibility, pixel, vec4(visibility));
+    imageStore(visibilityImage, pixel, vec4(visibility));
 
     bool mark = false;
-    if (lightFacing && push.mode == 2u)
+    if (lightFacing && push.mode == PENUMBRA_CLASSIFY_ALL)
         mark = true;
-    else if (lightFacing && push.mode == 1u && s.inside) {
+    else if (lightFacing && push.mode == PENUMBRA_CLASSIFY_PIP && s.inside) {
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
         mark = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
                (visibility == 1.0 && thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r), light, s, size, n, L));

@@ -3,17 +3,17 @@
 #extension GL_EXT_shader_atomic_int64 : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Soft shadows of an area light (Lauterbach et al. 2009, 3.2), per camera pixel:
-//  mode 0 (sm): visibility += weight x the depth test in map `slot`, a point-light
+//  PENUMBRA_SOFT_AVERAGE (sm): visibility += weight x the depth test in map `slot`, a point-light
 //    shadow map from one point of the light (sm soft averages K of them);
-//  mode 1 (penumbra mask of a corner map, srt --penumbra-maps 5): mark pixels
+//  PENUMBRA_SOFT_CORNER_MASK (penumbra mask of a corner map, srt --penumbra-maps 5): mark pixels
 //    inside the mask of map `slot` (penumbra_mask.comp.glsl; OR into the marks);
-//  mode 2 (srt, the centre map): mark pixels inside the centre map's mask, outside
+//  PENUMBRA_SOFT_CENTRE_MASK (srt, the centre map): mark pixels inside the centre map's mask, outside
 //    the map, whose plane cuts the light (self-shadowing terminator), or that the
 //    hard-shadow tests mark (a discontinuity that may affect the pixel, a thin
 //    triangle in front), and give every other pixel the centre map's umbra or lit;
 //    pixels only the hard-shadow tests mark get PENUMBRA_MARK_ONE_SAMPLE (one ray);
-//  mode 3 (frt): mark every pixel with a light sample above its plane;
-//  mode 4 (before the mask of map `slot` is built): per tile of the map, the
+//  PENUMBRA_SOFT_ALL (frt): mark every pixel with a light sample above its plane;
+//  PENUMBRA_SOFT_RECEIVERS (before the mask of map `slot` is built): per tile of the map, the
 //    deepest light-view depth of the pixels that project there, and of those
 //    the map does not hide (mapHides).
 // Pixels with no light sample above their plane, or behind a one-sided emitter,
@@ -25,25 +25,15 @@
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
 
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
-layout(set = 0, binding = 2) uniform sampler2DArray shadowMap;
-layout(set = 0, binding = 3, r32ui) uniform readonly uimage2DArray thinMap; // float bits of the nearest thin depth
-layout(set = 0, binding = 4, r32f) uniform image2D outVisibility;
-layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
-layout(set = 0, binding = 6, std430) buffer Marks { uint marks[]; };
-layout(set = 0, binding = 7, std430) buffer Stats { uint64_t stats[]; };
-layout(set = 0, binding = 8, std430) readonly buffer Mask { uint mask[]; }; // penumbra_mask.comp.glsl
-layout(set = 0, binding = 9, std430) buffer Receivers { uint receivers[]; };  // mode 4: per map tile, the deepest pixel; then
-                                                                              // the deepest the map does not hide
-layout(set = 0, binding = 10, std430) readonly buffer ThinMask { uint thinMask[]; }; // thin triangles' splats (no flags)
+#include "pixel_bindings.glsli"
+#include "classify_bindings.glsli"
 
 layout(push_constant) uniform ClassifySoftPush {
     uint lightIndex;
     uint slot;       // map of the light
-    uint mode;       // see above
-    uint first;      // mode 0: 1 for the first map (writes instead of adding; counts pixels)
-    float weight;    // mode 0: 1 / K
+    uint mode;       // PENUMBRA_SOFT_* (see above)
+    uint first;      // AVERAGE: 1 for the first map (writes instead of adding; counts pixels)
+    float weight;    // AVERAGE: 1 / K
     uint mapSize;
     uint topLevel;
     uint pad;
@@ -92,13 +82,13 @@ bool inMask(LightData light, ShadowLookup s)
 uvec2 classifyPixel()
 {
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 imageSizeXY = imageSize(outVisibility);
+    ivec2 imageSizeXY = imageSize(visibilityImage);
     if (any(greaterThanEqual(pixel, imageSizeXY)))
         return uvec2(0u);
     uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
     if (position.w == 0.0) {
-        imageStore(outVisibility, pixel, vec4(-1.0));
+        imageStore(visibilityImage, pixel, vec4(-1.0));
         marks[index] = 0u;
         return uvec2(0u);
     }
@@ -110,17 +100,17 @@ uvec2 classifyPixel()
     ivec2 size = textureSize(shadowMap, 0).xy;
     ShadowLookup s = projectToAreaMap(light, push.slot, p, size);
 
-    if (push.mode == 0u) {
+    if (push.mode == PENUMBRA_SOFT_AVERAGE) {
         // One point-light shadow map of K: the point must be above the pixel's plane.
         vec3 eye = lightMapEye(light, push.slot).xyz;
         bool lit = reached && dot(n, eye - p) > 0.0 && s.inside && s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r;
-        float previous = push.first != 0u ? 0.0 : imageLoad(outVisibility, pixel).r;
-        imageStore(outVisibility, pixel, vec4(previous + (lit ? push.weight : 0.0)));
+        float previous = push.first != 0u ? 0.0 : imageLoad(visibilityImage, pixel).r;
+        imageStore(visibilityImage, pixel, vec4(previous + (lit ? push.weight : 0.0)));
         if (push.first != 0u)
             marks[index] = 0u;
         return uvec2(push.first, 0u);
     }
-    if (push.mode == 4u) {
+    if (push.mode == PENUMBRA_SOFT_RECEIVERS) {
         if (reached && s.inside) {
             uint tiles = (push.mapSize + PENUMBRA_RECEIVER_TILE - 1u) / PENUMBRA_RECEIVER_TILE;
             uvec2 tile = uvec2(s.texel) / PENUMBRA_RECEIVER_TILE;
@@ -131,14 +121,14 @@ uvec2 classifyPixel()
         }
         return uvec2(0u);
     }
-    if (push.mode == 1u) {
+    if (push.mode == PENUMBRA_SOFT_CORNER_MASK) {
         if (reached && (!s.inside || inMask(light, s)))
             marks[index] = 1u;
         return uvec2(0u);
     }
     bool mark;
     float visibility = 0.0;
-    if (push.mode == 3u)
+    if (push.mode == PENUMBRA_SOFT_ALL)
         mark = reached;
     else {
         // The shadow map's own umbra/lit boundary is as uncertain as for hard shadows (3.1): the
@@ -154,14 +144,14 @@ uvec2 classifyPixel()
         // Outside the mask no penumbra reaches the pixel: every light sample agrees, so one of
         // them (sample 0, as frt traces it) decides the map's uncertain umbra/lit boundary.
         if (mark && !penumbra) {
-            imageStore(outVisibility, pixel, vec4(0.0));
+            imageStore(visibilityImage, pixel, vec4(0.0));
             marks[index] = PENUMBRA_MARK_ONE_SAMPLE;
             return uvec2(1u, 1u);
         }
         if (reached && !mark)
             visibility = lit ? 1.0 : 0.0;
     }
-    imageStore(outVisibility, pixel, vec4(visibility));
+    imageStore(visibilityImage, pixel, vec4(visibility));
     marks[index] = mark ? 1u : 0u;
     return uvec2(1u, mark ? 1u : 0u);
 }

@@ -17,12 +17,12 @@ layout(set = 0, binding = 1, std430) buffer RayList { uint rays[]; }; // header,
 
 layout(push_constant) uniform CompactPush {
     uint pixelCount;
-    uint phase;   // 0 compact, 1 write dispatch size
+    uint phase;   // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
 } push;
 
 void main()
 {
-    if (push.phase == 1u) {
+    if (push.phase == PENUMBRA_COMPACT_DISPATCH) {
         if (gl_GlobalInvocationID.x != 0u)
             return;
         // 2-D when needed: devices may limit each dimension to 65535 workgroups.

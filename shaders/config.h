@@ -5,7 +5,7 @@
 
 #define PENUMBRA_MAX_LIGHTS 8            // lights shaded per frame
 #define PENUMBRA_SHADE_GROUP_SIZE 8      // shade.comp and classify.comp workgroups are 8x8 pixels
-#define PENUMBRA_THIN_DETECT_GROUP_SIZE 64 // thin_detect.comp: BVH nodes per workgroup, strip bytes decoded at once
+#define PENUMBRA_THIN_TRIANGLES_GROUP_SIZE 64 // thin_triangles.comp: BVH nodes per workgroup, strip bytes decoded at once
 
 #define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: rays per workgroup
 #define PENUMBRA_TRACE_STACK_SIZE 64     // BVH traversal stack entries (>= model::kMaxBvhDepth)
@@ -34,6 +34,24 @@
 #define PENUMBRA_RAY_LIST_HEADER_UINTS 4
 #define PENUMBRA_MARK_ONE_SAMPLE 2u      // marks[]: outside the penumbra, all light samples agree (1: trace all)
 #define PENUMBRA_RAY_ONE_SAMPLE 0x80000000u
+
+// Modes of the passes, pushed to their shaders (never C++ enum positions).
+// classify.comp.glsl, hard shadows: what the shadow map decides.
+#define PENUMBRA_CLASSIFY_LOOKUP 0u      // sm: visibility from the map's depth test, no rays
+#define PENUMBRA_CLASSIFY_PIP 1u         // srt: the map's visibility, and rays for potentially incorrect pixels
+#define PENUMBRA_CLASSIFY_ALL 2u         // frt: a ray for every light-facing pixel
+// classify_soft.comp.glsl, area lights (see the shader for each).
+#define PENUMBRA_SOFT_AVERAGE 0u         // sm: visibility += weight x the depth test in one map of the light
+#define PENUMBRA_SOFT_CORNER_MASK 1u     // srt --penumbra-maps 5: mark the pixels in a corner map's penumbra mask
+#define PENUMBRA_SOFT_CENTRE_MASK 2u     // srt: the centre map's mask and hard-shadow tests; umbra or lit elsewhere
+#define PENUMBRA_SOFT_ALL 3u             // frt: mark every pixel with a light sample above its plane
+#define PENUMBRA_SOFT_RECEIVERS 4u       // before a penumbra mask: the deepest receiver per tile of the map
+// compact.comp.glsl phases.
+#define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list
+#define PENUMBRA_COMPACT_DISPATCH 1u     // the tracer's indirect dispatch size from the list's count
+// penumbra_mask.comp.glsl: values of its push constant `level` past the reductions' levels.
+#define PENUMBRA_MASK_WRITE_DISPATCH 0xFFFFFFFEu // write the splat jobs' indirect dispatch size
+#define PENUMBRA_MASK_SPLAT_JOBS 0xFFFFFFFFu     // splat the listed jobs
 
 // Counters of one frame (std430 uint64_t array, atomically accumulated).
 #define PENUMBRA_STAT_RAYS 0             // rays traced

@@ -39,8 +39,8 @@
 // writes the level-1 minimum. level >= 1: the children at `level` of one
 // level+1 texel; writes the level+1 minimum. Both append the blocks that
 // splat (and the top level's) to a job list: splats vary in cost, so they run
-// in a pass of their own over the dense list (level == kSplatJobs, dispatched
-// indirectly; kWriteDispatch writes its size) rather than idling the
+// in a pass of their own over the dense list (level == PENUMBRA_MASK_SPLAT_JOBS, dispatched
+// indirectly; PENUMBRA_MASK_WRITE_DISPATCH writes its size) rather than idling the
 // neighbouring invocations of a SIMD group.
 // Splats skip regions where no camera pixel lies behind the occluder (the
 // receivers buffer, written by classify_soft mode 4 before this pass), and
@@ -83,7 +83,7 @@ layout(push_constant) uniform MaskPush {
     mat4 invViewProj;  // inverse of the map's viewProj
     uint lightIndex;
     uint slot;         // which map of the light (viewProj[slot], mapEye[slot])
-    uint level;        // 0: edge pass; else the source level of this reduction; or kWriteDispatch, kSplatJobs
+    uint level;        // 0: edge pass; else the source level of this reduction; or PENUMBRA_MASK_WRITE_DISPATCH, PENUMBRA_MASK_SPLAT_JOBS
     uint mapSize;      // texels per side
     uint topLevel;     // level of size 1
     uint useThin;      // 1: thin triangles (thin map) are edges too
@@ -91,8 +91,6 @@ layout(push_constant) uniform MaskPush {
     uint maxJobs;      // capacity of the job list
 } push;
 
-const uint kWriteDispatch = 0xFFFFFFFEu;
-const uint kSplatJobs = 0xFFFFFFFFu;
 
 const float kNoEdge = 3.0e38;
 
@@ -318,7 +316,7 @@ vec2 edgeDepths(ivec2 t)
     // the ground) has a penumbra there too, and its splats reach only the
     // pixels the map does not hide (the second mask).
     if (push.useThin != 0u) {
-        // The last layer: each texel's own depth of the slivers over it (thin_detect.comp.glsl).
+        // The last layer: each texel's own depth of the slivers over it (thin_triangles.comp.glsl).
         float thin = linearDepth(uintBitsToFloat(imageLoad(thinMap, ivec3(t, imageSize(thinMap).z - 1)).r));
         float nearest = zc;
         for (int i = 0; i < 9; ++i)
@@ -358,7 +356,7 @@ void main()
     gTexelAngle = lightMapRange(gLight, push.slot).y / float(push.mapSize);
     uint S = push.mapSize;
 
-    if (push.level == kWriteDispatch) {
+    if (push.level == PENUMBRA_MASK_WRITE_DISPATCH) {
         if (gl_GlobalInvocationID.x == 0u && gl_GlobalInvocationID.y == 0u) {
             uint groups = (min(jobCount, push.maxJobs) + 63u) / 64u;
             uint x = min(groups, 65535u);
@@ -368,7 +366,7 @@ void main()
         }
         return;
     }
-    if (push.level == kSplatJobs) {
+    if (push.level == PENUMBRA_MASK_SPLAT_JOBS) {
         uint index = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u + gl_LocalInvocationIndex;
         if (index >= min(jobCount, push.maxJobs))
             return;

@@ -10,14 +10,10 @@
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
 
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
-layout(set = 0, binding = 2, rgba32f) uniform image2D outColor;
-layout(set = 0, binding = 3, r32f) uniform readonly image2D lightVisibility;
-layout(set = 0, binding = 4, std140) uniform Frame { FrameData frame; };
-
-layout(set = 0, binding = 5, std430) readonly buffer Marks { uint marks[]; };
-layout(set = 0, binding = 6, std430) buffer Stats { uint64_t stats[]; };
+#define PIXEL_VISIBILITY_ACCESS readonly
+#define PIXEL_MARKS_ACCESS readonly
+#include "pixel_bindings.glsli"
+layout(set = 0, binding = PIXEL_BINDING_COUNT, rgba32f) uniform image2D outColor;
 
 layout(push_constant) uniform ShadePush {
     uint lightIndex;    // which light of frame.lights
@@ -72,7 +68,7 @@ void main()
         }
     }
 
-    float visibility = max(imageLoad(lightVisibility, pixel).r, 0.0);
+    float visibility = max(imageLoad(visibilityImage, pixel).r, 0.0);
     bool area = type == PENUMBRA_LIGHT_RECTANGLE || type == PENUMBRA_LIGHT_DISK || type == PENUMBRA_LIGHT_SPHERE;
     if (area && visibility > 0.0 && visibility < 1.0)
         atomicAdd(stats[PENUMBRA_STAT_PENUMBRA], uint64_t(1));

@@ -400,7 +400,7 @@ int main(int argc, char** argv)
                               "Light, repeatable: 'TYPE key=value ...', TYPE one of point spot directional rectangle disk sphere; "
                               "keys position direction up color intensity range inner_cone outer_cone width height radius; "
                               "e.g. --light 'directional direction=-1,-2,-1 intensity=3'");
-    renderCommand->add_option("--shadows", render.shadows, "Shadow method: sm (shadow map), srt (selective ray tracing), frt (full ray tracing)")->capture_default_str();
+    renderCommand->add_option("--shadows", render.shadows, "Shadow method: " + shadowMethodsHelp())->capture_default_str();
     renderCommand->add_option("--cull", render.cull,
                               "Raster culling with the BVH: none, frustum, all (frustum + occlusion queries); same image in every mode")
         ->capture_default_str();

@@ -12,27 +12,6 @@
 
 namespace penumbra {
 
-const char* shadowMethodName(ShadowMethod method)
-{
-    switch (method) {
-    case ShadowMethod::ShadowMap: return "sm";
-    case ShadowMethod::Selective: return "srt";
-    case ShadowMethod::FullRayTrace: return "frt";
-    }
-    return "unknown";
-}
-
-ShadowMethod parseShadowMethod(const std::string& name)
-{
-    if (name == "sm")
-        return ShadowMethod::ShadowMap;
-    if (name == "srt")
-        return ShadowMethod::Selective;
-    if (name == "frt")
-        return ShadowMethod::FullRayTrace;
-    fail("--shadows " + name, "unknown method (expected sm, srt or frt)");
-}
-
 const char* cullModeName(CullMode mode)
 {
     switch (mode) {

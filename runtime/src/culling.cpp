@@ -21,9 +21,8 @@ namespace {
 struct BoxPush {
     glm::mat4 viewProj;
     VkDeviceAddress boxes;
-    uint64_t pad;
 };
-static_assert(sizeof(BoxPush) == 80);
+static_assert(sizeof(BoxPush) == 72);
 
 struct PredicatePush {
     VkDeviceAddress commands;
@@ -43,57 +42,16 @@ constexpr VkDeviceSize kCommandBytes = sizeof(VkDrawIndexedIndirectCommand);
 VkPipeline createBoxPipeline(vk::Device& device, VkPipelineLayout layout, const std::vector<VkFormat>& colorFormats,
                              VkFormat depthFormat)
 {
-    VkShaderModule vertex = vk::createShaderModule(device, "cull_box.vert");
-    VkPipelineShaderStageCreateInfo stage{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-    stage.stage = VK_SHADER_STAGE_VERTEX_BIT;
-    stage.module = vertex;
-    stage.pName = "main";
-    VkPipelineVertexInputStateCreateInfo vertexInput{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
-    VkPipelineInputAssemblyStateCreateInfo assembly{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
-    assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
-    VkPipelineViewportStateCreateInfo viewport{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
-    viewport.viewportCount = 1;
-    viewport.scissorCount = 1;
-    VkPipelineRasterizationStateCreateInfo raster{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
-    raster.polygonMode = VK_POLYGON_MODE_FILL;
-    raster.cullMode = VK_CULL_MODE_NONE;
-    raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
-    raster.lineWidth = 1.0f;
-    VkPipelineMultisampleStateCreateInfo multisample{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
-    multisample.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
-    VkPipelineDepthStencilStateCreateInfo depth{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
-    depth.depthTestEnable = VK_TRUE;
-    depth.depthWriteEnable = VK_FALSE;
-    depth.depthCompareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
-    std::vector<VkPipelineColorBlendAttachmentState> blends(colorFormats.size()); // colorWriteMask 0
-    VkPipelineColorBlendStateCreateInfo blend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
-    blend.attachmentCount = uint32_t(blends.size());
-    blend.pAttachments = blends.data();
-    VkDynamicState dynamicStates[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-    VkPipelineDynamicStateCreateInfo dynamic{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
-    dynamic.dynamicStateCount = 2;
-    dynamic.pDynamicStates = dynamicStates;
-    VkPipelineRenderingCreateInfo rendering{VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO};
-    rendering.colorAttachmentCount = uint32_t(colorFormats.size());
-    rendering.pColorAttachmentFormats = colorFormats.data();
-    rendering.depthAttachmentFormat = depthFormat;
-    VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO, &rendering};
-    info.stageCount = 1;
-    info.pStages = &stage;
-    info.pVertexInputState = &vertexInput;
-    info.pInputAssemblyState = &assembly;
-    info.pViewportState = &viewport;
-    info.pRasterizationState = &raster;
-    info.pMultisampleState = &multisample;
-    info.pDepthStencilState = &depth;
-    info.pColorBlendState = &blend;
-    info.pDynamicState = &dynamic;
-    info.layout = layout;
-    VkPipeline pipeline;
-    VkResult result = vkCreateGraphicsPipelines(device.device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
-    vkDestroyShaderModule(device.device, vertex, nullptr);
-    VK_CHECK(result);
-    return pipeline;
+    vk::GraphicsPipelineDesc desc;
+    desc.vertexShader = "cull_box.vert";
+    desc.colorFormats = colorFormats;
+    desc.colorWrite = false;
+    desc.depthFormat = depthFormat;
+    desc.depthWrite = false;
+    desc.modelGeometry = false;
+    desc.layout = layout;
+    desc.pushBytes = sizeof(BoxPush);
+    return vk::createGraphicsPipeline(device, desc);
 }
 
 // Where a box lies against a view's clip volume -w <= x, y <= w, 0 <= z <= w
@@ -160,7 +118,7 @@ bool ReceiverMask::mayCover(const glm::vec3& lo, const glm::vec3& hi) const
         footMin = glm::min(footMin, glm::dvec2(c) / c.w);
         footMax = glm::max(footMax, glm::dvec2(c) / c.w);
     }
-    // Cells from clip units, clamped like the pixels' (view_bounds.comp.glsl).
+    // Cells from clip units, clamped like the pixels' (view_fit.comp.glsl).
     auto cell = [&](double clip) {
         const double c = std::floor((clip * 0.5 + 0.5) * double(resolution));
         return uint32_t(std::clamp(c, 0.0, double(resolution - 1)));
@@ -180,7 +138,7 @@ void Culling::create(vk::Device& device, const std::vector<VkFormat>& cameraColo
         vk::createPipelineLayout(device, VK_NULL_HANDLE, sizeof(PredicatePush), VK_SHADER_STAGE_COMPUTE_BIT);
     cameraBoxPipeline = createBoxPipeline(device, boxLayout, cameraColorFormats, depthFormat);
     shadowBoxPipeline = createBoxPipeline(device, boxLayout, {}, depthFormat);
-    predicatePipeline = vk::createComputePipeline(device, "cull_predicates.comp", predicateLayout);
+    predicatePipeline = vk::createComputePipeline(device, "cull_predicates.comp", predicateLayout, sizeof(PredicatePush));
     timestampPeriodNs = device.properties.limits.timestampPeriod;
 }
 
@@ -568,7 +526,7 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
         return;
     }
 
-    BoxPush push{plan.view.viewProj, boxesAddress, 0};
+    BoxPush push{plan.view.viewProj, boxesAddress};
     auto queryBoxRange = [&](uint32_t first, uint32_t count) {
         if (count == 0)
             return;

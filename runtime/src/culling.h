@@ -52,14 +52,14 @@ namespace penumbra {
 // Where the camera's visible points are looked up in one shadow-map layer of
 // a directional, point or spot light: the cells of a grid over the layer's
 // clip x, y in [-1, 1] (a directional light's model-fitted map) that hold one
-// (view_bounds.comp.glsl), as a summed-area table.
+// (view_fit.comp.glsl), as a summed-area table.
 struct ReceiverMask {
     glm::dmat4 viewProj{1.0}; // the grid's clip space
     uint32_t resolution = 0;  // cells a side
     glm::dvec2 margin{0.0};   // clip units added to a footprint on each side
     std::vector<uint32_t> prefix; // (resolution + 1)^2: set cells below and left of each corner
 
-    // bits: resolution^2 bits, row y, bit x (view_bounds.comp.glsl).
+    // bits: resolution^2 bits, row y, bit x (view_fit.comp.glsl).
     void build(const uint32_t* bits, uint32_t cellsPerSide);
     // False when the box's footprint, grown by margin, holds no set cell.
     bool mayCover(const glm::vec3& lo, const glm::vec3& hi) const;

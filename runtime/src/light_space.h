@@ -34,7 +34,7 @@ LightProjection lightProjection(const Light& light, const Bounds& bounds);
 
 // Directional lights, fitted to the view: narrows the model-fitted map in x
 // and y to the light-space bounds of the surface the camera sees, given in the
-// model-fitted map's clip space (view_bounds.comp.glsl), grown by
+// model-fitted map's clip space (view_fit.comp.glsl), grown by
 // PENUMBRA_VIEW_FIT_MARGIN_TEXELS texels of a mapSize map. The depth range
 // stays, so every caster between the light and those receivers is still in
 // the map, and the casters beside them fall out of its frustum (culling). The

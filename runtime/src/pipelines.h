@@ -1,9 +1,13 @@
-// Small helpers for pipeline layouts, descriptor sets and compute pipelines,
-// shared by the renderer's passes and the ray tracer.
+// Pipelines of the passes: set layouts, descriptor sets, compute kernels and
+// the one graphics-pipeline helper (G-buffer, shadow maps, culling boxes,
+// decode check). Every pipeline checks its C++ push-constant size against
+// the shader's push-constant block, read from the embedded SPIR-V.
 #pragma once
 
+#include <string>
 #include <vector>
 
+#include "model_geometry.h"
 #include "resources.h"
 
 namespace penumbra::vk {
@@ -28,11 +32,74 @@ struct Binding {
     VkImageLayout layout = VK_IMAGE_LAYOUT_GENERAL;
     VkDeviceSize range = VK_WHOLE_SIZE;
 };
+inline Binding storageImage(VkImageView view) { return {kStorageImage, view}; }
+inline Binding sampledImage(VkImageView view, VkSampler sampler, VkImageLayout layout) { return {kSampled, view, sampler, {}, layout}; }
+inline Binding uniformBuffer(VkBuffer buffer) { return {kUniform, {}, {}, buffer}; }
+inline Binding storageBuffer(VkBuffer buffer, VkDeviceSize range = VK_WHOLE_SIZE) { return {kStorage, {}, {}, buffer, {}, range}; }
 
 // Writes bindings[i] to binding i of set.
 void writeSet(Device& device, VkDescriptorSet set, const std::vector<Binding>& bindings);
 
-// Compute pipeline of an embedded shader ("classify.comp").
-VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineLayout layout);
+// Size in bytes of the push-constant block of an embedded shader ("classify.comp"),
+// from its SPIR-V: the end of its last member. 0 when it declares none.
+uint32_t shaderPushConstantBytes(const char* shader);
+
+// Throws when the shader's push-constant block is not pushBytes long.
+void checkPushConstants(const char* shader, uint32_t pushBytes);
+
+// Compute pipeline of an embedded shader ("classify.comp"); checks pushBytes against the shader.
+VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineLayout layout, uint32_t pushBytes);
+
+// A compute pass's pipeline with its own set layout (binding i of type
+// bindings[i]), one descriptor set from a pool of its own, and push constants.
+struct ComputeKernel {
+    VkDescriptorSetLayout setLayout = VK_NULL_HANDLE;
+    VkPipelineLayout layout = VK_NULL_HANDLE;
+    VkPipeline pipeline = VK_NULL_HANDLE;
+    VkDescriptorPool pool = VK_NULL_HANDLE;
+    VkDescriptorSet set = VK_NULL_HANDLE;
+
+    void create(Device& device, const char* shader, const std::vector<VkDescriptorType>& bindings, uint32_t pushBytes);
+    void destroy(Device& device);
+    void write(Device& device, const std::vector<Binding>& bindings) const { writeSet(device, set, bindings); }
+    // Binds the pipeline and its set.
+    void bind(VkCommandBuffer cmd) const;
+    template <typename Push>
+    void push(VkCommandBuffer cmd, const Push& push) const
+    {
+        vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(Push), &push);
+    }
+};
+
+struct GraphicsPipelineDesc {
+    std::string vertexShader;                 // registry name; ".float" is appended for the reference encoding
+    const char* fragmentShader = nullptr;     // null: depth only
+    std::vector<VkFormat> colorFormats;
+    VkFormat depthFormat = VK_FORMAT_UNDEFINED; // UNDEFINED: no depth attachment
+    bool depthWrite = true;
+    bool colorWrite = true;                   // false: colour attachments masked (culling boxes)
+    bool depthBias = false;
+    bool rasterizerDiscard = false;
+    bool modelGeometry = true;                // vertex input of the model (geometryInputState); false: none, triangle list
+    GeometryEncoding encoding = GeometryEncoding::Compressed;
+    VkPipelineLayout layout = VK_NULL_HANDLE;
+    uint32_t pushBytes = 0;                   // checked against every stage's push-constant block
+};
+
+VkPipeline createGraphicsPipeline(Device& device, const GraphicsPipelineDesc& desc);
+
+// A raster pass's pipelines, one per geometry encoding, with one layout (no set).
+struct RasterPipelines {
+    VkPipelineLayout layout = VK_NULL_HANDLE;
+    VkPipeline byEncoding[2] = {};
+
+    // desc.layout and desc.encoding are filled in.
+    void create(Device& device, GraphicsPipelineDesc desc, VkShaderStageFlags pushStages);
+    void destroy(Device& device);
+    VkPipeline operator[](GeometryEncoding encoding) const { return byEncoding[int(encoding)]; }
+};
+
+// Viewport and scissor covering w x h.
+void setViewport(VkCommandBuffer cmd, uint32_t w, uint32_t h);
 
 } // namespace penumbra::vk

@@ -1,4 +1,4 @@
-// The compute ray tracer (runtime/src/ray_tracer.h, shaders/trace.comp.glsl)
+// The compute ray tracer (runtime/src/passes/trace.h, shaders/trace.comp.glsl)
 // against the Embree oracle: the same G-buffer (rendered by the public
 // Renderer), the same shadow rays, one ray per covered pixel. Checked against
 // the oracle on the decoded (quantized) triangles, which the tracer must match
@@ -22,7 +22,7 @@
 #include "penumbra/penumbra.h"
 #include "test_scenes.h"
 #include "penumbra/preprocess.h"
-#include "ray_tracer.h"
+#include "passes/trace.h"
 #include "resources.h"
 
 namespace penumbra {
@@ -98,8 +98,8 @@ public:
         options.maxModelBufferBytes = maxModelBufferBytes;
         vk::createDevice(device, options);
         geometry = uploadCompressed(device, model);
-        createRayTracer(device, tracer);
-        bindRayTracerModel(device, tracer, geometry);
+        tracer.create(device);
+        tracer.bindModel(device, geometry);
 
         const VkImageUsageFlags usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
         position = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32G32B32A32_SFLOAT, usage);
@@ -131,14 +131,7 @@ public:
                            VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
         });
 
-        TraceBindings bindings;
-        bindings.position = position.view;
-        bindings.normal = normal.view;
-        bindings.visibility = visibility.view;
-        bindings.frameUniforms = frameUniforms.buffer;
-        bindings.rayList = rayList.buffer;
-        bindings.stats = stats.buffer;
-        bindRayTracerTargets(device, tracer, bindings);
+        tracer.bind(device, {position.view, normal.view, visibility.view, frameUniforms.buffer, rayList.buffer, stats.buffer});
     }
 
     ~TraceHarness()
@@ -148,7 +141,7 @@ public:
             vk::destroyImage(device, *image);
         for (vk::Buffer* buffer : {&staging, &frameUniforms, &rayList, &stats})
             vk::destroyBuffer(device, *buffer);
-        destroyRayTracer(device, tracer);
+        tracer.destroy(device);
         destroyGeometry(device, geometry);
         EXPECT_EQ(device.validationMessages.load(), 0u);
         vk::destroyDevice(device);
@@ -171,7 +164,7 @@ public:
                               VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                               VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
                                   VK_ACCESS_2_UNIFORM_READ_BIT | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-            recordTrace(cmd, tracer, 1, originOffset);
+            tracer.record(cmd, 1, originOffset);
             vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT,
                               VK_ACCESS_2_HOST_READ_BIT);
             vk::transition(cmd, visibility, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
@@ -214,7 +207,7 @@ private:
 
     const GBuffer& gbuffer;
     GpuGeometry geometry;
-    RayTracer tracer;
+    passes::TracePass tracer;
     vk::Image position, normal, visibility;
     vk::Buffer staging, frameUniforms, rayList, stats;
     uint32_t listed = 0;
@@ -384,13 +377,13 @@ TEST(RayTracer, RejectsModelsWithoutBvhAndUnboundUse)
 {
     vk::Device device;
     vk::createDevice(device, RendererOptions{});
-    RayTracer tracer;
-    createRayTracer(device, tracer);
+    passes::TracePass tracer;
+    tracer.create(device);
     GpuGeometry reference = uploadReference(device, test::cubeOverFloor(0.5f));
-    EXPECT_THROW(bindRayTracerModel(device, tracer, reference), Error);
-    vk::immediateSubmit(device, [&](VkCommandBuffer cmd) { EXPECT_THROW(recordTrace(cmd, tracer, 0, 0.0f), Error); });
+    EXPECT_THROW(tracer.bindModel(device, reference), Error);
+    vk::immediateSubmit(device, [&](VkCommandBuffer cmd) { EXPECT_THROW(tracer.record(cmd, 0, 0.0f), Error); });
     destroyGeometry(device, reference);
-    destroyRayTracer(device, tracer);
+    tracer.destroy(device);
     EXPECT_EQ(device.validationMessages.load(), 0u);
     vk::destroyDevice(device);
 }

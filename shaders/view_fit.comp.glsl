@@ -31,9 +31,9 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 #define VIEW_BOUNDS_BLOCK 4
 #define GROUP_INVOCATIONS (PENUMBRA_SHADE_GROUP_SIZE * PENUMBRA_SHADE_GROUP_SIZE)
 
-// Bindings of the classify set that this pass reads.
+// C++: runtime/src/passes/view_fit.h (ViewFitBinding).
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 5, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 1, std140) uniform Frame { FrameData frame; };
 
 layout(buffer_reference, std430) buffer Keys { uint keys[]; };
 

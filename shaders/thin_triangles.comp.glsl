@@ -34,7 +34,7 @@
 #include "config.h"
 #include "bvh_traversal.glsli"
 
-layout(local_size_x = PENUMBRA_THIN_DETECT_GROUP_SIZE) in;
+layout(local_size_x = PENUMBRA_THIN_TRIANGLES_GROUP_SIZE) in;
 
 layout(set = 0, binding = 0, r32ui) uniform uimage2DArray thinMap;
 
@@ -188,7 +188,7 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-shared uvec4 passingLeaves[PENUMBRA_THIN_DETECT_GROUP_SIZE]; // the leaf nodes themselves
+shared uvec4 passingLeaves[PENUMBRA_THIN_TRIANGLES_GROUP_SIZE]; // the leaf nodes themselves
 shared uint passingCount;
 
 // A leaf whose every triangle is wider than the thin threshold in model space, at the smallest texel size
@@ -208,7 +208,7 @@ bool mayHoldSlivers(ModelTable table, uint index, uvec4 leaf)
     return altitude < PENUMBRA_THIN_TEXELS * texel;
 }
 
-// Each workgroup takes PENUMBRA_THIN_DETECT_GROUP_SIZE BVH nodes and keeps the leaves that may hold
+// Each workgroup takes PENUMBRA_THIN_TRIANGLES_GROUP_SIZE BVH nodes and keeps the leaves that may hold
 // slivers; each subgroup then decodes its share of them, one invocation per strip byte, so that the
 // triangles of a leaf are projected in parallel. A byte's place in its strip (which decides the
 // winding) comes from the last restart before it: an inclusive max-scan of restart positions.
@@ -220,7 +220,7 @@ void main()
     barrier();
     // Groups may be laid out in 2D when the nodes exceed maxComputeWorkGroupCount[0].
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint index = group * PENUMBRA_THIN_DETECT_GROUP_SIZE + lane;
+    uint index = group * PENUMBRA_THIN_TRIANGLES_GROUP_SIZE + lane;
     ModelTable table = ModelTable(push.modelTable);
     NodeChunks nodeChunks = NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift);
     if (index < push.nodeCount) {

@@ -1,0 +1,75 @@
+// The images and buffers a frame renders into, in one place with one destroy
+// list: those sized by the image (G-buffer, colour, visibility, marks, ray
+// list, readback), those sized by the shadow map (maps, thin map, penumbra
+// masks), and the fixed ones (frame constants, counters, the view fit's
+// read-back). Passes get them explicitly through their bind().
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "config.h"
+#include "resources.h"
+
+namespace penumbra {
+
+constexpr VkFormat kPositionFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+constexpr VkFormat kNormalFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+constexpr VkFormat kColorFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+constexpr VkFormat kVisibilityFormat = VK_FORMAT_R32_SFLOAT;
+constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
+constexpr VkFormat kThinFormat = VK_FORMAT_R32_UINT; // float bits of the nearest thin depth (imageAtomicMin)
+
+// viewBounds (host-visible, read back mid-frame): the keys of
+// view_fit.comp.glsl, then the receiver grid of each shadow-map layer
+// (layer k of light l at 6 l + k).
+constexpr VkDeviceSize kViewBoundsKeyBytes = PENUMBRA_MAX_LIGHTS * 6 * 8 * sizeof(uint32_t);
+constexpr VkDeviceSize kReceiverGridBytes = PENUMBRA_RECEIVER_GRID_WORDS * sizeof(uint32_t);
+constexpr VkDeviceSize kReceiverGridsBytes = PENUMBRA_MAX_LIGHTS * 6 * kReceiverGridBytes;
+
+struct FrameTargets {
+    // Sized by the image.
+    uint32_t width = 0, height = 0;
+    vk::Image position, normal, depth, color, visibility;
+    vk::Buffer marks;   // uint per pixel (compact.comp.glsl)
+    vk::Buffer rayList; // PENUMBRA_RAY_LIST_HEADER_UINTS + a pixel index per pixel
+    vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
+    // Sized by the shadow map.
+    uint32_t shadowSize = 0, shadowLayers = 0;
+    vk::Image shadowMap; // D32, one layer per cube face (SHADER_READ_ONLY between passes)
+    vk::Image thinMap;   // R32_UINT, shadowLayers + 1 layers (GENERAL; thin_triangles.comp.glsl)
+    // penumbra_mask.comp.glsl: the masks of depth edges and of thin triangles, the
+    // nearest-edge pyramid, the deepest receiver per tile, the splat jobs.
+    vk::Buffer penumbraMask, penumbraThinMask, penumbraPyramid, penumbraReceivers, penumbraJobs;
+    uint32_t penumbraMaxJobs = 0;
+    // Fixed.
+    vk::Buffer frameUniforms;    // gpu::FrameData
+    vk::Buffer stats;            // uint64_t[PENUMBRA_STAT_COUNT] (device-local, copied out once per frame)
+    vk::Buffer readbackStats;
+    vk::Buffer viewBounds;       // view_fit.comp.glsl's keys and receiver grids, read back before the shadow maps
+    vk::Buffer receiverGrids;    // device-local receiver grids (written with atomics, copied into viewBounds)
+    vk::Buffer thinClusterMasks; // srt: per light layer, the clusters the thin-triangle pass decodes (host-written)
+    VkSampler nearestSampler = VK_NULL_HANDLE;
+
+    // The fixed targets.
+    void create(vk::Device& device);
+    // Recreates what the size or the map's size changed; true when anything
+    // was (the passes bind again).
+    bool ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t mapSize, uint32_t mapLayers);
+    // At least `bytes` of host-visible thin cluster masks.
+    void ensureThinClusterMasks(vk::Device& device, VkDeviceSize bytes);
+    void destroy(vk::Device& device);
+
+    // A storage binding of the whole buffer, or of as much as the device
+    // allows (the frame refuses the settings that would need more).
+    static VkDeviceSize storageRange(const vk::Device& device, const vk::Buffer& buffer);
+
+  private:
+    std::vector<vk::Image*> imageSized();
+    std::vector<vk::Buffer*> imageSizedBuffers();
+    std::vector<vk::Buffer*> mapSizedBuffers();
+    void destroyImageSized(vk::Device& device);
+    void destroyMapSized(vk::Device& device);
+};
+
+} // namespace penumbra

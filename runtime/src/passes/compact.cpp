@@ -1,0 +1,37 @@
+#include "passes/compact.h"
+
+#include "config.h"
+#include "passes/pass.h"
+
+namespace penumbra::passes {
+
+void CompactPass::create(vk::Device& device)
+{
+    kernel.create(device, "compact.comp", {vk::kStorage, vk::kStorage}, sizeof(CompactPush));
+}
+
+void CompactPass::destroy(vk::Device& device) { kernel.destroy(device); }
+
+void CompactPass::bind(vk::Device& device, VkBuffer marks, VkBuffer list)
+{
+    rayList = list;
+    kernel.write(device, {vk::storageBuffer(marks), vk::storageBuffer(list)});
+}
+
+void CompactPass::record(VkCommandBuffer cmd, uint32_t pixelCount) const
+{
+    vkCmdFillBuffer(cmd, rayList, 0, PENUMBRA_RAY_LIST_HEADER_UINTS * 4, 0);
+    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+    kernel.bind(cmd);
+    CompactPush push{pixelCount, PENUMBRA_COMPACT_LIST};
+    kernel.push(cmd, push);
+    const Groups2D groups = spreadGroups(groupCount(pixelCount, PENUMBRA_COMPACT_GROUP_SIZE), 65535u);
+    vkCmdDispatch(cmd, groups.x, groups.y, 1);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+    push.phase = PENUMBRA_COMPACT_DISPATCH;
+    kernel.push(cmd, push);
+    vkCmdDispatch(cmd, 1, 1, 1);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead);
+}
+
+} // namespace penumbra::passes

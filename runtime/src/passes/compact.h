@@ -1,0 +1,32 @@
+// Compaction (shaders/compact.comp.glsl): the marked pixels into a dense ray
+// list (subgroup ballot, one atomic per subgroup), then the tracer's indirect
+// dispatch size from its count.
+#pragma once
+
+#include "pipelines.h"
+
+namespace penumbra::passes {
+
+enum CompactBinding : uint32_t { kCompactMarks, kCompactRayList, kCompactBindingCount };
+
+struct CompactPush {
+    uint32_t pixelCount;
+    uint32_t phase; // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
+};
+static_assert(sizeof(CompactPush) == 8);
+
+class CompactPass {
+  public:
+    void create(vk::Device& device);
+    void destroy(vk::Device& device);
+    void bind(vk::Device& device, VkBuffer marks, VkBuffer rayList);
+    // Clears the list's header, lists the marked pixels of pixelCount, writes
+    // the dispatch size; ends with the barrier to the trace (indirect).
+    void record(VkCommandBuffer cmd, uint32_t pixelCount) const;
+
+  private:
+    vk::ComputeKernel kernel;
+    VkBuffer rayList = VK_NULL_HANDLE;
+};
+
+} // namespace penumbra::passes

@@ -1,0 +1,41 @@
+// Camera pass (shaders/gbuffer.vert.glsl, gbuffer.frag.glsl): the G-buffer,
+// world position and a normal turned toward the camera per pixel, drawn from
+// the compressed clusters (or the uncompressed reference) through the
+// camera's culled view.
+#pragma once
+
+#include <glm/mat4x4.hpp>
+
+#include "culling.h"
+#include "model_geometry.h"
+#include "pipelines.h"
+
+namespace penumbra::passes {
+
+struct GBufferPush {
+    glm::mat4 viewProj;
+    glm::vec4 cameraPosition;
+};
+static_assert(sizeof(GBufferPush) == 80);
+
+// Writes position and normal (left in GENERAL for the compute passes and
+// copies) and depth (kept for the culling's second phase).
+struct GBufferTargets {
+    const vk::Image* position = nullptr;
+    const vk::Image* normal = nullptr;
+    const vk::Image* depth = nullptr;
+};
+
+class GBufferPass {
+  public:
+    void create(vk::Device& device);
+    void destroy(vk::Device& device);
+    // Draws view `view` of the camera's culling.
+    void record(VkCommandBuffer cmd, Culling& culling, uint32_t view, const GpuGeometry& geometry, const GBufferTargets& targets,
+                const GBufferPush& push) const;
+
+  private:
+    vk::RasterPipelines pipelines;
+};
+
+} // namespace penumbra::passes

@@ -1,0 +1,32 @@
+#include "passes/shade.h"
+
+#include "config.h"
+#include "passes/pass.h"
+
+namespace penumbra::passes {
+
+void ShadePass::create(vk::Device& device)
+{
+    std::vector<VkDescriptorType> types = pixelBindingTypes();
+    types.push_back(vk::kStorageImage);
+    kernel.create(device, "shade.comp", types, sizeof(ShadePush));
+}
+
+void ShadePass::destroy(vk::Device& device) { kernel.destroy(device); }
+
+void ShadePass::bind(vk::Device& device, const PixelTargets& pixels, VkImageView color)
+{
+    std::vector<vk::Binding> bindings = pixelBindings(pixels);
+    bindings.push_back(vk::storageImage(color));
+    kernel.write(device, bindings);
+}
+
+void ShadePass::record(VkCommandBuffer cmd, const ShadePush& push, uint32_t width, uint32_t height) const
+{
+    kernel.bind(cmd);
+    kernel.push(cmd, push);
+    vkCmdDispatch(cmd, groupCount(width, PENUMBRA_SHADE_GROUP_SIZE), groupCount(height, PENUMBRA_SHADE_GROUP_SIZE), 1);
+    vk::memoryBarrier(cmd, kCompute | kIndirect, kStorageRW | kIndirectRead, kCompute | kClear, kStorageRW | kTransferWrite);
+}
+
+} // namespace penumbra::passes

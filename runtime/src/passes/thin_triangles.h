@@ -1,0 +1,62 @@
+// Thin triangles (shaders/thin_triangles.comp.glsl; srt): lavapipe has no
+// conservative rasterization, so a compute pass over the BVH's leaves finds
+// the slivers of a light's view (under PENUMBRA_THIN_TEXELS texels wide) and
+// writes their conservative rectangles' nearest depths into one layer of the
+// thin map with imageAtomicMin.
+#pragma once
+
+#include <glm/mat4x4.hpp>
+
+#include "model_geometry.h"
+#include "pipelines.h"
+
+namespace penumbra::passes {
+
+struct ThinTrianglesPush {
+    glm::mat4 viewProj;
+    glm::vec2 mapSize;             // texels
+    uint32_t nodeCount;
+    uint32_t layer;                // thin-map layer written
+    VkDeviceAddress modelTable;
+    VkDeviceAddress leafAltitudes; // 0: skip no leaf
+    glm::vec4 light;               // xyz light position; w: 0 orthographic, else a lower bound of light-view depth / distance
+    float texelSize;               // orthographic: texel size; perspective: texel size per unit of light-view depth
+    uint32_t localLayer;           // also write each texel's own depth of the sliver here (area lights); ~0u: no
+    VkDeviceAddress clusterMask;   // bit per cluster: may reach a receiver (Culling::markClustersNearReceivers); 0: all may
+};
+static_assert(sizeof(ThinTrianglesPush) == 128);
+
+// One layer of a light's view. Texel size at depth z: orthographic
+// footprint / size; perspective footprint * z / size, with z >= distance *
+// depthPerDistance (the cosine of half the frustum's diagonal angle: 1/sqrt(3)
+// for cube faces, cos(outer) for spots).
+struct ThinView {
+    glm::mat4 viewProj{1.0f};
+    uint32_t layer = 0;
+    glm::vec3 eye{0.0f};
+    bool perspective = false;
+    float depthPerDistance = 0.0f;
+    float footprint = 1.0f;
+    VkDeviceAddress clusterMask = 0; // 0: every cluster
+    bool areaLight = false;          // also the per-texel depths, into the map's last layer (penumbra mask)
+};
+
+// Every layer of the thin map (GENERAL) to "nothing thin": the bits of 1.0f (the far plane).
+void clearThinMap(VkCommandBuffer cmd, const vk::Image& thinMap);
+
+class ThinTrianglesPass {
+  public:
+    void create(vk::Device& device);
+    void destroy(vk::Device& device);
+    void bind(vk::Device& device, const vk::Image& thinMap);
+    // Clears the thin map after the passes that read it, before this one writes it.
+    void clear(VkCommandBuffer cmd, const vk::Image& thinMap) const;
+    // modelTable: the tracer's (TracePass::modelTableAddress).
+    void record(VkCommandBuffer cmd, const vk::Device& device, const GpuGeometry& geometry, VkDeviceAddress modelTable, uint32_t mapSize,
+                uint32_t thinLayers, const ThinView& view) const;
+
+  private:
+    vk::ComputeKernel kernel;
+};
+
+} // namespace penumbra::passes

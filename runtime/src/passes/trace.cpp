@@ -1,0 +1,114 @@
+// The compute ray tracer of shadow rays (Lauterbach et al. 2009, section 3.1
+// and 5.1): pipeline, descriptor set and the model table through which
+// shaders/trace.comp.glsl (bvh_traversal.glsli) finds the model's chunks by
+// device address.
+#include "passes/trace.h"
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "config.h"
+
+namespace penumbra::passes {
+
+namespace {
+
+// The model table (layout documented in shaders/bvh_traversal.glsli).
+struct ModelTableHeader {
+    float boundsMin[4];
+    float boundsMax[4];
+    uint32_t nodeChunkShift;
+    uint32_t nodeChunkCount;
+    uint32_t geometryChunkCount;
+    uint32_t reserved0;
+    VkDeviceAddress clusters;
+    uint64_t reserved1;
+};
+static_assert(sizeof(ModelTableHeader) == 64);
+
+struct ModelTableChunk {
+    uint32_t firstCluster;
+    uint32_t vertexBase;
+    uint32_t indexBase;
+    uint32_t reserved;
+    VkDeviceAddress vertices;
+    VkDeviceAddress indices;
+};
+static_assert(sizeof(ModelTableChunk) == 32);
+
+} // namespace
+
+void TracePass::create(vk::Device& device)
+{
+    using namespace vk;
+    kernel.create(device, "trace.comp", {kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage}, sizeof(TracePush));
+}
+
+void TracePass::destroy(vk::Device& device)
+{
+    vk::destroyBuffer(device, modelTable);
+    kernel.destroy(device);
+    tableAddress = 0;
+    rayList = VK_NULL_HANDLE;
+}
+
+void TracePass::bindModel(vk::Device& device, const GpuGeometry& geometry)
+{
+    tableAddress = 0; // nothing traceable until the new table exists
+    if (geometry.encoding != GeometryEncoding::Compressed || geometry.nodeChunks.empty() || geometry.chunks.empty())
+        fail("ray tracer", "needs a compressed model with its BVH (the uncompressed reference cannot be traced)");
+    // Header, node chunk addresses, then the geometry chunks 16-byte aligned.
+    const size_t nodeChunkCount = geometry.nodeChunks.size();
+    const size_t chunksOffset = (sizeof(ModelTableHeader) + 8 * nodeChunkCount + 15) & ~size_t(15);
+    std::vector<uint8_t> table(chunksOffset + geometry.chunks.size() * sizeof(ModelTableChunk), 0);
+
+    ModelTableHeader header{};
+    for (int axis = 0; axis < 3; ++axis) {
+        header.boundsMin[axis] = geometry.bounds.min[axis];
+        header.boundsMax[axis] = geometry.bounds.max[axis];
+    }
+    header.nodeChunkShift = geometry.nodeChunkShift;
+    header.nodeChunkCount = uint32_t(nodeChunkCount);
+    header.geometryChunkCount = uint32_t(geometry.chunks.size());
+    header.clusters = vk::bufferAddress(device, geometry.clusters);
+    std::memcpy(table.data(), &header, sizeof(header));
+    for (size_t i = 0; i < nodeChunkCount; ++i) {
+        VkDeviceAddress address = vk::bufferAddress(device, geometry.nodeChunks[i]);
+        std::memcpy(table.data() + sizeof(header) + 8 * i, &address, 8);
+    }
+    for (size_t i = 0; i < geometry.chunks.size(); ++i) {
+        const GpuGeometry::Chunk& chunk = geometry.chunks[i];
+        ModelTableChunk entry{};
+        entry.firstCluster = chunk.firstCluster;
+        entry.vertexBase = uint32_t(chunk.vertexBase); // ClusterRecord::firstVertex is 32-bit
+        entry.indexBase = uint32_t(chunk.indexBase);   // ClusterRecord::firstIndex is 32-bit
+        entry.vertices = vk::bufferAddress(device, chunk.vertices);
+        entry.indices = vk::bufferAddress(device, chunk.indices);
+        std::memcpy(table.data() + chunksOffset + i * sizeof(entry), &entry, sizeof(entry));
+    }
+    vk::destroyBuffer(device, modelTable);
+    modelTable = vk::createBufferWithData(device, table.data(), table.size(), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
+    tableAddress = vk::bufferAddress(device, modelTable);
+}
+
+void TracePass::bind(vk::Device& device, const TraceTargets& t)
+{
+    kernel.write(device, {vk::storageImage(t.position), vk::storageImage(t.normal), vk::storageImage(t.visibility),
+                          vk::uniformBuffer(t.frame), vk::storageBuffer(t.rayList), vk::storageBuffer(t.stats)});
+    rayList = t.rayList;
+}
+
+void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, uint32_t samples) const
+{
+    if (!tableAddress || !rayList)
+        fail("ray tracer", "record before bindModel and bind");
+    if (lightIndex >= PENUMBRA_MAX_LIGHTS)
+        fail("ray tracer", "light index " + std::to_string(lightIndex) + " out of range (at most " +
+                               std::to_string(PENUMBRA_MAX_LIGHTS) + " lights)");
+    kernel.bind(cmd);
+    kernel.push(cmd, TracePush{tableAddress, lightIndex, originOffset, samples, 0});
+    vkCmdDispatchIndirect(cmd, rayList, sizeof(uint32_t)); // dispatch[3] follows the count
+}
+
+} // namespace penumbra::passes

@@ -1,0 +1,59 @@
+// Trace (shaders/trace.comp.glsl): the compute-shader shadow ray tracer over the preprocessed model: stack-based
+// traversal of the shared BVH (8-bit parent-relative node boxes) down to
+// strip-range leaves, watertight ray/triangle test on the dequantized
+// vertices, any-hit with early exit. Reads the model through buffer device
+// addresses, so no 128 MiB storage-buffer binding limit applies. Runs on
+// lavapipe and, unchanged, on NVIDIA GPUs (no ray-tracing extensions).
+#pragma once
+
+#include "model_geometry.h"
+#include "pipelines.h"
+
+namespace penumbra::passes {
+
+enum TraceBinding : uint32_t { kTracePosition, kTraceNormal, kTraceVisibility, kTraceFrame, kTraceRayList, kTraceStats, kTraceBindingCount };
+
+struct TraceTargets {
+    VkImageView position = VK_NULL_HANDLE;   // rgba32f G-buffer world position (GENERAL)
+    VkImageView normal = VK_NULL_HANDLE;     // rgba32f G-buffer normal facing the camera (GENERAL)
+    VkImageView visibility = VK_NULL_HANDLE; // r32f: the tracer writes the visibility of every listed pixel (GENERAL)
+    VkBuffer frame = VK_NULL_HANDLE;         // gpu::FrameData (lights)
+    VkBuffer rayList = VK_NULL_HANDLE;       // PENUMBRA_RAY_LIST_HEADER_UINTS header + pixel indices
+    VkBuffer stats = VK_NULL_HANDLE;         // uint64_t[PENUMBRA_STAT_COUNT], accumulated
+};
+
+struct TracePush {
+    VkDeviceAddress modelTable;
+    uint32_t lightIndex;
+    float originOffset;
+    uint32_t samples; // area lights: light samples per pixel; 0: hard shadows
+    uint32_t pad;
+};
+static_assert(sizeof(TracePush) == 24);
+
+class TracePass {
+  public:
+    void create(vk::Device& device);
+    void destroy(vk::Device& device);
+    // Points the tracer at a (new) model; call after every model upload.
+    void bindModel(vk::Device& device, const GpuGeometry& geometry);
+    // The targets it reads and writes (call when any of them changes).
+    void bind(vk::Device& device, const TraceTargets& targets);
+    // Records the trace of every ray in the list toward light lightIndex
+    // (vkCmdDispatchIndirect on the list header). Shadow-ray origins are moved
+    // originOffset along the normal turned toward the light. The caller orders
+    // the writes of the ray list and G-buffer before, and the visibility reads after.
+    // samples > 0 (area lights): that many light samples per pixel, visibility is
+    // the unblocked fraction (soft shadows).
+    void record(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, uint32_t samples = 0) const;
+    // Device address of the model table (bvh_traversal.glsli), 0 before bindModel.
+    VkDeviceAddress modelTableAddress() const { return tableAddress; }
+
+  private:
+    vk::ComputeKernel kernel;
+    vk::Buffer modelTable;          // device addresses of the model's buffers (see trace.cpp)
+    VkDeviceAddress tableAddress = 0;
+    VkBuffer rayList = VK_NULL_HANDLE; // its header holds the indirect dispatch
+};
+
+} // namespace penumbra::passes

@@ -1,0 +1,149 @@
+// The renderer's lifetime: device, passes, culling and frame targets created
+// and destroyed, models uploaded; and the public Renderer methods.
+#include "renderer_impl.h"
+
+#include "passes/decode_check.h"
+#include "penumbra/preprocess.h"
+
+namespace penumbra {
+
+using namespace passes;
+
+void Renderer::Impl::create()
+{
+    gbuffer.create(device);
+    viewFit.create(device);
+    shadowMap.create(device);
+    thinTriangles.create(device);
+    penumbraMask.create(device);
+    classify.create(device);
+    compact.create(device);
+    trace.create(device);
+    shade.create(device);
+    culling.create(device, {kPositionFormat, kNormalFormat}, kDepthFormat);
+    shadowCulling.create(device, {kPositionFormat, kNormalFormat}, kDepthFormat);
+    targets.create(device);
+
+    VkQueryPoolCreateInfo queryInfo{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    queryInfo.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    queryInfo.queryCount = kMaxTimestamps;
+    VK_CHECK(vkCreateQueryPool(device.device, &queryInfo, nullptr, &queryPool));
+    VkCommandBufferAllocateInfo cmdInfo{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    cmdInfo.commandPool = device.commandPool;
+    cmdInfo.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    cmdInfo.commandBufferCount = 1;
+    VK_CHECK(vkAllocateCommandBuffers(device.device, &cmdInfo, &commandBuffer));
+    VkFenceCreateInfo fenceInfo{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    VK_CHECK(vkCreateFence(device.device, &fenceInfo, nullptr, &fence));
+}
+
+void Renderer::Impl::destroy()
+{
+    if (device.device) {
+        vkDeviceWaitIdle(device.device);
+        targets.destroy(device);
+        destroyGeometry(device, geometry);
+        gbuffer.destroy(device);
+        viewFit.destroy(device);
+        shadowMap.destroy(device);
+        thinTriangles.destroy(device);
+        penumbraMask.destroy(device);
+        classify.destroy(device);
+        compact.destroy(device);
+        trace.destroy(device);
+        shade.destroy(device);
+        culling.destroy(device);
+        shadowCulling.destroy(device);
+        if (fence) vkDestroyFence(device.device, fence, nullptr);
+        if (queryPool) vkDestroyQueryPool(device.device, queryPool, nullptr);
+    }
+    vk::destroyDevice(device);
+}
+
+void Renderer::Impl::bindTargets()
+{
+    const FrameTargets& t = targets;
+    const PixelTargets pixels{t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.marks.buffer,
+                              t.stats.buffer};
+    viewFit.bind(device, {t.position.view, t.frameUniforms.buffer});
+    thinTriangles.bind(device, t.thinMap);
+    penumbraMask.bind(device, {t.shadowMap.view, t.nearestSampler, t.thinMap.view, t.frameUniforms.buffer, &t.penumbraPyramid,
+                               &t.penumbraMask, &t.penumbraReceivers, &t.penumbraJobs, &t.penumbraThinMask, t.penumbraMaxJobs});
+    classify.bind(device, {pixels, t.shadowMap.view, t.nearestSampler, t.thinMap.view, &t.penumbraMask, &t.penumbraReceivers,
+                           &t.penumbraThinMask});
+    compact.bind(device, t.marks.buffer, t.rayList.buffer);
+    trace.bind(device, {t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.rayList.buffer, t.stats.buffer});
+    shade.bind(device, pixels, t.color.view);
+}
+
+void Renderer::Impl::setGeometry(GpuGeometry uploaded)
+{
+    vkDeviceWaitIdle(device.device);
+    destroyGeometry(device, geometry);
+    geometry = std::move(uploaded);
+    if (geometry.encoding == GeometryEncoding::Compressed)
+        trace.bindModel(device, geometry);
+}
+
+void Renderer::Impl::submitAndWait(VkCommandBuffer cmd)
+{
+    VK_CHECK(vkEndCommandBuffer(cmd));
+    VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    submit.commandBufferCount = 1;
+    submit.pCommandBuffers = &cmd;
+    VK_CHECK(vkResetFences(device.device, 1, &fence));
+    VK_CHECK(vkQueueSubmit(device.queue, 1, &submit, fence));
+    VK_CHECK(vkWaitForFences(device.device, 1, &fence, VK_TRUE, UINT64_MAX));
+}
+
+Renderer::Renderer(const RendererOptions& options) : impl(std::make_unique<Impl>(options)) {}
+Renderer::~Renderer() = default;
+
+const DeviceInfo& Renderer::device() const { return impl->device.info; }
+
+void Renderer::loadModel(const CompressedModel& model)
+{
+    impl->setGeometry(uploadCompressed(impl->device, model));
+    auto cullModel = std::make_shared<const CullModel>(model, impl->geometry);
+    impl->culling.setModel(cullModel);
+    impl->shadowCulling.setModel(cullModel);
+}
+
+void Renderer::loadModel(const Mesh& mesh)
+{
+    if (mesh.triangleCount() == 0)
+        fail("model", "has no triangles");
+    loadModel(buildCompressedModel(mesh, PreprocessOptions{}));
+}
+
+void Renderer::loadUncompressedReference(const Mesh& mesh)
+{
+    impl->setGeometry(uploadReference(impl->device, mesh));
+    impl->culling.clearModel();
+    impl->shadowCulling.clearModel();
+}
+
+uint64_t Renderer::modelDeviceBytes() const { return impl->geometry.deviceBytes; }
+
+std::vector<float> Renderer::decodeVerticesOnGpu() { return passes::decodeVerticesOnGpu(impl->device, impl->geometry); }
+
+void Renderer::setCamera(const Camera& camera) { impl->camera = camera; }
+
+void Renderer::setLights(const std::vector<Light>& lights)
+{
+    if (lights.size() > PENUMBRA_MAX_LIGHTS)
+        fail("lights", "at most " + std::to_string(PENUMBRA_MAX_LIGHTS) + " lights are supported, got " + std::to_string(lights.size()));
+    for (size_t i = 0; i < lights.size(); ++i)
+        validateLight(lights[i], "light " + std::to_string(i));
+    impl->lights = lights;
+}
+
+Frame Renderer::render(const RenderSettings& settings) { return impl->render(settings); }
+
+uint32_t Renderer::validationMessageCount() const { return impl->device.validationMessages.load(); }
+
+std::vector<DeviceInfo> listDevices() { return vk::enumerateDevices(); }
+
+uint32_t validationMessagesInProcess() { return vk::totalValidationMessages(); }
+
+} // namespace penumbra

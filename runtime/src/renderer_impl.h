@@ -1,0 +1,77 @@
+// Renderer::Impl: the renderer's device, model, passes, culling and frame
+// targets. Their lifetime and the public Renderer methods are in
+// renderer_impl.cpp; the frame script that records a frame with them is
+// renderer.cpp.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "culling.h"
+#include "device.h"
+#include "frame_targets.h"
+#include "model_geometry.h"
+#include "passes/classify.h"
+#include "passes/compact.h"
+#include "passes/gbuffer.h"
+#include "passes/penumbra_mask.h"
+#include "passes/shade.h"
+#include "passes/shadow_map.h"
+#include "passes/thin_triangles.h"
+#include "passes/trace.h"
+#include "passes/view_fit.h"
+#include "penumbra/penumbra.h"
+
+namespace penumbra {
+
+constexpr uint32_t kMaxTimestamps = 256; // per frame
+
+struct Renderer::Impl {
+    vk::Device device;
+    GpuGeometry geometry;
+    std::optional<Camera> camera;
+    std::vector<Light> lights;
+    // The passes, in frame order.
+    passes::GBufferPass gbuffer;
+    passes::ViewFitPass viewFit;
+    passes::ShadowMapPass shadowMap;
+    passes::ThinTrianglesPass thinTriangles;
+    passes::PenumbraMaskPass penumbraMask;
+    passes::ClassifyPass classify;
+    passes::CompactPass compact;
+    passes::TracePass trace;
+    passes::ShadePass shade;
+    // Raster culling: the camera's view, and the shadow maps' views (planned
+    // later in the frame, once maps are fitted to the view).
+    Culling culling, shadowCulling;
+    FrameTargets targets;
+    VkQueryPool queryPool = VK_NULL_HANDLE;
+    VkCommandBuffer commandBuffer = VK_NULL_HANDLE;
+    VkFence fence = VK_NULL_HANDLE;
+
+    explicit Impl(const RendererOptions& options)
+    {
+        try {
+            vk::createDevice(device, options);
+            create();
+        } catch (...) {
+            destroy();
+            throw;
+        }
+    }
+    ~Impl() { destroy(); }
+
+    void create();
+    void destroy();
+    // Every pass's bindings to the frame targets (after they were recreated).
+    void bindTargets();
+    void setGeometry(GpuGeometry uploaded);
+    // Ends and submits the frame's command buffer and waits for it (the frame's fence).
+    void submitAndWait(VkCommandBuffer cmd);
+
+    void validate(const RenderSettings& settings) const;
+    struct FrameScript;
+    Frame render(const RenderSettings& settings);
+};
+
+} // namespace penumbra

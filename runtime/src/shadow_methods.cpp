@@ -1,0 +1,112 @@
+#include "shadow_methods.h"
+
+#include <algorithm>
+#include <string>
+
+#include "config.h"
+
+namespace penumbra {
+
+const char* passName(PassId pass)
+{
+    static const char* const names[] = {"camera",  "view_fit", "shadow_map", "thin_triangles", "penumbra_mask",
+                                        "classify", "compact",  "trace",      "shade",          "readback"};
+    static_assert(sizeof(names) / sizeof(names[0]) == size_t(PassId::Count));
+    return pass < PassId::Count ? names[uint32_t(pass)] : "unknown";
+}
+
+bool ShadowMethodSpec::traces() const
+{
+    auto has = [](const std::vector<MethodStep>& steps) {
+        return std::any_of(steps.begin(), steps.end(), [](const MethodStep& s) { return s.step == Step::Trace; });
+    };
+    return has(hard) || has(softEnd);
+}
+
+bool ShadowMethodSpec::drawsAreaMaps() const
+{
+    return std::any_of(softMap.begin(), softMap.end(), [](const MethodStep& s) { return s.step == Step::ShadowMap; });
+}
+
+const std::vector<ShadowMethodSpec>& shadowMethods()
+{
+    static const std::vector<ShadowMethodSpec> methods = {
+        {ShadowMethod::ShadowMap,
+         "sm",
+         "shadow map",
+         {{Step::ShadowMap}, {Step::Classify, PENUMBRA_CLASSIFY_LOOKUP}, {Step::Shade}},
+         {},
+         {{Step::ShadowMap}, {Step::Classify, PENUMBRA_SOFT_AVERAGE, PENUMBRA_SOFT_AVERAGE}},
+         {{Step::Shade}},
+         AreaMapEyes::Strata,
+         false},
+        {ShadowMethod::Selective,
+         "srt",
+         "selective ray tracing",
+         {{Step::ShadowMap}, {Step::ThinTriangles}, {Step::Classify, PENUMBRA_CLASSIFY_PIP}, {Step::Compact}, {Step::Trace}, {Step::Shade}},
+         {{Step::ClearMarks}},
+         {{Step::ShadowMap},
+          {Step::ThinTriangles},
+          {Step::PenumbraMask},
+          {Step::Classify, PENUMBRA_SOFT_CENTRE_MASK, PENUMBRA_SOFT_CORNER_MASK}},
+         {{Step::Compact}, {Step::Trace}, {Step::Shade}},
+         AreaMapEyes::CentreAndRim,
+         true},
+        {ShadowMethod::FullRayTrace,
+         "frt",
+         "full ray tracing",
+         {{Step::ShadowMap}, {Step::Classify, PENUMBRA_CLASSIFY_ALL}, {Step::Compact}, {Step::Trace}, {Step::Shade}},
+         {},
+         {{Step::Classify, PENUMBRA_SOFT_ALL, PENUMBRA_SOFT_ALL}},
+         {{Step::Compact}, {Step::Trace}, {Step::Shade}},
+         AreaMapEyes::Centre,
+         false},
+    };
+    return methods;
+}
+
+const ShadowMethodSpec& shadowMethodSpec(ShadowMethod method)
+{
+    for (const ShadowMethodSpec& spec : shadowMethods())
+        if (spec.method == method)
+            return spec;
+    fail("shadows", "unknown shadow method " + std::to_string(int(method)));
+}
+
+const char* shadowMethodName(ShadowMethod method)
+{
+    for (const ShadowMethodSpec& spec : shadowMethods())
+        if (spec.method == method)
+            return spec.name;
+    return "unknown";
+}
+
+std::vector<std::string> shadowMethodNames()
+{
+    std::vector<std::string> names;
+    for (const ShadowMethodSpec& spec : shadowMethods())
+        names.push_back(spec.name);
+    return names;
+}
+
+std::string shadowMethodsHelp()
+{
+    std::string help;
+    for (const ShadowMethodSpec& spec : shadowMethods())
+        help += (help.empty() ? "" : ", ") + std::string(spec.name) + " (" + spec.description + ")";
+    return help;
+}
+
+ShadowMethod parseShadowMethod(const std::string& name)
+{
+    std::string expected;
+    const std::vector<ShadowMethodSpec>& methods = shadowMethods();
+    for (size_t i = 0; i < methods.size(); ++i) {
+        if (name == methods[i].name)
+            return methods[i].method;
+        expected += (i == 0 ? "" : i + 1 == methods.size() ? " or " : ", ") + std::string(methods[i].name);
+    }
+    fail("--shadows " + name, "unknown method (expected " + expected + ")");
+}
+
+} // namespace penumbra
