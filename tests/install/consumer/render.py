@@ -9,4 +9,4 @@ renderer = penumbra.Renderer("city.glb")                   # load once, render m
 for x in (-1.0, 1.0):
     renderer.set_lights([f"directional direction={x},-2,-0.5 intensity=2"])
     frame = renderer.render(size=(320, 240), shadows="srt")
-    print(renderer.stats["rays"], renderer.stats["passes"])
+    print(frame[..., :3].mean(), renderer.stats["rays"], renderer.stats["passes"]["trace_ms"])
