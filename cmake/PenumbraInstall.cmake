@@ -56,6 +56,7 @@ install(FILES ${CMAKE_CURRENT_BINARY_DIR}/PenumbraConfig.cmake ${CMAKE_CURRENT_B
 # Relocatable: prefix is found from the .pc file's own folder.
 set(pc_dir ${CMAKE_CURRENT_BINARY_DIR}/pkgconfig)
 file(RELATIVE_PATH PC_PREFIX /root/${CMAKE_INSTALL_LIBDIR}/pkgconfig /root)
+string(REGEX REPLACE "/$" "" PC_PREFIX "${PC_PREFIX}")   # ../.. (lib) or ../../.. (lib/<multiarch>)
 function(penumbra_pkg_config name library description requires libs)
   set(PC_NAME ${name})
   set(PC_LIBRARY ${library})
