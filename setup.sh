@@ -15,6 +15,7 @@ packages=(
   libmeshoptimizer-dev libdraco-dev libeigen3-dev libtinygltf-dev
   libglm-dev libopenimageio-dev nlohmann-json3-dev libcli11-dev libxxhash-dev libembree-dev
   libgtest-dev clang libclang-rt-14-dev
+  pybind11-dev python3-dev python3-numpy
   gnuplot-nox
 )
 

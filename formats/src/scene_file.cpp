@@ -153,6 +153,15 @@ Camera parseCamera(const Json& object, const std::string& subject)
     return camera;
 }
 
+Json parseJsonText(const std::string& text, const std::string& subject)
+{
+    try {
+        return Json::parse(text);
+    } catch (const Json::parse_error& e) {
+        fail(subject, std::string("invalid JSON: ") + e.what());
+    }
+}
+
 } // namespace
 
 SceneDescription loadSceneDescription(const std::string& path)
@@ -162,12 +171,7 @@ SceneDescription loadSceneDescription(const std::string& path)
         fail(path, "cannot open scene file");
     std::stringstream text;
     text << file.rdbuf();
-    Json root;
-    try {
-        root = Json::parse(text.str());
-    } catch (const Json::parse_error& e) {
-        fail(path, std::string("invalid JSON: ") + e.what());
-    }
+    Json root = parseJsonText(text.str(), path);
     if (!root.is_object())
         fail(path, "the scene must be a JSON object");
     rejectUnknownKeys(root, {"model", "camera", "lights"}, path);
@@ -190,6 +194,16 @@ SceneDescription loadSceneDescription(const std::string& path)
             scene.lights.push_back(parseLight(light, path));
     }
     return scene;
+}
+
+Light parseLightJson(const std::string& json, const std::string& subject)
+{
+    return parseLight(parseJsonText(json, subject), subject);
+}
+
+Camera parseCameraJson(const std::string& json, const std::string& subject)
+{
+    return parseCamera(parseJsonText(json, subject), subject);
 }
 
 glm::vec3 parseVec3(const std::string& text, const std::string& what)

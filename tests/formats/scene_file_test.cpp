@@ -107,5 +107,22 @@ TEST(SceneFile, ParsesCommandLineLightSpecs)
     EXPECT_NE(errorOf([] { parseLightSpec("point intensity"); }).find("key=value"), std::string::npos);
 }
 
+TEST(SceneFile, ParsesOneLightOrCameraFromJsonText)
+{
+    Light disk = parseLightJson(R"({"type": "disk", "position": [0, 4, 0], "radius": 0.25})", "lights[0]");
+    EXPECT_EQ(disk.type, LightType::Disk);
+    EXPECT_EQ(disk.position, glm::vec3(0, 4, 0));
+    EXPECT_FLOAT_EQ(disk.radius, 0.25f);
+    Camera camera = parseCameraJson(R"({"position": [1, 2, 3], "projection": "orthographic", "ortho_height": 5})", "camera");
+    EXPECT_EQ(camera.position, glm::vec3(1, 2, 3));
+    EXPECT_EQ(camera.projection, Projection::Orthographic);
+    EXPECT_FLOAT_EQ(camera.orthoHeight, 5.0f);
+
+    EXPECT_EQ(errorOf([] { parseLightJson(R"({"position": [0, 1, 0]})", "lights[1]"); }), "lights[1]: a light needs a \"type\" string");
+    EXPECT_EQ(errorOf([] { parseLightJson(R"({"type": "point", "size": 2})", "lights[0]"); }), "lights[0]: unknown light key 'size'");
+    EXPECT_EQ(errorOf([] { parseCameraJson(R"({"fov": "wide"})", "camera"); }), "camera: 'fov' must be a number");
+    EXPECT_NE(errorOf([] { parseCameraJson("{", "camera"); }).find("camera: invalid JSON"), std::string::npos);
+}
+
 } // namespace
 } // namespace penumbra

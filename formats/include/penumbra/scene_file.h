@@ -28,6 +28,11 @@ struct SceneDescription {
 // keys or types, or wrong value shapes.
 SceneDescription loadSceneDescription(const std::string& path);
 
+// One light or the camera as JSON object text with the keys above (the Python
+// module's dicts). Throws Error("<subject>: <problem>") as loadSceneDescription does.
+Light parseLightJson(const std::string& json, const std::string& subject);
+Camera parseCameraJson(const std::string& json, const std::string& subject);
+
 // Parses a light from "TYPE key=value ...", e.g.
 // "spot position=0,5,0 direction=0,-1,0 outer_cone=30 intensity=50".
 // Keys as in the JSON file; vectors comma-separated. Throws Error naming the spec.

@@ -1,0 +1,348 @@
+// The penumbra Python module over the C++ API (runtime/include/penumbra/penumbra.h):
+//   penumbra.render(model, size=(w, h), shadows="srt", camera=None, lights=None, ...) -> float32 (h, w, 4)
+//   penumbra.Renderer(model): load once, then set_camera / set_lights / render many frames; .stats
+//   penumbra.preprocess(input, output, ...), penumbra.generate(name, output, ...), penumbra.write_image(...)
+// Lights are the CLI's strings ('spot position=0,20,0 outer_cone=30') or dicts
+// with the scene file's keys; the camera is a dict with the scene file's keys.
+// Every failure raises penumbra.Error (a RuntimeError) with the CLI's one-line message.
+#include <mutex>
+#include <optional>
+
+#include <pybind11/eval.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include "penumbra/generate.h"
+#include "penumbra/penumbra.h"
+#include "penumbra/preprocess.h"
+
+namespace py = pybind11;
+using namespace pybind11::literals;
+
+namespace {
+
+using namespace penumbra;
+
+bool endsWith(const std::string& text, const std::string& suffix)
+{
+    return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// Hands a float vector to numpy without a copy.
+py::array_t<float> toArray(std::vector<float>&& values, const std::vector<py::ssize_t>& shape)
+{
+    auto* owned = new std::vector<float>(std::move(values));
+    py::capsule release(owned, [](void* p) { delete static_cast<std::vector<float>*>(p); });
+    return py::array_t<float>(shape, owned->data(), release);
+}
+
+// A dict (numpy values allowed) as JSON text for the scene-file parsers.
+std::string toJson(const py::handle& value, const std::string& subject)
+{
+    py::cpp_function plain([](const py::object& o) -> py::object {
+        if (py::hasattr(o, "tolist"))
+            return o.attr("tolist")();
+        throw py::type_error("a " + std::string(py::str(py::type::of(o).attr("__name__"))) + " is not a number or a list");
+    });
+    try {
+        return py::module_::import("json").attr("dumps")(value, "default"_a = plain).cast<std::string>();
+    } catch (py::error_already_set& e) {
+        fail(subject, py::str(e.value()));
+    }
+}
+
+Light toLight(const py::handle& value, size_t index)
+{
+    std::string subject = "lights[" + std::to_string(index) + "]";
+    if (py::isinstance<py::str>(value))
+        return parseLightSpec(value.cast<std::string>());
+    if (py::isinstance<py::dict>(value))
+        return parseLightJson(toJson(value, subject), subject);
+    fail(subject, "a light is a string like 'point position=0,5,0' or a dict like {'type': 'point', 'position': [0, 5, 0]}");
+}
+
+// N or (width, height), integers (numpy's too).
+std::pair<uint32_t, uint32_t> toSize(const py::handle& size)
+{
+    long long w = 0, h = 0;
+    try {
+        if (py::isinstance<py::sequence>(size) && !py::isinstance<py::str>(size) && py::len(size) == 2) {
+            w = size[py::int_(0)].attr("__index__")().cast<long long>();
+            h = size[py::int_(1)].attr("__index__")().cast<long long>();
+        } else {
+            w = h = size.attr("__index__")().cast<long long>();
+        }
+    } catch (py::error_already_set&) {
+        fail("size", "expected N or (width, height), integers");
+    }
+    if (w < 1 || h < 1 || w > 16384 || h > 16384)
+        fail("size", "each side must be 1..16384");
+    return {uint32_t(w), uint32_t(h)};
+}
+
+py::dict deviceDict(const DeviceInfo& d)
+{
+    return py::dict("index"_a = d.index, "name"_a = d.name, "type"_a = d.type, "driver"_a = d.driver, "api_version"_a = d.apiVersion);
+}
+
+// The CLI's --shadow-fit.
+bool fitToView(const std::string& shadowFit)
+{
+    if (shadowFit != "view" && shadowFit != "model")
+        fail("--shadow-fit " + shadowFit, "expected view or model");
+    return shadowFit == "view";
+}
+
+class PyRenderer {
+public:
+    PyRenderer(const py::object& model, const std::string& device, bool validation)
+    {
+        RendererOptions options;
+        options.device = device;
+        options.validation = validation;
+        {
+            py::gil_scoped_release unlocked;
+            renderer.emplace(options);
+        }
+        if (!model.is_none())
+            load(model);
+    }
+
+    // Loads a model file (.penumbra, or any format importScene reads, preprocessed
+    // in memory) and resets the camera and lights to the model's own.
+    void load(const py::object& model)
+    {
+        const std::string path = py::str(py::module_::import("os").attr("fspath")(model));
+        Scene scene;
+        Bounds bounds;
+        {
+            py::gil_scoped_release unlocked;
+            std::lock_guard lock(mutex);
+            if (endsWith(path, ".penumbra")) {
+                CompressedModel model = openModelFile(path);
+                renderer->loadModel(model);
+                bounds.min = glm::vec3(model.header.boundsMin[0], model.header.boundsMin[1], model.header.boundsMin[2]);
+                bounds.max = glm::vec3(model.header.boundsMax[0], model.header.boundsMax[1], model.header.boundsMax[2]);
+            } else {
+                scene = importScene(path);
+                renderer->loadModel(scene.mesh);
+                bounds = computeBounds(scene.mesh);
+            }
+        }
+        std::lock_guard lock(mutex);
+        modelCamera = scene.cameras.empty() ? defaultCamera(bounds) : scene.cameras[0];
+        modelLights = scene.lights;
+        renderer->setCamera(modelCamera);
+        renderer->setLights(modelLights);
+        loaded = true;
+    }
+
+    // None: the model's camera (its first glTF camera, else one framing it).
+    void setCamera(const py::object& camera)
+    {
+        Camera chosen = camera.is_none() ? modelCamera : parseCameraJson(toJson(camera, "camera"), "camera");
+        std::lock_guard lock(mutex);
+        renderer->setCamera(chosen);
+    }
+
+    // None or []: the model's lights, else a directional sun.
+    void setLights(const py::object& lights)
+    {
+        std::vector<Light> chosen;
+        if (!lights.is_none())
+            for (const py::handle& light : lights)
+                chosen.push_back(toLight(light, chosen.size()));
+        if (chosen.empty())
+            chosen = modelLights;
+        std::lock_guard lock(mutex);
+        renderer->setLights(chosen);
+    }
+
+    py::array_t<float> render(const RenderSettings& settings)
+    {
+        if (!loaded)
+            fail("render", "no model loaded");
+        Frame frame;
+        {
+            py::gil_scoped_release unlocked;
+            std::lock_guard lock(mutex);
+            frame = renderer->render(settings);
+        }
+        const py::ssize_t w = frame.color.width, h = frame.color.height;
+        statsText = statsJson(frame.stats);
+        gbuffer = py::none();
+        if (settings.readbackGBuffer)
+            gbuffer = py::dict("position"_a = toArray(std::move(frame.positions), {h, w, 4}),
+                               "normal"_a = toArray(std::move(frame.normals), {h, w, 4}),
+                               "visibility"_a = toArray(std::move(frame.visibility), {h, w}));
+        return toArray(std::move(frame.color.rgba), {h, w, 4});
+    }
+
+    py::object stats() const
+    {
+        return statsText.empty() ? py::none() : py::module_::import("json").attr("loads")(statsText);
+    }
+
+    py::dict device() const { return deviceDict(renderer->device()); }
+
+    uint32_t validationMessages() const { return renderer->validationMessageCount(); }
+    py::object gbuffer = py::none();
+
+private:
+    std::optional<Renderer> renderer;
+    std::mutex mutex; // the GIL is released while Vulkan works
+    bool loaded = false;
+    Camera modelCamera;
+    std::vector<Light> modelLights;
+    std::string statsText;
+};
+
+py::dict preprocessFile(const std::filesystem::path& inputPath, const std::filesystem::path& outputPath, float simplify, uint32_t clusterVertices,
+                        uint32_t clusterTriangles, uint32_t leafTriangles, unsigned threads)
+{
+    const std::string input = inputPath.string(), output = outputPath.string();
+    if (!endsWith(output, ".penumbra"))
+        fail(output, "the output must end in .penumbra");
+    if (!(simplify > 0.0f && simplify <= 1.0f))
+        fail("simplify", std::string(py::repr(py::float_(simplify))) + " is not a ratio in (0, 1]");
+    PreprocessOptions options;
+    options.maxClusterVertices = clusterVertices;
+    options.maxClusterTriangles = clusterTriangles;
+    options.maxLeafTriangles = leafTriangles;
+    options.threads = threads;
+    PreprocessStats stats;
+    {
+        py::gil_scoped_release unlocked;
+        Scene scene = importScene(input);
+        SimplifiedMesh simplified;
+        if (simplify < 1.0f)
+            simplified = simplifyMesh(scene.mesh, simplify);
+        CompressedModel model = buildCompressedModel(simplify < 1.0f ? simplified.mesh : scene.mesh, options, &stats);
+        model.header.sourceTriangleCount = scene.mesh.triangleCount();
+        model.header.build.simplifyTarget = simplify;
+        model.header.simplifyError = simplified.error;
+        writeModelFile(model, output);
+    }
+    return py::dict("output"_a = output, "input_triangles"_a = stats.inputTriangles, "triangles"_a = stats.triangles,
+                    "clusters"_a = stats.clusters, "nodes"_a = stats.nodes, "vertices"_a = stats.vertices,
+                    "bvh_depth"_a = stats.bvhDepth, "max_position_error"_a = stats.maxPositionError,
+                    "bytes_per_triangle"_a = stats.bytesPerTriangle, "seconds"_a = stats.totalSeconds);
+}
+
+} // namespace
+
+PYBIND11_MODULE(penumbra, m)
+{
+    m.doc() = "Penumbra: accurate hard and soft shadows on massive models, rendered headless with Vulkan";
+    py::register_exception<Error>(m, "Error", PyExc_RuntimeError);
+    const RenderSettings d;
+
+    py::class_<PyRenderer>(m, "Renderer", "A Vulkan renderer holding one model: load once, render many frames")
+        .def(py::init<py::object, std::string, bool>(), py::arg("model") = py::none(), py::kw_only(), py::arg("device") = "",
+             py::arg("validation") = false,
+             "model: a model file (.penumbra .obj .ply .stl .gltf .glb .drc) or None; device: index or part of its name; "
+             "validation: the Khronos validation layer (also on with PENUMBRA_VALIDATION=1)")
+        .def("load", &PyRenderer::load, py::arg("model"), "Loads a model file (str or path); the camera and lights become the model's own")
+        .def("set_camera", &PyRenderer::setCamera, py::arg("camera"),
+             "dict with keys position target up projection fov ortho_height near far, or None for the model's camera")
+        .def("set_lights", &PyRenderer::setLights, py::arg("lights"),
+             "list of light strings ('spot position=0,20,0 outer_cone=30') or dicts ({'type': 'spot', ...}); None: the model's")
+        .def(
+            "render",
+            [](PyRenderer& self, const py::object& size, const std::string& shadows, const std::string& cull, const std::string& shadowFit,
+               uint32_t shadowMapSize, uint32_t samples, uint32_t penumbraMaps, uint32_t smMaps, float biasConstant, float biasSlope,
+               float ambient, float albedo, std::array<float, 3> background, bool debugPip, bool gbuffer) {
+                RenderSettings s;
+                std::tie(s.width, s.height) = toSize(size);
+                s.shadows = parseShadowMethod(shadows);
+                s.cull = parseCullMode(cull);
+                s.fitShadowMapsToView = fitToView(shadowFit);
+                s.shadowMapSize = shadowMapSize;
+                s.lightSamples = samples;
+                s.penumbraMaps = penumbraMaps;
+                s.softShadowMaps = smMaps;
+                s.depthBiasConstant = biasConstant;
+                s.depthBiasSlope = biasSlope;
+                s.ambient = ambient;
+                s.albedo = albedo;
+                std::copy(background.begin(), background.end(), s.background);
+                s.debugPip = debugPip;
+                s.readbackGBuffer = gbuffer;
+                return self.render(s);
+            },
+            "Renders a frame: linear RGBA float32 array (height, width, 4), top row first. Keywords as the CLI's options; "
+            "gbuffer=True also fills .gbuffer",
+            py::kw_only(), py::arg("size") = py::make_tuple(d.width, d.height), py::arg("shadows") = "srt",
+            py::arg("cull") = cullModeName(d.cull), py::arg("shadow_fit") = "view", py::arg("shadow_map_size") = d.shadowMapSize,
+            py::arg("samples") = d.lightSamples, py::arg("penumbra_maps") = d.penumbraMaps, py::arg("sm_maps") = d.softShadowMaps,
+            py::arg("bias_constant") = d.depthBiasConstant, py::arg("bias_slope") = d.depthBiasSlope, py::arg("ambient") = d.ambient,
+            py::arg("albedo") = d.albedo, py::arg("background") = std::array<float, 3>{d.background[0], d.background[1], d.background[2]},
+            py::arg("debug_pip") = false, py::arg("gbuffer") = false)
+        .def_property_readonly("stats", &PyRenderer::stats, "The last frame's statistics (the CLI's --stats JSON) as a dict")
+        .def_readonly("gbuffer", &PyRenderer::gbuffer,
+                      "After render(gbuffer=True): dict of position (h, w, 4), normal (h, w, 4) and visibility of light 0 "
+                      "(h, w: 1 lit, 0 shadowed, -1 background)")
+        .def_property_readonly("device", &PyRenderer::device)
+        .def_property_readonly("validation_messages", &PyRenderer::validationMessages);
+
+    // render(): one Renderer, one frame; the settings keywords are Renderer.render's.
+    py::exec(R"(
+def render(model, size=(1024, 1024), shadows="srt", camera=None, lights=None, **settings):
+    """Renders a model file to a linear RGBA float32 array (height, width, 4), top row first.
+
+    camera: dict (keys of the scene file: position target up projection fov ortho_height near far) or None
+    (the model's). lights: list of the CLI's light strings ('spot position=0,20,0 outer_cone=30') and/or dicts
+    ({'type': 'spot', 'position': [0, 20, 0]}), or None (the model's, else a sun). Other keywords: Renderer.render's.
+    """
+    renderer = Renderer(model)
+    renderer.set_camera(camera)
+    renderer.set_lights(lights)
+    return renderer.render(size=size, shadows=shadows, **settings)
+)",
+             m.attr("__dict__"));
+
+    m.def("preprocess", &preprocessFile, py::arg("input"), py::arg("output"), py::kw_only(), py::arg("simplify") = 1.0f,
+          py::arg("cluster_vertices") = PreprocessOptions{}.maxClusterVertices,
+          py::arg("cluster_triangles") = PreprocessOptions{}.maxClusterTriangles,
+          py::arg("leaf_triangles") = PreprocessOptions{}.maxLeafTriangles, py::arg("threads") = 0u,
+          "Compresses a model file into a .penumbra file (as `penumbra preprocess`); returns the build's stats as a dict");
+    m.def(
+        "generate",
+        [](const std::string& name, const std::filesystem::path& path, uint64_t triangles, uint64_t seed) {
+            const std::string output = path.string();
+            formatFromPath(output);
+            py::gil_scoped_release unlocked;
+            GenerateOptions options;
+            options.triangles = triangles;
+            options.seed = seed;
+            exportScene(generateScene(name, options), output);
+        },
+        py::arg("name"), py::arg("output"), py::kw_only(), py::arg("triangles") = GenerateOptions{}.triangles,
+        py::arg("seed") = GenerateOptions{}.seed,
+        "Writes a procedural scene (city, interior, plant, scan) with its camera and light (glTF keeps them), as `penumbra generate`");
+    m.def(
+        "write_image",
+        [](const py::array_t<float, py::array::c_style | py::array::forcecast>& rgba, const std::filesystem::path& file) {
+            const std::string path = file.string();
+            if (rgba.ndim() != 3 || rgba.shape(2) != 4)
+                fail(path, "expected a float array (height, width, 4)");
+            Image image;
+            image.height = uint32_t(rgba.shape(0));
+            image.width = uint32_t(rgba.shape(1));
+            image.rgba.assign(rgba.data(), rgba.data() + rgba.size());
+            writeImage(image, path);
+        },
+        py::arg("image"), py::arg("path"), "Writes a render() result: .png (8-bit sRGB), .exr (half float linear), ...");
+    m.def(
+        "devices",
+        [] {
+            py::list devices;
+            for (const DeviceInfo& device : listDevices())
+                devices.append(deviceDict(device));
+            return devices;
+        },
+        "The Vulkan devices, as `penumbra devices`");
+    m.def("validation_messages", &validationMessagesInProcess, "Validation-layer messages seen by every Renderer so far");
+}
