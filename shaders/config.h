@@ -10,6 +10,8 @@
 #define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: rays per workgroup
 #define PENUMBRA_TRACE_STACK_SIZE 64     // BVH traversal stack entries (>= model::kMaxBvhDepth)
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
+#define PENUMBRA_AFSM_SCAN_GROUP 256     // afsm_scan.comp: invocations per workgroup (16 counts each)
+#define PENUMBRA_AFSM_MAX_GRID 4096      // afsm: most grid cells per side (one level of block totals in the scan)
 #define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range
 #define PENUMBRA_CULL_GROUP_SIZE 64     // cull_predicates.comp: draw commands per workgroup
 #define PENUMBRA_CULL_GROUP_CLUSTERS 64 // occlusion culling: largest BVH subtree (clusters) without history queried with one box
@@ -46,6 +48,10 @@
 #define PENUMBRA_SOFT_CENTRE_MASK 2u     // srt: the centre map's mask and hard-shadow tests; umbra or lit elsewhere
 #define PENUMBRA_SOFT_ALL 3u             // frt: mark every pixel with a light sample above its plane
 #define PENUMBRA_SOFT_RECEIVERS 4u       // before a penumbra mask: the deepest receiver per tile of the map
+// afsm_samples.comp.glsl: the view samples of an alias-free shadow map.
+#define PENUMBRA_AFSM_COUNT 0u           // count the samples per grid cell
+#define PENUMBRA_AFSM_LIST 1u            // list them per cell (after the prefix sum)
+#define PENUMBRA_AFSM_RESOLVE 2u         // the light's visibility from the samples' shadow flags
 // compact.comp.glsl phases.
 #define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list
 #define PENUMBRA_COMPACT_DISPATCH 1u     // the tracer's indirect dispatch size from the list's count

@@ -330,6 +330,10 @@ void createDevice(Device& device, const RendererOptions& options)
     enable.features.shaderInt64 = VK_TRUE;
     enable.features.drawIndirectFirstInstance = VK_TRUE;
     enable.features.vertexPipelineStoresAndAtomics = supported.features.vertexPipelineStoresAndAtomics;
+    // Alias-free shadow maps draw their casters with a geometry shader whose fragments write the samples' flags.
+    device.aliasFree = supported.features.geometryShader && supported.features.fragmentStoresAndAtomics;
+    enable.features.geometryShader = device.aliasFree;
+    enable.features.fragmentStoresAndAtomics = device.aliasFree;
     const char* extensions[] = {VK_EXT_INDEX_TYPE_UINT8_EXTENSION_NAME};
 
     float priority = 1.0f;

@@ -35,6 +35,7 @@ struct Device {
     DeviceInfo info;
     VkDeviceSize maxAllocationSize = 1ull << 30; // VkPhysicalDeviceMaintenance3Properties
     bool vertexStores = false;                   // vertexPipelineStoresAndAtomics (decode check)
+    bool aliasFree = false;                      // geometryShader and fragmentStoresAndAtomics (afsm casters)
     VkDeviceSize maxModelBufferBytes = 0;        // RendererOptions::maxModelBufferBytes
     std::atomic<uint32_t> validationMessages{0};
 };

@@ -42,8 +42,13 @@ std::vector<vk::Buffer*> FrameTargets::mapSizedBuffers()
     return {&penumbraMask, &penumbraThinMask, &penumbraPyramid, &penumbraReceivers, &penumbraJobs};
 }
 
+std::vector<vk::Buffer*> FrameTargets::afsmBuffers() { return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSamples, &afsmShadowed}; }
+
 void FrameTargets::destroyImageSized(vk::Device& device)
 {
+    for (vk::Buffer* buffer : afsmBuffers()) // afsmSamples and afsmShadowed are per pixel
+        vk::destroyBuffer(device, *buffer);
+    afsmGrid = 0;
     for (vk::Image* image : imageSized())
         vk::destroyImage(device, *image);
     for (vk::Buffer* buffer : imageSizedBuffers())
@@ -132,6 +137,24 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
         shadowSize = mapSize;
         shadowLayers = mapLayers;
     }
+    return true;
+}
+
+bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
+{
+    if (afsmGrid == gridSize && afsmShadowed.buffer)
+        return false;
+    vkDeviceWaitIdle(device.device);
+    for (vk::Buffer* buffer : afsmBuffers())
+        vk::destroyBuffer(device, *buffer);
+    afsmGrid = 0; // stays 0 if a creation below throws
+    const VkDeviceSize cells = VkDeviceSize(gridSize) * gridSize, pixels = VkDeviceSize(width) * height;
+    afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmBlockSums = vk::createBuffer(device, PENUMBRA_AFSM_MAX_GRID * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmSamples = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmGrid = gridSize;
     return true;
 }
 

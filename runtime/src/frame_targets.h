@@ -42,6 +42,10 @@ struct FrameTargets {
     // nearest-edge pyramid, the deepest receiver per tile, the splat jobs.
     vk::Buffer penumbraMask, penumbraThinMask, penumbraPyramid, penumbraReceivers, penumbraJobs;
     uint32_t penumbraMaxJobs = 0;
+    // afsm only (alias-free shadow maps; passes/afsm.h), made on first use.
+    uint32_t afsmGrid = 0;   // cells per side
+    vk::Buffer afsmCellFirst, afsmCellCount, afsmBlockSums; // per grid cell
+    vk::Buffer afsmSamples, afsmShadowed;                   // per pixel
     // Fixed.
     vk::Buffer frameUniforms;    // gpu::FrameData
     vk::Buffer stats;            // uint64_t[PENUMBRA_STAT_COUNT] (device-local, copied out once per frame)
@@ -56,6 +60,9 @@ struct FrameTargets {
     // Recreates what the size or the map's size changed; true when anything
     // was (the passes bind again).
     bool ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t mapSize, uint32_t mapLayers);
+    // The afsm buffers for a grid of gridSize^2 cells and this image size;
+    // true when they were (re)made (the passes bind again).
+    bool ensureAfsm(vk::Device& device, uint32_t gridSize);
     // At least `bytes` of host-visible thin cluster masks.
     void ensureThinClusterMasks(vk::Device& device, VkDeviceSize bytes);
     void destroy(vk::Device& device);
@@ -68,6 +75,7 @@ struct FrameTargets {
     std::vector<vk::Image*> imageSized();
     std::vector<vk::Buffer*> imageSizedBuffers();
     std::vector<vk::Buffer*> mapSizedBuffers();
+    std::vector<vk::Buffer*> afsmBuffers();
     void destroyImageSized(vk::Device& device);
     void destroyMapSized(vk::Device& device);
 };

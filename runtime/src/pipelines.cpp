@@ -178,6 +178,31 @@ VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineL
     return pipeline;
 }
 
+VkDescriptorSet allocateSet(Device& device, VkDescriptorSetLayout setLayout, const std::vector<VkDescriptorType>& bindings,
+                            VkDescriptorPool& pool)
+{
+    VkDescriptorSet set = VK_NULL_HANDLE;
+    std::vector<VkDescriptorPoolSize> sizes;
+    for (VkDescriptorType type : bindings) {
+        auto it = std::find_if(sizes.begin(), sizes.end(), [&](const VkDescriptorPoolSize& s) { return s.type == type; });
+        if (it == sizes.end())
+            sizes.push_back({type, 1});
+        else
+            ++it->descriptorCount;
+    }
+    VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    poolInfo.maxSets = 1;
+    poolInfo.poolSizeCount = uint32_t(sizes.size());
+    poolInfo.pPoolSizes = sizes.data();
+    VK_CHECK(vkCreateDescriptorPool(device.device, &poolInfo, nullptr, &pool));
+    VkDescriptorSetAllocateInfo allocInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    allocInfo.descriptorPool = pool;
+    allocInfo.descriptorSetCount = 1;
+    allocInfo.pSetLayouts = &setLayout;
+    VK_CHECK(vkAllocateDescriptorSets(device.device, &allocInfo, &set));
+    return set;
+}
+
 void ComputeKernel::create(Device& device, const char* shader, const std::vector<VkDescriptorType>& bindings, uint32_t pushBytes)
 {
     try {
@@ -186,24 +211,7 @@ void ComputeKernel::create(Device& device, const char* shader, const std::vector
         layout = createPipelineLayout(device, setLayout, pushBytes, compute);
         pipeline = createComputePipeline(device, shader, layout, pushBytes);
 
-        std::vector<VkDescriptorPoolSize> sizes;
-        for (VkDescriptorType type : bindings) {
-            auto it = std::find_if(sizes.begin(), sizes.end(), [&](const VkDescriptorPoolSize& s) { return s.type == type; });
-            if (it == sizes.end())
-                sizes.push_back({type, 1});
-            else
-                ++it->descriptorCount;
-        }
-        VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-        poolInfo.maxSets = 1;
-        poolInfo.poolSizeCount = uint32_t(sizes.size());
-        poolInfo.pPoolSizes = sizes.data();
-        VK_CHECK(vkCreateDescriptorPool(device.device, &poolInfo, nullptr, &pool));
-        VkDescriptorSetAllocateInfo allocInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-        allocInfo.descriptorPool = pool;
-        allocInfo.descriptorSetCount = 1;
-        allocInfo.pSetLayouts = &setLayout;
-        VK_CHECK(vkAllocateDescriptorSets(device.device, &allocInfo, &set));
+        set = allocateSet(device, setLayout, bindings, pool);
     } catch (...) {
         destroy(device);
         throw;
@@ -233,17 +241,23 @@ VkPipeline createGraphicsPipeline(Device& device, const GraphicsPipelineDesc& de
     if (desc.fragmentShader)
         checkPushConstants(desc.fragmentShader, desc.pushBytes);
     VkShaderModule vertex = createShaderModule(device, vertexName.c_str());
-    VkShaderModule fragment = VK_NULL_HANDLE;
-    if (desc.fragmentShader) {
-        try {
+    if (desc.geometryShader)
+        checkPushConstants(desc.geometryShader, desc.pushBytes);
+    VkShaderModule fragment = VK_NULL_HANDLE, geometry = VK_NULL_HANDLE;
+    try {
+        if (desc.fragmentShader)
             fragment = createShaderModule(device, desc.fragmentShader);
-        } catch (...) {
-            vkDestroyShaderModule(device.device, vertex, nullptr);
-            throw;
-        }
+        if (desc.geometryShader)
+            geometry = createShaderModule(device, desc.geometryShader);
+    } catch (...) {
+        for (VkShaderModule module : {vertex, fragment})
+            if (module)
+                vkDestroyShaderModule(device.device, module, nullptr);
+        throw;
     }
     std::vector<VkPipelineShaderStageCreateInfo> stages;
-    for (auto [stage, module] : {std::pair{VK_SHADER_STAGE_VERTEX_BIT, vertex}, std::pair{VK_SHADER_STAGE_FRAGMENT_BIT, fragment}})
+    for (auto [stage, module] : {std::pair{VK_SHADER_STAGE_VERTEX_BIT, vertex}, std::pair{VK_SHADER_STAGE_GEOMETRY_BIT, geometry},
+                                 std::pair{VK_SHADER_STAGE_FRAGMENT_BIT, fragment}})
         if (module) {
             VkPipelineShaderStageCreateInfo info{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
             info.stage = stage;
@@ -313,17 +327,17 @@ VkPipeline createGraphicsPipeline(Device& device, const GraphicsPipelineDesc& de
     info.layout = desc.layout;
     VkPipeline pipeline;
     VkResult result = vkCreateGraphicsPipelines(device.device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
-    for (VkShaderModule module : {vertex, fragment})
+    for (VkShaderModule module : {vertex, geometry, fragment})
         if (module)
             vkDestroyShaderModule(device.device, module, nullptr);
     VK_CHECK(result);
     return pipeline;
 }
 
-void RasterPipelines::create(Device& device, GraphicsPipelineDesc desc, VkShaderStageFlags pushStages)
+void RasterPipelines::create(Device& device, GraphicsPipelineDesc desc, VkShaderStageFlags pushStages, VkDescriptorSetLayout setLayout)
 {
     try {
-        layout = createPipelineLayout(device, VK_NULL_HANDLE, desc.pushBytes, pushStages);
+        layout = createPipelineLayout(device, setLayout, desc.pushBytes, pushStages);
         desc.layout = layout;
         for (GeometryEncoding encoding : {GeometryEncoding::Compressed, GeometryEncoding::UncompressedReference}) {
             desc.encoding = encoding;

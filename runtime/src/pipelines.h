@@ -50,6 +50,11 @@ void checkPushConstants(const char* shader, uint32_t pushBytes);
 // Compute pipeline of an embedded shader ("classify.comp"); checks pushBytes against the shader.
 VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineLayout layout, uint32_t pushBytes);
 
+// One descriptor set of setLayout (binding i of type bindings[i]) from a new
+// pool sized for it, returned in `pool` (destroying the pool frees the set).
+VkDescriptorSet allocateSet(Device& device, VkDescriptorSetLayout setLayout, const std::vector<VkDescriptorType>& bindings,
+                            VkDescriptorPool& pool);
+
 // A compute pass's pipeline with its own set layout (binding i of type
 // bindings[i]), one descriptor set from a pool of its own, and push constants.
 struct ComputeKernel {
@@ -73,6 +78,7 @@ struct ComputeKernel {
 
 struct GraphicsPipelineDesc {
     std::string vertexShader;                 // registry name; ".float" is appended for the reference encoding
+    const char* geometryShader = nullptr;     // null: none
     const char* fragmentShader = nullptr;     // null: depth only
     std::vector<VkFormat> colorFormats;
     VkFormat depthFormat = VK_FORMAT_UNDEFINED; // UNDEFINED: no depth attachment
@@ -93,8 +99,8 @@ struct RasterPipelines {
     VkPipelineLayout layout = VK_NULL_HANDLE;
     VkPipeline byEncoding[2] = {};
 
-    // desc.layout and desc.encoding are filled in.
-    void create(Device& device, GraphicsPipelineDesc desc, VkShaderStageFlags pushStages);
+    // desc.layout and desc.encoding are filled in; setLayout: the layout's one set, if any.
+    void create(Device& device, GraphicsPipelineDesc desc, VkShaderStageFlags pushStages, VkDescriptorSetLayout setLayout = VK_NULL_HANDLE);
     void destroy(Device& device);
     VkPipeline operator[](GeometryEncoding encoding) const { return byEncoding[int(encoding)]; }
 };

@@ -72,6 +72,11 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
                            " MiB) exceeds its storage-buffer limit (" + std::to_string(limits.maxStorageBufferRange >> 20) + " MiB); use " +
                            std::to_string(largest) + " or less");
     }
+    const bool areaLights = std::any_of(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); });
+    if (areaLights && !spec.softShadows())
+        fail("render", std::string(spec.name) + " does not do soft shadows (area lights) yet: use sm, srt or frt for them");
+    if (settings.shadows == ShadowMethod::AliasFree && !device.aliasFree)
+        fail("render", "afsm needs geometry shaders and fragment-shader stores, which " + device.info.name + " lacks");
     if (spec.traces() && geometry.encoding != GeometryEncoding::Compressed)
         fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
 }
@@ -112,6 +117,8 @@ struct Renderer::Impl::FrameScript {
         }
         if (r.targets.ensure(r.device, s.width, s.height, s.shadowMapSize, maxLayers))
             r.bindTargets();
+        if (s.shadows == ShadowMethod::AliasFree)
+            r.ensureAfsmTargets();
         std::memcpy(r.targets.frameUniforms.mapped, &data, sizeof(data));
         lightFirstView.resize(lights.size());
         receiverMasks.resize(6 * lights.size());
@@ -145,7 +152,7 @@ struct Renderer::Impl::FrameScript {
     void planShadowViews()
     {
         std::vector<CullView> views;
-        const bool occlusion = settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
+        const bool occlusion = spec.shadowViewOcclusion && settings.depthBiasConstant >= 0.0f && settings.depthBiasSlope >= 0.0f;
         for (uint32_t i = 0; i < lights.size(); ++i) {
             lightFirstView[i] = uint32_t(views.size());
             const bool area = isAreaLight(lights[i]);
@@ -284,6 +291,19 @@ struct Renderer::Impl::FrameScript {
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             timer.mark(cmd, PassId::Trace);
             return;
+        case Step::AliasFree:
+            r.afsm.clear(cmd);
+            for (uint32_t layer = 0; layer < layers(light); ++layer) {
+                r.afsm.recordSamples(cmd, light, layer, rayOffset);
+                timer.mark(cmd, PassId::AfsmSamples);
+                r.afsm.recordCasters(cmd, r.shadowCulling, lightFirstView[light] + layer, r.geometry, l.viewProj[layer], light, rayOffset);
+                timer.mark(cmd, PassId::AfsmCasters);
+            }
+            return;
+        case Step::AfsmResolve:
+            r.afsm.recordResolve(cmd, light, rayOffset);
+            timer.mark(cmd, PassId::AfsmSamples);
+            return;
         case Step::Shade:
             r.shade.record(cmd, {light, light + 1 == lights.size() ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u, 0u}, width(),
                            height());
@@ -381,7 +401,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     const auto areaLights = uint32_t(std::count_if(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); }));
     out.penumbraFraction = out.coveredPixels && areaLights ? double(out.penumbraPixels) / (double(out.coveredPixels) * areaLights) : 0.0;
     out.lightSamples = areaLights && spec.traces() ? settings.lightSamples : areaLights ? settings.softShadowMaps : 0;
-    out.rayOffset = spec.traces() ? rayOffset : 0.0f;
+    out.rayOffset = spec.traces() || settings.shadows == ShadowMethod::AliasFree ? rayOffset : 0.0f;
     out.device = r.device.info;
     for (uint32_t pass = 0; pass < uint32_t(PassId::Count); ++pass)
         if (ran[pass])

@@ -16,6 +16,7 @@ void Renderer::Impl::create()
     shadowMap.create(device);
     thinTriangles.create(device);
     penumbraMask.create(device);
+    afsm.create(device);
     classify.create(device);
     compact.create(device);
     trace.create(device);
@@ -48,6 +49,7 @@ void Renderer::Impl::destroy()
         shadowMap.destroy(device);
         thinTriangles.destroy(device);
         penumbraMask.destroy(device);
+    afsm.destroy(device);
         classify.destroy(device);
         compact.destroy(device);
         trace.destroy(device);
@@ -74,6 +76,16 @@ void Renderer::Impl::bindTargets()
     compact.bind(device, t.marks.buffer, t.rayList.buffer);
     trace.bind(device, {t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.rayList.buffer, t.stats.buffer});
     shade.bind(device, pixels, t.color.view);
+}
+
+void Renderer::Impl::ensureAfsmTargets()
+{
+    FrameTargets& t = targets;
+    if (!t.ensureAfsm(device, afsmGridSize(t.width, t.height)))
+        return;
+    const PixelTargets pixels{t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.marks.buffer, t.stats.buffer};
+    afsm.bind(device, {pixels, &t.afsmCellFirst, &t.afsmCellCount, &t.afsmBlockSums, &t.afsmSamples, &t.afsmShadowed, t.width, t.height,
+                       t.afsmGrid});
 }
 
 void Renderer::Impl::setGeometry(GpuGeometry uploaded)

@@ -11,6 +11,7 @@
 #include "device.h"
 #include "frame_targets.h"
 #include "model_geometry.h"
+#include "passes/afsm.h"
 #include "passes/classify.h"
 #include "passes/compact.h"
 #include "passes/gbuffer.h"
@@ -37,6 +38,7 @@ struct Renderer::Impl {
     passes::ShadowMapPass shadowMap;
     passes::ThinTrianglesPass thinTriangles;
     passes::PenumbraMaskPass penumbraMask;
+    passes::AfsmPass afsm;
     passes::ClassifyPass classify;
     passes::CompactPass compact;
     passes::TracePass trace;
@@ -65,6 +67,8 @@ struct Renderer::Impl {
     void destroy();
     // Every pass's bindings to the frame targets (after they were recreated).
     void bindTargets();
+    // The afsm pass's targets, made on the first afsm frame of a size.
+    void ensureAfsmTargets();
     void setGeometry(GpuGeometry uploaded);
     // Ends and submits the frame's command buffer and waits for it (the frame's fence).
     void submitAndWait(VkCommandBuffer cmd);

@@ -9,8 +9,8 @@ namespace penumbra {
 
 const char* passName(PassId pass)
 {
-    static const char* const names[] = {"camera",  "view_fit", "shadow_map", "thin_triangles", "penumbra_mask",
-                                        "classify", "compact",  "trace",      "shade",          "readback"};
+    static const char* const names[] = {"camera",       "view_fit", "shadow_map", "thin_triangles", "penumbra_mask", "afsm_samples",
+                                        "afsm_casters", "classify", "compact",    "trace",          "shade",         "readback"};
     static_assert(sizeof(names) / sizeof(names[0]) == size_t(PassId::Count));
     return pass < PassId::Count ? names[uint32_t(pass)] : "unknown";
 }
@@ -22,6 +22,8 @@ bool ShadowMethodSpec::traces() const
     };
     return has(hard) || has(softEnd);
 }
+
+bool ShadowMethodSpec::softShadows() const { return !softEnd.empty(); }
 
 bool ShadowMethodSpec::drawsAreaMaps() const
 {
@@ -60,6 +62,16 @@ const std::vector<ShadowMethodSpec>& shadowMethods()
          {{Step::Classify, PENUMBRA_SOFT_ALL, PENUMBRA_SOFT_ALL}},
          {{Step::Compact}, {Step::Trace}, {Step::Shade}},
          AreaMapEyes::Centre,
+         false},
+        {ShadowMethod::AliasFree,
+         "afsm",
+         "alias-free shadow map",
+         {{Step::AliasFree}, {Step::AfsmResolve}, {Step::Shade}},
+         {},
+         {},
+         {},
+         AreaMapEyes::Centre,
+         false,
          false},
     };
     return methods;

@@ -15,7 +15,7 @@ namespace penumbra {
 
 // The frame's passes, in the order stats report them.
 enum class PassId : uint32_t {
-    Camera, ViewFit, ShadowMap, ThinTriangles, PenumbraMask, Classify, Compact, Trace, Shade, Readback, Count
+    Camera, ViewFit, ShadowMap, ThinTriangles, PenumbraMask, AfsmSamples, AfsmCasters, Classify, Compact, Trace, Shade, Readback, Count
 };
 const char* passName(PassId pass);
 
@@ -31,6 +31,8 @@ enum class Step : uint32_t {
     Compact,       // marked pixels into the ray list
     Trace,         // the ray list through the BVH (area lights: the light samples)
     Shade,         // the light's contribution added to the colour
+    AliasFree,     // per layer: the view samples binned into the light's grid, then the casters tested against them
+    AfsmResolve,   // the light's visibility from the samples' shadow flags
 };
 
 struct MethodStep {
@@ -56,9 +58,11 @@ struct ShadowMethodSpec {
     std::vector<MethodStep> softEnd;   // per area light, after its maps
     AreaMapEyes areaEyes = AreaMapEyes::Centre;
     bool widenAreaMaps = false; // area maps fitted to the view keep room for penumbra thrown from beside it
+    bool shadowViewOcclusion = true; // the light's views may be culled by occlusion queries (they draw a depth map)
 
     bool traces() const;        // has a Trace step (the frame's ray offset and samples apply)
     bool drawsAreaMaps() const; // an area light's maps are drawn (so they are fitted to the view)
+    bool softShadows() const;   // has a sequence for area lights
 };
 
 // Every method, in the order of the ShadowMethod enum.

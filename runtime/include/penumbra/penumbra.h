@@ -30,7 +30,10 @@ namespace penumbra {
 // projected shape) and takes umbra or lit from the centre's shadow map
 // elsewhere; frt traces the samples for every pixel. srt and frt use the same
 // stratified samples, seeded by the pixel (penumbra/light_sampling.h).
-enum class ShadowMethod { ShadowMap, Selective, FullRayTrace };
+// afsm: alias-free shadow maps (Sintorn et al. 2008, section 3): the camera's
+// samples binned in the light's view, every caster rasterized conservatively
+// over them and tested exactly per sample; hard shadows only for now.
+enum class ShadowMethod { ShadowMap, Selective, FullRayTrace, AliasFree };
 
 const char* shadowMethodName(ShadowMethod method);
 ShadowMethod parseShadowMethod(const std::string& name); // throws Error
