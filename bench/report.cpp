@@ -21,7 +21,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kMethodOrder[] = {"sm", "srt", "frt", "oracle"};
+// Columns of the data files: the methods in this order (afsm last, so that older columns keep their numbers).
+constexpr const char* kMethodOrder[] = {"sm", "srt", "frt", "oracle", "afsm"};
+constexpr const char* kSoftMethodOrder[] = {"sm", "srt", "frt", "oracle"};
 
 void writeFile(const fs::path& path, const std::string& text)
 {
@@ -280,7 +282,7 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
     // Figure 8: median frame time per method and scene.
     {
         std::ostringstream data;
-        data << "# scene sm srt frt oracle (median ms, hard shadows)\n";
+        data << "# scene sm srt frt oracle afsm (median ms, hard shadows)\n";
         for (const std::string& scene : scenesOf(records, "methods")) {
             const Record* sm = findRecord(records, "methods", scene, "sm", ShadowKind::Hard);
             data << '"' << scene << ' ' << (sm ? shortCount(sm->triangles) : "") << '"';
@@ -297,7 +299,7 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
                       "'\nset style data histogram\nset style histogram cluster gap 1\n"
                       "set style fill solid 0.8 border -1\nset logscale y\nset ylabel 'ms'\n"
                       "plot 'methods.dat' using 2:xtic(1) title 'sm', '' using 3 title 'srt', "
-                      "'' using 4 title 'frt', '' using 5 title 'Embree oracle (CPU)'\n");
+                      "'' using 4 title 'frt', '' using 5 title 'Embree oracle (CPU)', '' using 6 title 'afsm'\n");
         pngs.push_back({"methods.gp", "methods.png"});
     }
 
@@ -333,7 +335,7 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
     std::vector<double> levels = levelsOf(records);
     if (!levels.empty()) {
         std::ostringstream data;
-        data << "# triangles sm srt frt oracle (median ms) srt_nodes_per_ray frt_nodes_per_ray srt_trace_ms "
+        data << "# triangles sm srt frt oracle afsm (median ms) srt_nodes_per_ray frt_nodes_per_ray srt_trace_ms "
                 "(compaction + trace)\n";
         for (double level : levels) {
             const Record* any = findRecord(records, "scalability", "scan", "sm", ShadowKind::Hard, level);
@@ -362,12 +364,13 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
                   "'' using 1:3 with linespoints title 'srt', "
                   "'' using 1:4 with linespoints title 'frt', "
                   "'' using 1:5 with linespoints title 'Embree oracle (CPU)', "
-                  "'' using 1:8 with linespoints dashtype 2 title 'srt compaction + trace'\n";
+                  "'' using 1:6 with linespoints title 'afsm', "
+                  "'' using 1:9 with linespoints dashtype 2 title 'srt compaction + trace'\n";
         script += "set output 'scalability_nodes.png'\n";
         script += "set title 'scan: BVH nodes visited per shadow ray, " + title + "'\n";
         script += "unset logscale y\nset ylabel 'nodes per ray'\n";
-        script += "plot 'scalability.dat' using 1:6 with linespoints title 'srt', "
-                  "'' using 1:7 with linespoints title 'frt'\n";
+        script += "plot 'scalability.dat' using 1:7 with linespoints title 'srt', "
+                  "'' using 1:8 with linespoints title 'frt'\n";
         writeFile(dir / "scalability.gp", script);
         pngs.push_back({"scalability.gp", "scalability.png"});
         pngs.push_back({"scalability.gp", "scalability_nodes.png"});
@@ -381,7 +384,7 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
         data << "# radius sm srt frt oracle (median ms) srt_penumbra_fraction oracle_penumbra_fraction\n";
         for (double radius : radii) {
             data << number(radius);
-            for (const char* method : kMethodOrder) {
+            for (const char* method : kSoftMethodOrder) {
                 const Record* r = findRecord(records, "light_size", scene, method, ShadowKind::Soft, 1.0, radius);
                 data << ' ' << (r ? number(r->medianMs, "%.3f", "?") : "?");
             }
@@ -496,18 +499,19 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
     }
 
     md << "\n### Frame times and rates (hard shadows, median ms, frames per second)\n\n"
-          "| scene | sm | srt | frt | oracle | frt / srt |\n|---|---|---|---|---|---|\n";
+          "| scene | sm | srt | frt | oracle | afsm | frt / srt | afsm / sm | afsm / srt |\n|---|---|---|---|---|---|---|---|---|\n";
     for (const std::string& scene : scenesOf(records, "methods")) {
         md << "| " << scene;
-        double values[4];
-        for (int m = 0; m < 4; ++m) {
+        double values[5];
+        for (int m = 0; m < 5; ++m) {
             const Record* r = findRecord(records, "methods", scene, kMethodOrder[m], ShadowKind::Hard);
             values[m] = r ? r->medianMs : kNoValue;
             md << " | " << ms(values[m]);
-            if (m < 3)
+            if (m != 3)
                 md << " (" << number(1000.0 / values[m], "%.2f", "–") << " fps)";
         }
-        md << " | " << number(values[2] / values[1], "%.2fx", "–") << " |\n";
+        md << " | " << number(values[2] / values[1], "%.2fx", "–") << " | " << number(values[4] / values[0], "%.2fx", "–") << " | "
+           << number(values[4] / values[1], "%.2fx", "–") << " |\n";
     }
 
     md << "\n## Time per stage (Figure 9)\n\n"
@@ -540,9 +544,9 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << "\n## Scalability over simplification levels (Figure 7, left)\n\n"
               "One `scan` model, each level simplified from the next larger one with meshoptimizer, hard shadows, "
               "median ms per frame.\n\n";
-        md << "| level | triangles | B/tri | sm | srt | frt | oracle | srt compaction + trace | srt PIP "
+        md << "| level | triangles | B/tri | sm | srt | frt | oracle | afsm | srt compaction + trace | srt PIP "
               "| srt nodes/ray | frt nodes/ray | srt error |\n"
-              "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         std::map<std::string, std::vector<std::pair<double, double>>> series;
         for (double level : levels) {
             const Record* sm = findRecord(records, "scalability", "scan", "sm", ShadowKind::Hard, level);
@@ -571,10 +575,10 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         }
         md << "\nGrowth: least-squares slope of log(value) against log(triangles) (1 = linear in the triangle "
               "count, 0 = flat; logarithmic growth shows as a small slope that shrinks with size):";
-        for (const char* method : {"sm", "srt", "frt", "oracle", "srt compaction + trace", "srt nodes/ray"})
+        for (const char* method : {"sm", "srt", "frt", "oracle", "afsm", "srt compaction + trace", "srt nodes/ray"})
             md << " " << method << " " << number(logLogSlope(series[method]), "%.2f", "–") << ";";
         md << " ratio largest / smallest level:";
-        for (const char* method : {"sm", "srt", "frt", "oracle", "srt compaction + trace", "srt nodes/ray"}) {
+        for (const char* method : {"sm", "srt", "frt", "oracle", "afsm", "srt compaction + trace", "srt nodes/ray"}) {
             const auto& s = series[method];
             md << " " << method << " " << (s.size() >= 2 ? number(s.back().second / s.front().second, "%.2fx") : "–")
                << ";";
@@ -599,7 +603,7 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
               "|---|---|---|---|---|---|---|---|\n";
         for (double radius : radii) {
             md << "| " << number(radius);
-            for (const char* method : kMethodOrder) {
+            for (const char* method : kSoftMethodOrder) {
                 const Record* r =
                     findRecord(records, "light_size", o.sweepScene, method, ShadowKind::Soft, 1.0, radius);
                 md << " | " << (r ? ms(r->medianMs) : "–");
@@ -619,9 +623,9 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
             md << "![" << plot << "](" << plot << ")\n\n";
     }
     md << "\n## Images\n\n"
-          "Per scene: `-shadows.png` is sm | srt | frt | oracle (N·L times visibility of the light), `-diff.png` is "
-          "sm | srt | frt against the oracle (red: lit but the oracle shadows it; blue: the reverse), `-color.png` "
-          "the rendered frames sm | srt | frt.\n\n";
+          "Per scene: `-shadows.png` is sm | srt | frt | afsm (hard shadows only) | oracle (N·L times visibility of the "
+          "light), `-diff.png` is each method against the oracle in the same order (red: lit but the oracle shadows it; "
+          "blue: the reverse), `-color.png` the rendered frames.\n\n";
     for (const std::string& image : results.images)
         md << "- [" << image << "](" << image << ")\n";
     md << "\n## Files\n\nmethods.csv / methods.json (every record of every section, with per-pass times in the JSON), "

@@ -31,7 +31,10 @@ using namespace bench;
 
 namespace {
 
-constexpr ShadowMethod kGpuMethods[] = {ShadowMethod::ShadowMap, ShadowMethod::Selective, ShadowMethod::FullRayTrace};
+// The methods measured side by side (frt also gives the oracle its G-buffer); soft cases skip those without area lights.
+constexpr ShadowMethod kGpuMethods[] = {ShadowMethod::ShadowMap, ShadowMethod::Selective, ShadowMethod::FullRayTrace,
+                                       ShadowMethod::AliasFree};
+constexpr size_t kReferenceMethod = 2; // frt
 constexpr const char* kOracleName = "oracle";
 
 double msSince(std::chrono::steady_clock::time_point start)
@@ -293,23 +296,27 @@ class SuiteRunner {
         return r;
     }
 
-    // sm, srt, frt and the oracle on one loaded scene with the light already
+    // Every method of kGpuMethods (soft: those with area lights) and the oracle on one loaded scene with the light already
     // set; errors against the oracle; images when imagePrefix is not empty.
     // Returns the records (also added to the results).
     void measureAllMethods(const std::string& section, LoadedScene& loaded, ShadowKind kind, const Light& light,
                            double radius, double level, double simplifyError, const std::string& imagePrefix)
     {
         std::string label = section + " " + loaded.name;
-        Measurement measured[3];
-        for (int i = 0; i < 3; ++i) {
-            step(label + " " + shadowMethodName(kGpuMethods[i]));
-            measured[i] = measure(*renderer, baseSettings(kGpuMethods[i]), kind, soft, options.frames);
-            stepDone(label + " " + shadowMethodName(kGpuMethods[i]));
+        std::vector<ShadowMethod> methods;
+        for (ShadowMethod method : kGpuMethods)
+            if (kind == ShadowKind::Hard || shadowMethodDoesAreaLights(method))
+                methods.push_back(method);
+        std::vector<Measurement> measured(methods.size());
+        for (size_t i = 0; i < methods.size(); ++i) {
+            step(label + " " + shadowMethodName(methods[i]));
+            measured[i] = measure(*renderer, baseSettings(methods[i]), kind, soft, options.frames);
+            stepDone(label + " " + shadowMethodName(methods[i]));
         }
 
         // The oracle on the frt frame's G-buffer (all three share the camera pass).
         step(label + " oracle");
-        const Frame& reference = measured[2].gbuffer;
+        const Frame& reference = measured[kReferenceMethod].gbuffer;
         float rayOffset = reference.stats.rayOffset > 0.0f ? reference.stats.rayOffset : 1e-4f;
         if (!loaded.oracle) {
             auto buildStart = std::chrono::steady_clock::now();
@@ -330,8 +337,8 @@ class SuiteRunner {
             oracleRays = oracle.raysTraced();
         }
 
-        for (int i = 0; i < 3; ++i) {
-            Record r = gpuRecord(section, loaded, kGpuMethods[i], kind, measured[i]);
+        for (size_t i = 0; i < methods.size(); ++i) {
+            Record r = gpuRecord(section, loaded, methods[i], kind, measured[i]);
             r.error = visibilityError(oracleVisibility, measured[i].gbuffer.visibility);
             r.lightRadius = radius;
             r.level = level;
@@ -490,7 +497,7 @@ class SuiteRunner {
         return image;
     }
 
-    void writeImages(const std::string& prefix, const Measurement (&measured)[3], const std::vector<float>& oracle,
+    void writeImages(const std::string& prefix, const std::vector<Measurement>& measured, const std::vector<float>& oracle,
                      const Light& light)
     {
         std::vector<Image> shadows, differences, colors;
@@ -499,7 +506,7 @@ class SuiteRunner {
             differences.push_back(differenceImage(m.gbuffer, oracle));
             colors.push_back(m.gbuffer.color);
         }
-        shadows.push_back(shadowImage(measured[2].gbuffer, oracle, light));
+        shadows.push_back(shadowImage(measured[kReferenceMethod].gbuffer, oracle, light));
         struct Output {
             const char* suffix;
             const std::vector<Image>& panels;
@@ -555,7 +562,8 @@ size_t stageGroupOf(const std::string& passName)
 {
     static const std::map<std::string, size_t> groups = {{"camera", 0},        {"view_fit", 0},   {"shadow_map", 0},     {"thin_triangles", 1},
                                                          {"penumbra_mask", 1}, {"classify", 1},   {"compact", 2},
-                                                         {"trace", 3},         {"shade", 4},      {"readback", 5}};
+                                                         {"trace", 3},         {"shade", 4},      {"readback", 5},
+                                                         {"afsm_casters", 0},  {"afsm_samples", 1}};
     auto it = groups.find(passName);
     return it == groups.end() ? kStageGroupCount - 1 : it->second;
 }

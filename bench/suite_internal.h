@@ -53,8 +53,8 @@ struct Record {
 // Per-stage groups of Figure 9, from FrameStats pass names.
 inline constexpr const char* kStageGroups[] = {"raster", "pip", "compaction", "trace", "shading", "transfers", "other"};
 inline constexpr size_t kStageGroupCount = sizeof(kStageGroups) / sizeof(kStageGroups[0]);
-// Index into kStageGroups: camera and shadow_map are raster; thin_triangles, penumbra_mask (soft shadows) and
-// classify PIP; compact compaction; trace trace; shade shading; readback transfers; any other pass other.
+// Index into kStageGroups: camera, shadow_map and afsm_casters are raster; thin_triangles, penumbra_mask (soft
+// shadows), classify and afsm_samples PIP; compact compaction; trace trace; shade shading; readback transfers; any other pass other.
 size_t stageGroupOf(const std::string& passName);
 
 struct SuiteResults {

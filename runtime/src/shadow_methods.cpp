@@ -93,6 +93,8 @@ const char* shadowMethodName(ShadowMethod method)
     return "unknown";
 }
 
+bool shadowMethodDoesAreaLights(ShadowMethod method) { return shadowMethodSpec(method).softShadows(); }
+
 std::vector<std::string> shadowMethodNames()
 {
     std::vector<std::string> names;

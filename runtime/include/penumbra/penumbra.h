@@ -39,6 +39,7 @@ const char* shadowMethodName(ShadowMethod method);
 ShadowMethod parseShadowMethod(const std::string& name); // throws Error
 std::vector<std::string> shadowMethodNames();           // every method's name, in enum order
 std::string shadowMethodsHelp();                        // "sm (shadow map), srt (selective ray tracing), ..."
+bool shadowMethodDoesAreaLights(ShadowMethod method);   // soft shadows from area lights
 
 // Culling of the camera and shadow-map raster passes with the top of the
 // shared BVH (Lauterbach et al. 2009, section 5.1): none draws every cluster;
