@@ -18,6 +18,33 @@
 layout(location = 0) flat in vec3 vertex0;
 layout(location = 1) flat in vec3 vertex1;
 layout(location = 2) flat in vec3 vertex2;
+layout(location = 3) flat in vec4 projected01;
+layout(location = 4) flat in vec4 projected2;
+
+// Whether the cell's square can meet the triangle's projection grown by half a
+// cell (the rectangle drawn is only the triangle's bounds, grown by one cell).
+// Each edge's half-plane is moved outward by the square's extent along the
+// edge's normal (conservative rasterization's edge test) plus that margin:
+// a point light's ray starts rayOffset off the line through the light, so an
+// occluder very near the light projects slightly beside the sample's cell.
+bool cellMayMeetTriangle(vec2 centre)
+{
+    if (projected2.w == 0.0)
+        return true;
+    vec2 v[3] = vec2[](projected01.xy, projected01.zw, projected2.xy);
+    float area = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[1].y - v[0].y) * (v[2].x - v[0].x);
+    if (area == 0.0)
+        return true; // a sliver seen edge-on: its bounds are all there is
+    float orientation = area > 0.0 ? 1.0 : -1.0;
+    for (int i = 0; i < 3; ++i) {
+        vec2 a = v[i], b = v[(i + 1) % 3];
+        vec2 normal = orientation * vec2(b.y - a.y, a.x - b.x); // points outward
+        float reach = 0.5 * (abs(normal.x) + abs(normal.y)) + 0.5 * length(normal);
+        if (dot(centre - a, normal) > reach)
+            return false;
+    }
+    return true;
+}
 
 // C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
@@ -42,7 +69,7 @@ void main()
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     uint first = cellFirst[cell];
     uint count = cellCount[cell];
-    if (count == 0u)
+    if (count == 0u || !cellMayMeetTriangle(vec2(cellXY) + 0.5))
         return;
     int width = imageSize(gPosition).x;
     for (uint i = 0u; i < count; ++i) {

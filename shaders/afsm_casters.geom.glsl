@@ -18,6 +18,10 @@ layout(location = 0) in vec3 worldPosition[];
 layout(location = 0) flat out vec3 vertex0;
 layout(location = 1) flat out vec3 vertex1;
 layout(location = 2) flat out vec3 vertex2;
+// The triangle's projection in grid cells, for the fragment shader's exact
+// cell test; edges.w = 0: no test (a vertex behind the eye).
+layout(location = 3) flat out vec4 projected01; // xy vertex 0, zw vertex 1
+layout(location = 4) flat out vec4 projected2;  // xy vertex 2, w = 1 when valid
 
 layout(push_constant) uniform AfsmCastersPush {
     mat4 viewProj;     // the layer's projection (the grid's)
@@ -32,6 +36,7 @@ void main()
     vec2 lo = vec2(-1.0), hi = vec2(1.0);
     bool behind = false;
     vec2 pmin = vec2(3.0e38), pmax = vec2(-3.0e38);
+    vec2 cells[3];
     for (int i = 0; i < 3; ++i) {
         vec4 clip = push.viewProj * vec4(worldPosition[i], 1.0);
         if (clip.w <= 1e-20) {
@@ -39,6 +44,7 @@ void main()
             break;
         }
         vec2 ndc = clip.xy / clip.w;
+        cells[i] = (ndc * 0.5 + 0.5) * float(push.gridSize);
         pmin = min(pmin, ndc);
         pmax = max(pmax, ndc);
     }
@@ -55,6 +61,8 @@ void main()
         vertex0 = worldPosition[0];
         vertex1 = worldPosition[1];
         vertex2 = worldPosition[2];
+        projected01 = behind ? vec4(0.0) : vec4(cells[0], cells[1]);
+        projected2 = behind ? vec4(0.0) : vec4(cells[2], 0.0, 1.0);
         EmitVertex();
     }
     EndPrimitive();
