@@ -235,6 +235,24 @@ TEST(ImageOutput, PlainPathIsBitIdentical)
     EXPECT_NE(readImage(filmic).bytes, expected);
 }
 
+// A .penumbra model is drawn as stored under --ground auto; --ground below
+// decodes it and adds the ground's 128 triangles.
+TEST(ImageOutput, GroundUnderAPreprocessedModel)
+{
+    std::string source = tmp("ground_part.obj"), model = tmp("ground_part.penumbra"), output;
+    Mesh part;
+    test::addBox(part, {0, 0, 0}, {1, 2, 1});
+    exportScene(Scene{part, {}, {}}, source);
+    ASSERT_EQ(runCli("preprocess " + source + " -o " + model + " --quiet", &output), 0) << output;
+    ASSERT_EQ(runCli("render " + model + " -o " + tmp("ground_part.png") + " --size 32 --validation", &output), 0) << output;
+    EXPECT_NE(output.find("triangles 12 |"), std::string::npos) << output;
+    ASSERT_EQ(runCli("render " + model + " -o " + tmp("ground_part.png") + " --size 32 --validation --ground below", &output), 0)
+        << output;
+    EXPECT_NE(output.find("triangles 140 |"), std::string::npos) << output;
+    ASSERT_EQ(runCli("render " + source + " -o " + tmp("ground_part.png") + " --size 32 --validation", &output), 0) << output;
+    EXPECT_NE(output.find("triangles 140 |"), std::string::npos) << output; // auto: a single object
+}
+
 // An .exr with --exr-layers carries light 0's visibility, the PIP mask and the
 // depth as named float channels; --compare writes sm | srt | pip.
 TEST(ImageOutput, ExrLayersAndCompareStrip)
