@@ -300,6 +300,13 @@ TEST(ImageOutput, ExrLayersAndCompareStrip)
     EXPECT_GT(traced, 10u);
     EXPECT_LT(traced, covered / 2);
 
+    // The shadow map alone gives no pixel rays.
+    ASSERT_EQ(runCli("render " + model + " -o " + exr + " --size 64 --shadows sm --exr-layers", &output), 0) << output;
+    ReadImage smLayers = readImage(exr);
+    ASSERT_EQ(smLayers.channels, layers.channels);
+    for (size_t p = 0; p < size_t(smLayers.width) * smLayers.height; ++p)
+        ASSERT_EQ(smLayers.values[p * 7 + m], 0.0f) << p;
+
     ReadImage compare = readImage(strip);
     EXPECT_EQ(compare.width, 3 * 64);
     EXPECT_EQ(compare.height, 64);
