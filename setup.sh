@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Penumbra setup. Two commands, on a fresh Debian 12 machine:
 #   ./setup.sh        install missing packages, build, render the built-in demo scene to demo.png
+#                     and the comparison strip demo-compare.png (sm | srt | srt with the traced pixels red)
 #   ./setup.sh test   install missing packages, build, run the whole test suite with ctest
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -38,8 +39,8 @@ cmake --build "$build_dir" -j "$jobs"
 
 case "$mode" in
   demo)
-    "$build_dir/penumbra" render -o demo.png --size 1024
-    echo "setup: wrote $(pwd)/demo.png"
+    "$build_dir/penumbra" render -o demo.png --size 1024 --shadows srt --compare demo-compare.png
+    echo "setup: wrote $(pwd)/demo.png and $(pwd)/demo-compare.png (sm | srt | traced pixels in red)"
     ;;
   test)
     ctest --test-dir "$build_dir" --output-on-failure -j "$jobs" --timeout 600

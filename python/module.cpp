@@ -97,7 +97,7 @@ bool fitToView(const std::string& shadowFit)
 
 class PyRenderer {
 public:
-    PyRenderer(const py::object& model, const std::string& device, bool validation)
+    PyRenderer(const py::object& model, const std::string& device, bool validation, const py::object& ground)
     {
         RendererOptions options;
         options.device = device;
@@ -107,29 +107,36 @@ public:
             renderer.emplace(options);
         }
         if (!model.is_none())
-            load(model);
+            load(model, ground);
     }
 
     // Loads a model file (.penumbra, or any format importScene reads, preprocessed
     // in memory) and resets the camera and lights to the model's own.
-    void load(const py::object& model)
+    // ground: "off", "auto", "below" or a height (the CLI's --ground).
+    void load(const py::object& model, const py::object& ground)
     {
         const std::string path = py::str(py::module_::import("os").attr("fspath")(model));
+        const Ground groundChoice = py::isinstance<py::str>(ground) ? parseGround(ground.cast<std::string>())
+                                                                    : Ground{Ground::Kind::At, ground.cast<float>()};
         Scene scene;
         Bounds bounds;
         {
             py::gil_scoped_release unlocked;
             std::lock_guard lock(mutex);
+            CompressedModel compressed;
             if (endsWith(path, ".penumbra")) {
-                CompressedModel model = openModelFile(path);
-                renderer->loadModel(model);
-                bounds.min = glm::vec3(model.header.boundsMin[0], model.header.boundsMin[1], model.header.boundsMin[2]);
-                bounds.max = glm::vec3(model.header.boundsMax[0], model.header.boundsMax[1], model.header.boundsMax[2]);
+                compressed = openModelFile(path);
+                bounds.min = glm::vec3(compressed.header.boundsMin[0], compressed.header.boundsMin[1], compressed.header.boundsMin[2]);
+                bounds.max = glm::vec3(compressed.header.boundsMax[0], compressed.header.boundsMax[1], compressed.header.boundsMax[2]);
             } else {
                 scene = importScene(path);
-                renderer->loadModel(scene.mesh);
                 bounds = computeBounds(scene.mesh);
             }
+            applyGround(groundChoice, bounds, scene.mesh, compressed);
+            if (!compressed.clusters.empty())
+                renderer->loadModel(compressed);
+            else
+                renderer->loadModel(scene.mesh);
         }
         std::lock_guard lock(mutex);
         modelCamera = scene.cameras.empty() ? defaultCamera(bounds) : scene.cameras[0];
@@ -240,11 +247,14 @@ PYBIND11_MODULE(penumbra, m)
     const RenderSettings d;
 
     py::class_<PyRenderer>(m, "Renderer", "A Vulkan renderer holding one model: load once, render many frames")
-        .def(py::init<py::object, std::string, bool>(), py::arg("model") = py::none(), py::kw_only(), py::arg("device") = "",
-             py::arg("validation") = false,
+        .def(py::init<py::object, std::string, bool, py::object>(), py::arg("model") = py::none(), py::kw_only(), py::arg("device") = "",
+             py::arg("validation") = false, py::arg("ground") = "off",
              "model: a model file (.penumbra .obj .ply .stl .gltf .glb .drc) or None; device: index or part of its name; "
-             "validation: the Khronos validation layer (also on with PENUMBRA_VALIDATION=1)")
-        .def("load", &PyRenderer::load, py::arg("model"), "Loads a model file (str or path); the camera and lights become the model's own")
+             "validation: the Khronos validation layer (also on with PENUMBRA_VALIDATION=1); ground: 'off', 'auto', 'below' "
+             "or a height y (the CLI's --ground)")
+        .def("load", &PyRenderer::load, py::arg("model"), py::kw_only(), py::arg("ground") = "off",
+             "Loads a model file (str or path), with a ground plane as the CLI's --ground ('off', 'auto', 'below' or a "
+             "height); the camera and lights become the model's own (the camera frames the model without the ground)")
         .def("set_camera", &PyRenderer::setCamera, py::arg("camera"),
              "dict with keys position target up projection fov ortho_height near far, or None for the model's camera")
         .def("set_lights", &PyRenderer::setLights, py::arg("lights"),
@@ -289,14 +299,15 @@ PYBIND11_MODULE(penumbra, m)
 
     // render(): one Renderer, one frame; the settings keywords are Renderer.render's.
     py::exec(R"(
-def render(model, size=(1024, 1024), shadows="srt", camera=None, lights=None, **settings):
+def render(model, size=(1024, 1024), shadows="srt", camera=None, lights=None, ground="off", **settings):
     """Renders a model file to a linear RGBA float32 array (height, width, 4), top row first.
 
     camera: dict (keys of the scene file: position target up projection fov ortho_height near far) or None
     (the model's). lights: list of the CLI's light strings ('spot position=0,20,0 outer_cone=30') and/or dicts
-    ({'type': 'spot', 'position': [0, 20, 0]}), or None (the model's, else a sun). Other keywords: Renderer.render's.
+    ({'type': 'spot', 'position': [0, 20, 0]}), or None (the model's, else a sun). ground: 'off', 'auto', 'below' or a
+    height (the CLI's --ground). Other keywords: Renderer.render's.
     """
-    renderer = Renderer(model)
+    renderer = Renderer(model, ground=ground)
     renderer.set_camera(camera)
     renderer.set_lights(lights)
     return renderer.render(size=size, shadows=shadows, **settings)
@@ -324,7 +335,8 @@ def render(model, size=(1024, 1024), shadows="srt", camera=None, lights=None, **
         "Writes a procedural scene (city, interior, plant, scan) with its camera and light (glTF keeps them), as `penumbra generate`");
     m.def(
         "write_image",
-        [](const py::array_t<float, py::array::c_style | py::array::forcecast>& rgba, const std::filesystem::path& file) {
+        [](const py::array_t<float, py::array::c_style | py::array::forcecast>& rgba, const std::filesystem::path& file,
+           const py::object& exposure, const std::string& tonemap, std::array<float, 3> background, const py::dict& layers) {
             const std::string path = file.string();
             if (rgba.ndim() != 3 || rgba.shape(2) != 4)
                 fail(path, "expected a float array (height, width, 4)");
@@ -332,9 +344,32 @@ def render(model, size=(1024, 1024), shadows="srt", camera=None, lights=None, **
             image.height = uint32_t(rgba.shape(0));
             image.width = uint32_t(rgba.shape(1));
             image.rgba.assign(rgba.data(), rgba.data() + rgba.size());
-            writeImage(image, path);
+            ImageOptions options;
+            options.tonemap = parseToneMap(tonemap);
+            if (py::isinstance<py::str>(exposure)) {
+                if (exposure.cast<std::string>() != "auto")
+                    fail("exposure", "expected a number or 'auto'");
+                options.exposure = autoExposure(image, options.tonemap, background.data());
+            } else {
+                options.exposure = exposure.cast<float>();
+            }
+            for (auto [name, values] : layers) {
+                auto array = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(values);
+                if (!array || array.ndim() != 2 || array.shape(0) != rgba.shape(0) || array.shape(1) != rgba.shape(1))
+                    fail(path, "layer '" + std::string(py::str(name)) + "': expected a float array (height, width)");
+                options.layers.push_back({std::string(py::str(name)), std::vector<float>(array.data(), array.data() + array.size())});
+            }
+            py::gil_scoped_release unlocked;
+            writeImage(image, path, options);
         },
-        py::arg("image"), py::arg("path"), "Writes a render() result: .png (8-bit sRGB), .exr (half float linear), ...");
+        py::arg("image"), py::arg("path"), py::kw_only(), py::arg("exposure") = 1.0f, py::arg("tonemap") = "none",
+        py::arg("background") = std::array<float, 3>{d.background[0], d.background[1], d.background[2]},
+        py::arg("layers") = py::dict(),
+        "Writes a render() result: .png (8-bit sRGB), .exr (half float linear), ... 8-bit outputs: exposure (a multiplier, "
+        "or 'auto': the 95th percentile of the luminance of the pixels not of the background colour maps to 0.8 after the "
+        "curve) and tonemap ('none' or 'filmic', the ACES fit of Narkowicz 2015), as the CLI's --exposure and --tonemap "
+        "(whose defaults are auto and filmic). layers: .exr only, {name: float array (height, width)} written as "
+        "full-float channels, e.g. {'visibility.light0': renderer.gbuffer['visibility']}");
     m.def(
         "devices",
         [] {

@@ -46,6 +46,11 @@ struct RenderArgs {
     std::string statsPath;
     uint32_t frames = 1;
     std::string debugImage;
+    std::string exposure = "auto";
+    std::string tonemap = "filmic";
+    std::string ground = "auto";
+    std::string compare;
+    bool exrLayers = false;
 };
 
 struct PreprocessArgs {
@@ -110,6 +115,32 @@ void writeTextFile(const std::string& path, const std::string& text)
         fail(path, "cannot rename the finished file into place");
 }
 
+// --exposure: "auto" (nullopt) or a positive number.
+std::optional<float> parseExposure(const std::string& text)
+{
+    if (text == "auto")
+        return std::nullopt;
+    char* stop = nullptr;
+    float value = std::strtof(text.c_str(), &stop);
+    if (text.empty() || *stop != '\0' || !(value > 0.0f) || !std::isfinite(value))
+        fail("--exposure " + text, "expected auto or a positive number");
+    return value;
+}
+
+// Side by side, left to right, all the same size.
+Image concatenate(const std::vector<const Image*>& panels)
+{
+    Image strip;
+    strip.width = panels[0]->width * uint32_t(panels.size());
+    strip.height = panels[0]->height;
+    strip.rgba.resize(size_t(strip.width) * strip.height * 4);
+    for (size_t k = 0; k < panels.size(); ++k)
+        for (uint32_t y = 0; y < strip.height; ++y)
+            std::copy_n(&panels[k]->rgba[size_t(y) * panels[k]->width * 4], size_t(panels[k]->width) * 4,
+                        &strip.rgba[(size_t(y) * strip.width + k * panels[k]->width) * 4]);
+    return strip;
+}
+
 int runRender(const RenderArgs& args)
 {
     // Everything the command line says is checked before any slow work.
@@ -126,6 +157,20 @@ int runRender(const RenderArgs& args)
     settings.depthBiasSlope = args.biasSlope;
     settings.debugPip = args.debugImage == "pip";
     checkImagePath(args.output);
+    if (!args.compare.empty())
+        checkImagePath(args.compare);
+    ImageOptions imageOptions;
+    imageOptions.tonemap = parseToneMap(args.tonemap);
+    std::optional<float> exposure = parseExposure(args.exposure);
+    Ground ground = parseGround(args.ground);
+    if (args.exrLayers) {
+        std::string extension = args.output.substr(args.output.find_last_of('.'));
+        for (char& c : extension)
+            c = char(std::tolower(static_cast<unsigned char>(c)));
+        if (extension != ".exr")
+            fail(args.output, "--exr-layers needs an .exr output");
+        settings.readbackGBuffer = true;
+    }
     std::vector<Light> commandLineLights;
     for (const std::string& spec : args.lights)
         commandLineLights.push_back(parseLightSpec(spec));
@@ -157,6 +202,13 @@ int runRender(const RenderArgs& args)
     } else {
         scene = importScene(modelPath);
     }
+    // The model's own bounds (without a ground) frame the default camera.
+    Bounds bounds = computeBounds(scene.mesh);
+    if (!compressed.clusters.empty()) {
+        bounds.min = glm::vec3(compressed.header.boundsMin[0], compressed.header.boundsMin[1], compressed.header.boundsMin[2]);
+        bounds.max = glm::vec3(compressed.header.boundsMax[0], compressed.header.boundsMax[1], compressed.header.boundsMax[2]);
+    }
+    applyGround(ground, bounds, scene.mesh, compressed);
     if (!compressed.clusters.empty())
         renderer.loadModel(compressed);
     else
@@ -164,11 +216,6 @@ int runRender(const RenderArgs& args)
     double loadMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - loadStart).count();
 
     // Camera: command line over scene file over the model's own over the default.
-    Bounds bounds = computeBounds(scene.mesh);
-    if (!compressed.clusters.empty()) {
-        bounds.min = glm::vec3(compressed.header.boundsMin[0], compressed.header.boundsMin[1], compressed.header.boundsMin[2]);
-        bounds.max = glm::vec3(compressed.header.boundsMax[0], compressed.header.boundsMax[1], compressed.header.boundsMax[2]);
-    }
     Camera camera = defaultCamera(bounds);
     if (!scene.cameras.empty()) {
         if (args.cameraIndex < 0 || size_t(args.cameraIndex) >= scene.cameras.size())
@@ -204,8 +251,37 @@ int runRender(const RenderArgs& args)
     Frame frame;
     for (uint32_t i = 0; i < std::max(args.frames, 1u); ++i)
         frame = renderer.render(settings);
-    writeImage(frame.color, args.output);
+    imageOptions.exposure = exposure ? *exposure : autoExposure(frame.color, imageOptions.tonemap, settings.background);
+    if (args.exrLayers) {
+        // The PIP mask: the same frame with the other debugPip, compared.
+        RenderSettings other = settings;
+        other.debugPip = !settings.debugPip;
+        other.readbackGBuffer = false;
+        Image otherColor = renderer.render(other).color;
+        imageOptions.layers = frameLayers(frame, camera, pipMask(settings.debugPip ? otherColor : frame.color,
+                                                                 settings.debugPip ? frame.color : otherColor));
+    }
+    writeImage(frame.color, args.output, imageOptions);
     std::printf("%s | load %.0f ms | -> %s\n", summaryLine(frame.stats).c_str(), loadMs, args.output.c_str());
+    if (!args.compare.empty()) {
+        // sm | srt | srt with the traced pixels red, one renderer, one exposure (the srt panel's).
+        RenderSettings panel = settings;
+        panel.readbackGBuffer = false;
+        panel.debugPip = false;
+        panel.shadows = ShadowMethod::ShadowMap;
+        Image sm = renderer.render(panel).color;
+        panel.shadows = ShadowMethod::Selective;
+        // The main frame is the srt panel when it is one.
+        Frame srt = settings.shadows == ShadowMethod::Selective && !settings.debugPip ? frame : renderer.render(panel);
+        panel.debugPip = true;
+        Image pip = renderer.render(panel).color;
+        ImageOptions compareOptions;
+        compareOptions.tonemap = imageOptions.tonemap;
+        compareOptions.exposure = exposure ? *exposure : autoExposure(srt.color, imageOptions.tonemap, settings.background);
+        writeImage(concatenate({&sm, &srt.color, &pip}), args.compare, compareOptions);
+        std::printf("compare: sm | srt | pip (%.2f%% of covered pixels traced) -> %s\n", srt.stats.pipFraction * 100.0,
+                    args.compare.c_str());
+    }
     if (!args.statsPath.empty())
         writeTextFile(args.statsPath, statsJson(frame.stats));
     if (renderer.validationMessageCount() > 0) {
@@ -387,7 +463,7 @@ int main(int argc, char** argv)
     RenderArgs render;
     CLI::App* renderCommand = app.add_subcommand("render", "Render a model (or the built-in demo scene) with shadows to an image");
     renderCommand->add_option("model", render.model, "Model file: .penumbra .obj .ply .stl .gltf .glb .drc (default: built-in demo scene)");
-    renderCommand->add_option("-o,--output", render.output, "Output image: .png (8-bit sRGB) or .exr (linear half float)")->capture_default_str();
+    renderCommand->add_option("-o,--output", render.output, "Output image: .png (8-bit sRGB, exposed and tone mapped) or .exr (linear half float)")->capture_default_str();
     renderCommand->add_option("--size", render.size, "Image size: N or WxH")->capture_default_str();
     renderCommand->add_option("--scene", render.scene, "JSON scene file with camera, lights and optionally the model");
     renderCommand->add_option("--camera-position", render.cameraPosition, "Camera position x,y,z");
@@ -410,6 +486,22 @@ int main(int argc, char** argv)
         ->capture_default_str()
         ->check(CLI::IsMember({"view", "model"}));
     renderCommand->add_option("--debug-image", render.debugImage, "pip: tint the pixels given rays red (area lights: the penumbra mask)")->check(CLI::IsMember({"pip"}));
+    renderCommand->add_option("--exposure", render.exposure,
+                              "8-bit outputs: linear colour multiplier before the tone curve, or auto (the 95th percentile "
+                              "of the model's pixels' luminance maps to 0.8 after the curve)")
+        ->capture_default_str();
+    renderCommand->add_option("--tonemap", render.tonemap, "8-bit outputs: filmic (ACES fit, Narkowicz 2015) or none (clamp)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"filmic", "none"}));
+    renderCommand->add_option("--ground", render.ground,
+                              "Ground plane (real geometry, casts and receives): auto (under a single object: height >= 1/4 of "
+                              "its width, not already standing on a wider floor; not for .penumbra files), below (always, under "
+                              "the model), off, or y=VALUE")
+        ->capture_default_str();
+    renderCommand->add_option("--compare", render.compare,
+                              "Also write a side-by-side strip sm | srt | srt with the traced pixels red, to this image");
+    renderCommand->add_flag("--exr-layers", render.exrLayers,
+                            ".exr output: also write float channels visibility.light0, pip (pixels given rays) and Z (view depth)");
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
     renderCommand->add_option("--samples", render.samples, "Area lights, srt/frt: light samples per pixel (soft shadows)")->capture_default_str()->check(CLI::Range(4, 256));
     renderCommand->add_option("--penumbra-maps", render.penumbraMaps, "Area lights, srt: shadow maps whose edges mark the penumbra: 1 (centre) or 5 (centre and corners)")->capture_default_str()->check(CLI::IsMember({1, 5}));

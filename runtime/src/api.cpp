@@ -2,9 +2,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <unistd.h>
 
 #include <OpenImageIO/imageio.h>
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
@@ -51,9 +53,13 @@ Camera defaultCamera(const Bounds& bounds)
 
 Light defaultLight()
 {
+    // defaultCamera looks along -(0.9, 0.75, 1.3); its left is (-0.82, 0, 0.57)
+    // in the ground plane. The sun sits up, left and a little in front of the
+    // camera (about 50 degrees above the horizon), so cast shadows fall to the
+    // right of and behind what they fall from, in view.
     Light light;
     light.type = LightType::Directional;
-    light.direction = glm::normalize(glm::vec3(-0.45f, -1.0f, -0.3f));
+    light.direction = glm::normalize(glm::vec3(0.4f, -1.0f, -0.7f));
     light.intensity = 2.5f;
     return light;
 }
@@ -68,6 +74,191 @@ float linearToSrgb(float v)
 
 } // namespace
 
+const char* toneMapName(ToneMap curve)
+{
+    return curve == ToneMap::Filmic ? "filmic" : "none";
+}
+
+ToneMap parseToneMap(const std::string& name)
+{
+    if (name == "filmic")
+        return ToneMap::Filmic;
+    if (name == "none")
+        return ToneMap::None;
+    fail("--tonemap " + name, "unknown curve (expected filmic or none)");
+}
+
+float applyToneMap(float value, ToneMap curve)
+{
+    float x = std::fmax(value, 0.0f);
+    if (curve == ToneMap::Filmic) // Narkowicz 2015, ACES fitted
+        x = (x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f);
+    return std::fmin(x, 1.0f);
+}
+
+namespace {
+
+// The x >= 0 with applyToneMap(x) == y, 0 < y < 1.
+double inverseToneMap(double y, ToneMap curve)
+{
+    if (curve == ToneMap::None)
+        return y;
+    // y (2.43 x^2 + 0.59 x + 0.14) = 2.51 x^2 + 0.03 x, the positive root.
+    double a = 2.43 * y - 2.51, b = 0.59 * y - 0.03, c = 0.14 * y;
+    return (-b - std::sqrt(b * b - 4.0 * a * c)) / (2.0 * a);
+}
+
+} // namespace
+
+float autoExposure(const Image& image, ToneMap curve, const float background[3])
+{
+    constexpr double kPercentile = 0.95, kTarget = 0.8;
+    std::vector<float> luminance;
+    for (size_t i = 0; i + 3 < image.rgba.size(); i += 4) {
+        const float* p = &image.rgba[i];
+        if (p[0] == background[0] && p[1] == background[1] && p[2] == background[2])
+            continue;
+        luminance.push_back(0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]);
+    }
+    if (luminance.empty())
+        return 1.0f;
+    auto at = luminance.begin() + ptrdiff_t(double(luminance.size() - 1) * kPercentile);
+    std::nth_element(luminance.begin(), at, luminance.end());
+    if (!(*at > 0.0f) || !std::isfinite(*at))
+        return 1.0f;
+    return float(inverseToneMap(kTarget, curve) / double(*at));
+}
+
+std::vector<float> pipMask(const Image& plain, const Image& tinted)
+{
+    if (plain.rgba.size() != tinted.rgba.size())
+        fail("pipMask", "the two images differ in size");
+    std::vector<float> mask(plain.rgba.size() / 4, 0.0f);
+    for (size_t i = 0; i < mask.size(); ++i)
+        for (size_t c = 0; c < 3; ++c)
+            if (plain.rgba[i * 4 + c] != tinted.rgba[i * 4 + c])
+                mask[i] = 1.0f;
+    return mask;
+}
+
+std::vector<ImageLayer> frameLayers(const Frame& frame, const Camera& camera, const std::vector<float>& pip)
+{
+    size_t pixels = size_t(frame.color.width) * frame.color.height;
+    if (frame.visibility.size() != pixels || frame.positions.size() != pixels * 4)
+        fail("frameLayers", "the frame was rendered without readbackGBuffer");
+    std::vector<ImageLayer> layers;
+    layers.push_back({"visibility.light0", frame.visibility});
+    if (!pip.empty()) {
+        if (pip.size() != pixels)
+            fail("frameLayers", "the pip mask differs in size from the frame");
+        layers.push_back({"pip", pip});
+    }
+    ImageLayer depth{"Z", std::vector<float>(pixels, std::numeric_limits<float>::infinity())};
+    glm::vec3 forward = glm::normalize(camera.target - camera.position);
+    for (size_t i = 0; i < pixels; ++i) {
+        const float* p = &frame.positions[i * 4];
+        if (p[3] != 0.0f)
+            depth.values[i] = glm::dot(glm::vec3(p[0], p[1], p[2]) - camera.position, forward);
+    }
+    layers.push_back(std::move(depth));
+    return layers;
+}
+
+bool wantsGround(const Mesh& mesh)
+{
+    Bounds bounds = computeBounds(mesh);
+    if (bounds.empty())
+        return false;
+    glm::vec3 e = bounds.extent();
+    if (e.y < 0.25f * std::max(e.x, e.z))
+        return false; // wide and flat: a scene
+    float slab = bounds.min.y + 0.02f * e.y;
+    Bounds upper;
+    for (size_t v = 0; v < mesh.vertexCount(); ++v) {
+        glm::vec3 p = mesh.position(v);
+        if (p.y > slab) {
+            upper.min = glm::min(upper.min, p);
+            upper.max = glm::max(upper.max, p);
+        }
+    }
+    glm::vec3 u = upper.extent();
+    return !upper.empty() && double(u.x) * u.z >= 0.5 * double(e.x) * e.z;
+}
+
+float groundHeight(const Bounds& modelBounds)
+{
+    return modelBounds.min.y - 0.002f * glm::length(modelBounds.extent());
+}
+
+void addGround(Mesh& mesh, const Bounds& modelBounds, float y)
+{
+    constexpr uint32_t kQuads = 8;
+    glm::vec3 e = modelBounds.extent();
+    float reach = std::max(std::max(e.x, e.z), 1e-3f) + 3.0f * std::max(e.y, 0.0f);
+    glm::vec3 c = modelBounds.center();
+    float x0 = c.x - 0.5f * e.x - reach, x1 = c.x + 0.5f * e.x + reach;
+    float z0 = c.z - 0.5f * e.z - reach, z1 = c.z + 0.5f * e.z + reach;
+    uint32_t first = uint32_t(mesh.vertexCount());
+    for (uint32_t j = 0; j <= kQuads; ++j)
+        for (uint32_t i = 0; i <= kQuads; ++i) {
+            float u = float(i) / kQuads, v = float(j) / kQuads;
+            mesh.positions.insert(mesh.positions.end(), {x0 + (x1 - x0) * u, y, z0 + (z1 - z0) * v});
+        }
+    for (uint32_t j = 0; j < kQuads; ++j)
+        for (uint32_t i = 0; i < kQuads; ++i) {
+            uint32_t a = first + j * (kQuads + 1) + i, b = a + 1, d = a + kQuads + 1, c2 = d + 1;
+            // Counter-clockwise seen from +y: x grows to the right, z toward the viewer.
+            mesh.indices.insert(mesh.indices.end(), {a, d, b, b, d, c2});
+        }
+}
+
+Ground parseGround(const std::string& text)
+{
+    if (text == "auto") return {Ground::Kind::Auto};
+    if (text == "below") return {Ground::Kind::Below};
+    if (text == "off") return {Ground::Kind::Off};
+    if (text.rfind("y=", 0) == 0) {
+        char* stop = nullptr;
+        float y = std::strtof(text.c_str() + 2, &stop);
+        if (text.size() > 2 && *stop == '\0' && std::isfinite(y))
+            return {Ground::Kind::At, y};
+    }
+    fail("--ground " + text, "expected auto, below, off or y=VALUE");
+}
+
+bool applyGround(const Ground& ground, const Bounds& modelBounds, Mesh& mesh, CompressedModel& compressed)
+{
+    bool add = ground.kind == Ground::Kind::Below || ground.kind == Ground::Kind::At ||
+               (ground.kind == Ground::Kind::Auto && compressed.clusters.empty() && wantsGround(mesh));
+    if (!add)
+        return false;
+    if (!compressed.clusters.empty()) {
+        mesh = decodeMesh(compressed);
+        compressed = CompressedModel{};
+    }
+    addGround(mesh, modelBounds, ground.kind == Ground::Kind::At ? ground.y : groundHeight(modelBounds));
+    return true;
+}
+
+Mesh decodeMesh(const CompressedModel& model)
+{
+    Mesh mesh;
+    mesh.positions.reserve(model.vertices.size() * 3);
+    mesh.indices.reserve(model.header.triangleCount * 3);
+    for (const model::ClusterRecord& cluster : model.clusters) {
+        uint32_t first = uint32_t(mesh.vertexCount());
+        for (uint32_t v = 0; v < cluster.vertexCount; ++v) {
+            glm::vec3 p = decodePosition(cluster, model.vertices[cluster.firstVertex + v]);
+            mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
+        }
+        const uint8_t* strips = model.indices.data() + cluster.firstIndex;
+        forEachStripTriangle(strips, strips + cluster.indexBytes, [&](uint32_t a, uint32_t b, uint32_t c) {
+            mesh.indices.insert(mesh.indices.end(), {first + a, first + b, first + c});
+        });
+    }
+    return mesh;
+}
+
 void checkImagePath(const std::string& path)
 {
     size_t dot = path.find_last_of('.');
@@ -78,6 +269,11 @@ void checkImagePath(const std::string& path)
 }
 
 void writeImage(const Image& image, const std::string& path)
+{
+    writeImage(image, path, ImageOptions{});
+}
+
+void writeImage(const Image& image, const std::string& path, const ImageOptions& options)
 {
     checkImagePath(path);
     if (image.width == 0 || image.height == 0 || image.rgba.size() != size_t(image.width) * image.height * 4)
@@ -96,15 +292,49 @@ void writeImage(const Image& image, const std::string& path)
     auto out = OIIO::ImageOutput::create(path);
     if (!out)
         fail(path, "unsupported image format '" + extension + "'");
+    size_t pixels = size_t(image.width) * image.height;
+    if (!options.layers.empty() && extension != ".exr")
+        fail(path, "extra channels (layers) need an .exr output");
+    for (const ImageLayer& layer : options.layers)
+        if (layer.values.size() != pixels || layer.name.empty())
+            fail(path, "layer '" + layer.name + "' is unnamed or differs in size from the image");
     OIIO::ImageSpec spec(int(image.width), int(image.height), 4, floating ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::UINT8);
+    if (!options.layers.empty()) {
+        // R, G, B, A stay half; the layers are full float.
+        spec.nchannels = int(4 + options.layers.size());
+        spec.channelformats.assign(4, OIIO::TypeDesc::HALF);
+        for (const ImageLayer& layer : options.layers) {
+            spec.channelnames.push_back(layer.name);
+            spec.channelformats.push_back(OIIO::TypeDesc::FLOAT);
+        }
+        spec.z_channel = -1;
+        for (size_t i = 0; i < options.layers.size(); ++i)
+            if (options.layers[i].name == "Z")
+                spec.z_channel = int(4 + i);
+    }
     bool ok = out->open(temporary, spec);
     if (ok) {
-        if (floating) {
+        if (floating && !options.layers.empty()) {
+            size_t channels = 4 + options.layers.size();
+            std::vector<float> interleaved(pixels * channels);
+            for (size_t p = 0; p < pixels; ++p) {
+                std::copy_n(&image.rgba[p * 4], 4, &interleaved[p * channels]);
+                for (size_t l = 0; l < options.layers.size(); ++l)
+                    interleaved[p * channels + 4 + l] = options.layers[l].values[p];
+            }
+            ok = out->write_image(OIIO::TypeDesc::FLOAT, interleaved.data());
+        } else if (floating) {
             ok = out->write_image(OIIO::TypeDesc::FLOAT, image.rgba.data());
         } else {
+            // Exposure 1 and no curve: exactly the plain sRGB encoding of the linear values.
+            bool plain = options.exposure == 1.0f && options.tonemap == ToneMap::None;
             std::vector<uint8_t> bytes(image.rgba.size());
             for (size_t i = 0; i < image.rgba.size(); ++i) {
-                float v = (i % 4 == 3) ? std::fmin(std::fmax(image.rgba[i], 0.0f), 1.0f) : linearToSrgb(image.rgba[i]);
+                float v = image.rgba[i];
+                if (i % 4 == 3)
+                    v = std::fmin(std::fmax(v, 0.0f), 1.0f);
+                else
+                    v = linearToSrgb(plain ? v : applyToneMap(v * options.exposure, options.tonemap));
                 bytes[i] = uint8_t(std::lround(v * 255.0f));
             }
             ok = out->write_image(OIIO::TypeDesc::UINT8, bytes.data());

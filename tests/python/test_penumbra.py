@@ -137,6 +137,31 @@ class Preprocess(unittest.TestCase):
         with self.assertRaisesRegex(penumbra.Error, "the output must end in .penumbra"):
             penumbra.preprocess(CITY, os.path.join(TMP, "city.bin"))
 
+    def test_ground_exposure_tone_curve_and_exr_layers(self):
+        frames = {}
+        for ground in ("off", "below"):  # the city is wide: "auto" adds no ground to it
+            renderer = penumbra.Renderer(CITY, ground=ground)
+            renderer.set_camera(CAMERA)
+            renderer.set_lights([SUN])
+            frames[ground] = (renderer.render(size=SIZE, gbuffer=True), renderer.gbuffer)
+        lowest = {g: gbuffer["position"][..., 1][gbuffer["position"][..., 3] != 0].min() for g, (_, gbuffer) in frames.items()}
+        self.assertLess(lowest["below"], lowest["off"])
+
+        image, gbuffer = frames["below"]
+        plain, filmic = os.path.join(TMP, "plain.png"), os.path.join(TMP, "filmic.png")
+        penumbra.write_image(image, plain)
+        penumbra.write_image(image, filmic, exposure="auto", tonemap="filmic")
+        self.assertNotEqual(pathlib.Path(plain).read_bytes(), pathlib.Path(filmic).read_bytes())
+        exr = os.path.join(TMP, "layers.exr")
+        penumbra.write_image(image, exr, layers={"visibility.light0": gbuffer["visibility"]})
+        self.assertGreater(os.path.getsize(exr), 0)
+        with self.assertRaisesRegex(penumbra.Error, "--tonemap reinhard"):
+            penumbra.write_image(image, plain, tonemap="reinhard")
+        with self.assertRaisesRegex(penumbra.Error, "need an .exr output"):
+            penumbra.write_image(image, plain, layers={"pip": gbuffer["visibility"]})
+        with self.assertRaisesRegex(penumbra.Error, "--ground"):
+            penumbra.Renderer(CITY, ground="sideways")
+
 
 if __name__ == "__main__":
     unittest.main()

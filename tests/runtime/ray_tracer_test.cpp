@@ -28,23 +28,6 @@
 namespace penumbra {
 namespace {
 
-// The mesh the tracer actually sees: every stored triangle, decoded.
-Mesh decodedMesh(const CompressedModel& model)
-{
-    Mesh mesh;
-    for (const model::ClusterRecord& cluster : model.clusters) {
-        uint32_t base = uint32_t(mesh.vertexCount());
-        for (uint32_t v = 0; v < cluster.vertexCount; ++v) {
-            glm::vec3 p = decodePosition(cluster, model.vertices[cluster.firstVertex + v]);
-            mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
-        }
-        const uint8_t* strips = model.indices.data() + cluster.firstIndex;
-        forEachStripTriangle(strips, strips + cluster.indexBytes,
-                             [&](uint32_t a, uint32_t b, uint32_t c) { mesh.indices.insert(mesh.indices.end(), {base + a, base + b, base + c}); });
-    }
-    return mesh;
-}
-
 // The shadow-ray offset the runtime should use: quantization error dominates.
 float shadowRayOffset(const CompressedModel& model)
 {
@@ -298,7 +281,7 @@ void expectTracerMatchesOracle(const Mesh& mesh, const Camera& camera, const cha
     CompressedModel model = buildCompressedModel(mesh, PreprocessOptions{});
     const float offset = shadowRayOffset(model);
     GBuffer gbuffer = renderGBuffer(model, camera, size);
-    EmbreeOracle original(mesh), decoded(decodedMesh(model));
+    EmbreeOracle original(mesh), decoded(decodeMesh(model));
     TraceHarness harness(model, gbuffer, maxModelBufferBytes);
     if (maxModelBufferBytes) { // the chunked upload really is chunked
         EXPECT_GT(harness.model().chunks.size(), 2u);

@@ -226,13 +226,95 @@ private:
     std::unique_ptr<Impl> impl;
 };
 
-// Camera looking at the model from above and to the side; directional sun.
+// Camera looking at the model from above and to the side (from +x, +y, +z).
 Camera defaultCamera(const Bounds& bounds);
+// Directional sun from above, over the default camera's left shoulder, so a
+// model framed by defaultCamera shows its own cast shadow (on itself and on a
+// ground) beside and behind it.
 Light defaultLight();
+
+// Tone curve of 8-bit outputs (PNG, JPEG, ...): none clamps the exposed
+// linear value to [0, 1]; filmic is Krzysztof Narkowicz's fit of the ACES
+// reference rendering transform ("ACES Filmic Tone Mapping Curve", 2015):
+// (x (2.51 x + 0.03)) / (x (2.43 x + 0.59) + 0.14), per channel, then sRGB.
+enum class ToneMap { None, Filmic };
+
+const char* toneMapName(ToneMap curve);
+ToneMap parseToneMap(const std::string& name); // throws Error
+// The curve alone (linear in, display-linear out in [0, 1], before sRGB).
+float applyToneMap(float value, ToneMap curve);
+
+// A named float channel written after R, G, B, A to an OpenEXR file, full
+// (32-bit) precision: e.g. "visibility.light0", "pip", "Z". width x height
+// values, top row first.
+struct ImageLayer {
+    std::string name;
+    std::vector<float> values;
+};
+
+// How writeImage turns the linear frame into a file. The defaults write the
+// linear values unchanged (what writeImage has always written); the CLI
+// defaults to --exposure auto --tonemap filmic.
+struct ImageOptions {
+    // 8-bit outputs only: the linear RGB is multiplied by exposure, then the
+    // tone curve and sRGB encoding are applied. Float outputs (.exr, .hdr,
+    // .tif) keep the renderer's linear values.
+    float exposure = 1.0f;
+    ToneMap tonemap = ToneMap::None;
+    // .exr only: extra float channels (each width x height values).
+    std::vector<ImageLayer> layers;
+};
+
+// The automatic exposure: the 95th percentile of the luminance
+// (0.2126 R + 0.7152 G + 0.0722 B) of the covered pixels (those whose colour
+// is not exactly the background's) maps to 0.8 after the curve. 1 when no
+// pixel is covered or the percentile is 0.
+float autoExposure(const Image& image, ToneMap curve, const float background[3]);
 
 // Writes a PNG (8-bit sRGB), EXR (half float linear) or any other format
 // OpenImageIO knows by extension; to a temporary name, then renamed.
 void writeImage(const Image& image, const std::string& path);
+void writeImage(const Image& image, const std::string& path, const ImageOptions& options);
+
+// Layers of a frame rendered with RenderSettings::readbackGBuffer, for
+// ImageOptions::layers: "visibility.light0" (Frame::visibility: 1 lit, 0
+// shadowed, in between in a penumbra, -1 background), "Z" (depth along the
+// camera's view axis, model units; +infinity for the background) and, when
+// pip is not empty, "pip" (1 for the pixels given rays, else 0).
+std::vector<ImageLayer> frameLayers(const Frame& frame, const Camera& camera, const std::vector<float>& pip = {});
+// The pixels a debugPip render tinted: 1 where the two frames' colours
+// differ (same scene, settings differing only in debugPip), else 0.
+std::vector<float> pipMask(const Image& plain, const Image& tinted);
+
+// Ground plane (real geometry: it casts and receives like the model).
+// Rule for --ground auto: a single object gets a ground; a scene, or an
+// object already standing on its own floor, does not. The mesh counts as a
+// single object when its height (y extent) is at least a quarter of its
+// larger horizontal extent (wide, flat bounds, a city, a floor plan, a site,
+// are taken to hold their own ground), and it does not stand on its own
+// floor: the vertices above its lowest 2% of height cover at least half of
+// its bounds' horizontal area (a rock scanned on a wide plate does not).
+bool wantsGround(const Mesh& mesh);
+// Just below the model's lowest point: min.y - 0.002 x the bounds diagonal.
+float groundHeight(const Bounds& modelBounds);
+// Appends a square at height y, centred under the model, reaching
+// max(horizontal extents) + 3 x the height beyond the bounds on each side
+// (the shadow of a sun 20 degrees above the horizon), as 8 x 8 quads facing +y.
+void addGround(Mesh& mesh, const Bounds& modelBounds, float y);
+// A --ground choice: auto (wantsGround decides; not for compressed models,
+// which are drawn as stored), below (always, at groundHeight), off, or y=VALUE.
+struct Ground {
+    enum class Kind { Auto, Below, Off, At } kind = Kind::Off;
+    float y = 0.0f; // Kind::At
+};
+Ground parseGround(const std::string& text); // "auto", "below", "off", "y=VALUE"; throws Error
+// Adds the ground the choice asks for, for a model with these bounds, to mesh.
+// A compressed model (clusters not empty) is first decoded into mesh and
+// cleared, so the caller preprocesses mesh again. Returns whether it added one.
+bool applyGround(const Ground& ground, const Bounds& modelBounds, Mesh& mesh, CompressedModel& compressed);
+// Every triangle of a compressed model, decoded (positions as the GPU decodes
+// them), so a ground can be added and the model rebuilt.
+Mesh decodeMesh(const CompressedModel& model);
 // Throws Error when writeImage could not write this path's format.
 void checkImagePath(const std::string& path);
 
