@@ -122,6 +122,14 @@ TEST(BadPly, IndexOutOfRange)
     expectImportError("bad_index_ascii.ply", ascii, {"face 0 references vertex 4 but there are 4 vertices"});
 }
 
+TEST(BadPly, EmptyVertexElement)
+{
+    // Found by fuzz_ply: an empty vertex element in the fast float x,y,z path
+    // copied 0 bytes into a null pointer (undefined behaviour).
+    expectImportError("zero_vertices.ply", binaryPly({}, {{0, 1, 2}}),
+                      {"face 0 references vertex 0 but there are 0 vertices"});
+}
+
 TEST(BadPly, NonFinitePositions)
 {
     std::vector<float> positions = kQuad;
@@ -318,7 +326,24 @@ TEST(BadGltf, ReferencesAndBounds)
         makeGlb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "sparse": {}},
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
             triangleBin()),
-        {"sparse accessors are not supported"});
+        {"accessor 0 sparse has no 'count'"});
+    // Sparse indices outside the accessor, sparse values past their bufferView.
+    const std::string sparseAccessors = R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+        "sparse": {"count": 1, "indices": {"bufferView": 1, "componentType": 5123}, "values": {"bufferView": 0, "byteOffset": VALUES}}},
+        {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])";
+    auto sparseGlb = [&](const std::string& valuesOffset, uint16_t firstIndex) {
+        std::string accessors = sparseAccessors;
+        accessors.replace(accessors.find("VALUES"), 6, valuesOffset);
+        return makeGlb(triangleJson(accessors), triangleBin(2).replace(36, 2, std::string(reinterpret_cast<const char*>(&firstIndex), 2)));
+    };
+    expectImportError("sparse_index.glb", sparseGlb("0", 7), {"accessor 0 sparse: index 7 is outside the accessor's 3 elements"});
+    expectImportError("sparse_values.glb", sparseGlb("30", 0), {"truncated", "accessor 0 sparse values", "12 bytes at offset 30"});
+    // A zero-filled accessor (no bufferView) may not claim far more memory than the file holds.
+    expectImportError("zero_filled.glb",
+                      makeGlb(triangleJson(R"([{"componentType": 5126, "count": 1000000000, "type": "VEC3"}])",
+                                           R"({"attributes": {"POSITION": 0}})"),
+                              triangleBin()),
+                      {"accessor 0 has no bufferView and 1000000000 elements", "times the input size"});
 }
 
 TEST(BadGltf, CycleAndNonTriangles)
