@@ -3,6 +3,7 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "penumbra/mesh.h"
@@ -27,6 +28,10 @@ struct SceneDescription {
 // Every key is optional. Throws Error("<path>: <problem>") on bad JSON, unknown
 // keys or types, or wrong value shapes.
 SceneDescription loadSceneDescription(const std::string& path);
+
+// loadSceneDescription on JSON text in memory; path names it in messages and
+// anchors the relative model path.
+SceneDescription parseSceneDescription(std::string_view text, const std::string& path);
 
 // Parses a light from "TYPE key=value ...", e.g.
 // "spot position=0,5,0 direction=0,-1,0 outer_cone=30 intensity=50".
