@@ -401,6 +401,21 @@ TEST(BadDraco, GarbageAndTruncation)
     expectImportError("truncated.drc", bytes.substr(0, bytes.size() / 2), {"Draco"});
 }
 
+TEST(BadDraco, HostileCounts)
+{
+    // Found by fuzz_drc: 44 bytes (bitstream 1.248, edgebreaker, uint32 counts)
+    // claiming 269 M faces made libdraco allocate a 3.2 GB corner table.
+    const unsigned char bomb[] = {0x44, 0x52, 0x41, 0x43, 0x4f, 0x01, 0xf8, 0x01, 0x01, 0x4f, 0x4f, 0x02, 0x02, 0x01, 0x01,
+                                  0x08, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10,
+                                  0x10, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x08, 0x00};
+    expectImportError("bomb.drc", std::string(reinterpret_cast<const char*>(bomb), sizeof(bomb)),
+                      {"corrupt Draco data (claims 269488144 faces and 269488144 vertices in 44 bytes)"});
+    // The same in a current (2.2, varint) edgebreaker header: 2^27 faces in a 24-byte file.
+    std::string current = std::string("DRACO\x02\x02\x01\x01\x00\x00\x00", 12) + "\x80\x80\x80\x40" +
+                          "\x80\x80\x80\x40" + std::string(4, '\0');
+    expectImportError("bomb22.drc", current, {"claims 134217728 faces and 134217728 vertices in 24 bytes"});
+}
+
 // ---- export ----
 
 TEST(BadExport, Failures)
