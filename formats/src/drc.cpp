@@ -34,13 +34,52 @@ bool readCount(const uint8_t*& p, const uint8_t* end, bool varint, uint64_t& val
     return false;
 }
 
+// Moves p past a Draco metadata block (bitstream 1.3 and later): attribute
+// metadata and the file's, each a tree of elements {entries (name, varint size,
+// bytes), named sub-elements}. False when it runs past the end.
+bool skipDracoMetadata(const uint8_t*& p, const uint8_t* end)
+{
+    auto skipName = [&] {
+        if (p >= end || size_t(end - p) < size_t(1) + *p)
+            return false;
+        p += 1 + *p;
+        return true;
+    };
+    auto skipTree = [&] {
+        uint64_t pending = 1; // elements still to read; all but the root are preceded by a name
+        for (bool root = true; pending > 0; root = false) {
+            --pending;
+            uint64_t entries = 0, subs = 0;
+            if ((!root && !skipName()) || !readCount(p, end, true, entries))
+                return false;
+            for (uint64_t e = 0; e < entries; ++e) {
+                uint64_t size = 0;
+                if (!skipName() || !readCount(p, end, true, size) || size > uint64_t(end - p))
+                    return false;
+                p += size;
+            }
+            if (!readCount(p, end, true, subs) || subs > uint64_t(end - p))
+                return false;
+            pending += subs;
+        }
+        return true;
+    };
+    uint64_t attributes = 0, id = 0;
+    if (!readCount(p, end, true, attributes) || attributes > uint64_t(end - p))
+        return false;
+    for (uint64_t a = 0; a < attributes; ++a)
+        if (!readCount(p, end, true, id) || !skipTree())
+            return false;
+    return skipTree();
+}
+
 // libdraco sizes its tables from the face and vertex counts in the
 // connectivity header before it reads the data, so a few hostile bytes can
 // make it allocate gigabytes (a 44-byte .drc asked for 3.2 GB). This reads
 // those counts as the decoder does (bitstream 1.x uses fixed uint32 counts,
 // 2.x varints; edgebreaker before 2.2 has an extra new-vertex count) and
 // rejects counts no encoder could fit in the data: more than 2^20 + 1024 per
-// byte. Files with metadata (header flag 0x8000) are not checked.
+// byte. Metadata (header flag 0x8000, read from bitstream 1.3) is skipped first.
 void checkDracoCounts(const std::string& path, const std::string& prefix, const uint8_t* data, size_t size)
 {
     if (size < 11 || std::memcmp(data, "DRACO", 5) != 0)
@@ -49,10 +88,12 @@ void checkDracoCounts(const std::string& path, const std::string& prefix, const 
     const bool mesh = data[7] == 1;
     const int method = data[8];
     const uint16_t flags = uint16_t(data[9] | data[10] << 8);
-    if (!mesh || (flags & 0x8000) || method > 1)
+    if (!mesh || method > 1)
         return;
     const uint8_t* p = data + 11;
     const uint8_t* end = data + size;
+    if ((flags & 0x8000) && version >= 0x103 && !skipDracoMetadata(p, end))
+        return; // the decoder reports it
     const bool varint = version >= 0x200;
     uint64_t faces = 0, vertices = 0, unused = 0;
     bool ok;

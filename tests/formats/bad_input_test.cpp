@@ -414,6 +414,18 @@ TEST(BadDraco, HostileCounts)
     std::string current = std::string("DRACO\x02\x02\x01\x01\x00\x00\x00", 12) + "\x80\x80\x80\x40" +
                           "\x80\x80\x80\x40" + std::string(4, '\0');
     expectImportError("bomb22.drc", current, {"claims 134217728 faces and 134217728 vertices in 24 bytes"});
+    // Found by fuzz_drc next: bitstream 1.1 with the metadata flag set (metadata exists only
+    // from 1.3, so libdraco ignores the flag) claiming 505 M faces (a 6 GB corner table).
+    const unsigned char oldFlag[] = {0x44, 0x52, 0x41, 0x43, 0x4f, 0x01, 0x01, 0x01, 0x01, 0x00, 0xab, 0x00,
+                                     0x09, 0x08, 0x52, 0x44, 0x00, 0x01, 0x7e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e,
+                                     0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e};
+    expectImportError("bomb_flag.drc", std::string(reinterpret_cast<const char*>(oldFlag), sizeof(oldFlag)),
+                      {"claims 505290270 faces"});
+    // 2.2 with metadata (one file entry "k" = 1 byte, one empty sub-element "s") before the counts.
+    std::string withMetadata = std::string("DRACO\x02\x02\x01\x01\x00\x80", 11) +
+                               std::string("\x00\x01\x01k\x01v\x01\x01s\x00\x00", 11) + std::string(1, '\0') +
+                               "\x80\x80\x80\x40" + "\x80\x80\x80\x40" + std::string(4, '\0');
+    expectImportError("bomb_metadata.drc", withMetadata, {"claims 134217728 faces and 134217728 vertices"});
 }
 
 // ---- export ----
