@@ -10,6 +10,112 @@
 #include "io_internal.h"
 
 namespace penumbra::detail {
+namespace {
+
+// Reads a Draco varint (7 bits a byte, low first) or a little-endian uint32.
+bool readCount(const uint8_t*& p, const uint8_t* end, bool varint, uint64_t& value)
+{
+    value = 0;
+    if (!varint) {
+        if (end - p < 4)
+            return false;
+        value = uint64_t(p[0]) | uint64_t(p[1]) << 8 | uint64_t(p[2]) << 16 | uint64_t(p[3]) << 24;
+        p += 4;
+        return true;
+    }
+    for (int shift = 0; shift < 35; shift += 7) {
+        if (p >= end)
+            return false;
+        uint8_t byte = *p++;
+        value |= uint64_t(byte & 0x7f) << shift;
+        if (!(byte & 0x80))
+            return true;
+    }
+    return false;
+}
+
+// Moves p past a Draco metadata block (bitstream 1.3 and later): attribute
+// metadata and the file's, each a tree of elements {entries (name, varint size,
+// bytes), named sub-elements}. False when it runs past the end.
+bool skipDracoMetadata(const uint8_t*& p, const uint8_t* end)
+{
+    auto skipName = [&] {
+        if (p >= end || size_t(end - p) < size_t(1) + *p)
+            return false;
+        p += 1 + *p;
+        return true;
+    };
+    auto skipTree = [&] {
+        uint64_t pending = 1; // elements still to read; all but the root are preceded by a name
+        for (bool root = true; pending > 0; root = false) {
+            --pending;
+            uint64_t entries = 0, subs = 0;
+            if ((!root && !skipName()) || !readCount(p, end, true, entries))
+                return false;
+            for (uint64_t e = 0; e < entries; ++e) {
+                uint64_t size = 0;
+                if (!skipName() || !readCount(p, end, true, size) || size > uint64_t(end - p))
+                    return false;
+                p += size;
+            }
+            if (!readCount(p, end, true, subs) || subs > uint64_t(end - p))
+                return false;
+            pending += subs;
+        }
+        return true;
+    };
+    uint64_t attributes = 0, id = 0;
+    if (!readCount(p, end, true, attributes) || attributes > uint64_t(end - p))
+        return false;
+    for (uint64_t a = 0; a < attributes; ++a)
+        if (!readCount(p, end, true, id) || !skipTree())
+            return false;
+    return skipTree();
+}
+
+// libdraco sizes its tables from the face and vertex counts in the
+// connectivity header before it reads the data, so a few hostile bytes can
+// make it allocate gigabytes (a 44-byte .drc asked for 3.2 GB). This reads
+// those counts as the decoder does (bitstream 1.x uses fixed uint32 counts,
+// 2.x varints; edgebreaker before 2.2 has an extra new-vertex count) and
+// rejects counts no encoder could fit in the data: more than 2^20 + 1024 per
+// byte. Metadata (header flag 0x8000, read from bitstream 1.3) is skipped first.
+void checkDracoCounts(const std::string& path, const std::string& prefix, const uint8_t* data, size_t size)
+{
+    if (size < 11 || std::memcmp(data, "DRACO", 5) != 0)
+        return; // the decoder reports it
+    const int version = data[5] * 256 + data[6];
+    const bool mesh = data[7] == 1;
+    const int method = data[8];
+    const uint16_t flags = uint16_t(data[9] | data[10] << 8);
+    if (!mesh || method > 1)
+        return;
+    const uint8_t* p = data + 11;
+    const uint8_t* end = data + size;
+    if ((flags & 0x8000) && version >= 0x103 && !skipDracoMetadata(p, end))
+        return; // the decoder reports it
+    const bool varint = version >= 0x200;
+    uint64_t faces = 0, vertices = 0, unused = 0;
+    bool ok;
+    if (method == 0) { // sequential: faces, points; varints from 2.2
+        const bool v22 = version >= 0x202;
+        ok = readCount(p, end, v22, faces) && readCount(p, end, v22, vertices);
+    } else { // edgebreaker: traversal type, [new vertices before 2.2], encoded vertices, faces
+        ok = p < end;
+        ++p;
+        if (ok && version < 0x202)
+            ok = readCount(p, end, varint, unused);
+        ok = ok && readCount(p, end, varint, vertices) && readCount(p, end, varint, faces);
+    }
+    if (!ok)
+        return; // truncated: the decoder reports it
+    const uint64_t limit = (uint64_t(1) << 20) + uint64_t(size) * 1024;
+    if (faces > limit || vertices > limit)
+        fail(path, prefix + "corrupt Draco data (claims " + std::to_string(faces) + " faces and " +
+                       std::to_string(vertices) + " vertices in " + std::to_string(size) + " bytes)");
+}
+
+} // namespace
 
 DecodedDraco decodeDraco(const std::string& path, const std::string& what, const uint8_t* data, size_t size,
                          int64_t positionUniqueId)
@@ -24,11 +130,18 @@ DecodedDraco decodeDraco(const std::string& path, const std::string& what, const
         fail(path, prefix + "no triangles (Draco point cloud)");
     if (type.value() != draco::TRIANGULAR_MESH)
         fail(path, prefix + "unsupported Draco geometry type");
+    checkDracoCounts(path, prefix, data, size);
     draco::Decoder decoder;
-    auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
-    if (!decoded.ok())
-        fail(path, prefix + "corrupt Draco data (" + decoded.status().error_msg_string() + ")");
-    const draco::Mesh& mesh = *decoded.value();
+    std::unique_ptr<draco::Mesh> decodedMesh;
+    try {
+        auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+        if (!decoded.ok())
+            fail(path, prefix + "corrupt Draco data (" + decoded.status().error_msg_string() + ")");
+        decodedMesh = std::move(decoded).value();
+    } catch (const std::bad_alloc&) {
+        fail(path, prefix + "corrupt Draco data (the decoder ran out of memory)");
+    }
+    const draco::Mesh& mesh = *decodedMesh;
     const draco::PointAttribute* position = positionUniqueId >= 0
                                                 ? mesh.GetAttributeByUniqueId(uint32_t(positionUniqueId))
                                                 : mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);

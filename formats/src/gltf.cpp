@@ -5,6 +5,7 @@
 // The JSON is parsed with nlohmann::json; every index, offset and length is
 // range-checked against the arrays and buffers before it is used.
 #include <cmath>
+#include <map>
 #include <memory>
 #include <span>
 
@@ -29,6 +30,9 @@ constexpr uint32_t kChunkBin = 0x004E4942;            // "BIN\0"
 constexpr uint64_t kMaxTriangles = uint64_t(1) << 30; // after instancing; bounds memory for hostile node graphs
 constexpr uint64_t kMaxVertices = uint64_t(1) << 30;  // after instancing
 constexpr size_t kMaxNodeDepth = 1024;
+// Accessors without a bufferView (zeros plus sparse values) may take at most
+// this many times the input size (plus 1 MiB), so a tiny file cannot claim gigabytes.
+constexpr uint64_t kMaterializeFactor = 16;
 constexpr double kPi = 3.14159265358979323846;
 
 const json* member(const json& object, const char* key)
@@ -167,6 +171,7 @@ class GltfReader {
                     fail(path, "requires unsupported extension " + quoteToken(extension));
             }
         }
+        materializeBudget_ = (uint64_t(1) << 20) + kMaterializeFactor * file.size();
         buffers_.resize(arraySize("buffers"));
         bufferLoaded_.resize(buffers_.size(), false);
     }
@@ -206,6 +211,8 @@ class GltfReader {
                 appendMesh(index(*mesh, where + " mesh"), world, scene.mesh, where);
             if (const json* camera = member(node, "camera"))
                 cameras.push_back(readCamera(index(*camera, where + " camera"), world));
+            if (const json* extensions = member(node, "extensions"); extensions && member(*extensions, "EXT_mesh_gpu_instancing"))
+                ++instancedNodes_;
             if (const json* extensions = member(node, "extensions"))
                 if (const json* lights = member(*extensions, "KHR_lights_punctual"))
                     if (const json* light = member(*lights, "light"))
@@ -222,6 +229,13 @@ class GltfReader {
                 fail(path_, "no triangles (points or lines only)");
             fail(path_, "no triangles (the scene has no mesh primitives)");
         }
+        if (nonTriangle_ > 0)
+            importWarning(path_, "gltf-modes",
+                          "skipped " + std::to_string(nonTriangle_) + " point and line primitives");
+        if (instancedNodes_ > 0)
+            importWarning(path_, "gltf-instancing",
+                          "ignored EXT_mesh_gpu_instancing on " + std::to_string(instancedNodes_) +
+                              " nodes (each mesh is placed once, at its node)");
         // Cameras without a stored target distance aim at the scene's centre distance.
         glm::vec3 center = computeBounds(scene.mesh).center();
         for (PendingCamera& pending : cameras) {
@@ -466,29 +480,105 @@ class GltfReader {
         if (const json* normalized = member(a, "normalized"))
             view.normalized = normalized->is_boolean() && normalized->get<bool>();
         view.count = requiredUint(a, "count", name);
-        if (member(a, "sparse"))
-            fail(path_, name + ": sparse accessors are not supported");
-        if (!member(a, "bufferView"))
-            fail(path_, name + " has no bufferView (zero-filled accessors are not supported)");
-        size_t stride = 0;
-        std::span<const uint8_t> bytes = bufferView(requiredUint(a, "bufferView", name), name, &stride);
         const size_t elementSize = componentSize * size_t(view.components);
-        if (stride == 0)
-            stride = elementSize;
-        if (stride < elementSize)
-            fail(path_, name + ": byteStride " + std::to_string(stride) + " is smaller than the element size " +
-                            std::to_string(elementSize));
-        uint64_t offset = optionalUint(a, "byteOffset", 0, name);
-        if (view.count > 0) {
-            if (offset > bytes.size() || view.count - 1 > (bytes.size() - offset) / stride ||
-                (view.count - 1) * stride + elementSize > bytes.size() - offset)
-                fail(path_, "truncated: " + name + " (" + std::to_string(view.count) + " elements of " +
-                                std::to_string(elementSize) + " bytes, stride " + std::to_string(stride) +
-                                ") runs past the end of its bufferView (" + std::to_string(bytes.size()) + " bytes)");
-            view.data = bytes.data() + offset;
+        const json* sparse = member(a, "sparse");
+        const bool hasView = member(a, "bufferView") != nullptr;
+        if (hasView) {
+            size_t stride = 0;
+            std::span<const uint8_t> bytes = bufferView(requiredUint(a, "bufferView", name), name, &stride);
+            if (stride == 0)
+                stride = elementSize;
+            if (stride < elementSize)
+                fail(path_, name + ": byteStride " + std::to_string(stride) + " is smaller than the element size " +
+                                std::to_string(elementSize));
+            uint64_t offset = optionalUint(a, "byteOffset", 0, name);
+            if (view.count > 0) {
+                if (offset > bytes.size() || view.count - 1 > (bytes.size() - offset) / stride ||
+                    (view.count - 1) * stride + elementSize > bytes.size() - offset)
+                    fail(path_, "truncated: " + name + " (" + std::to_string(view.count) + " elements of " +
+                                    std::to_string(elementSize) + " bytes, stride " + std::to_string(stride) +
+                                    ") runs past the end of its bufferView (" + std::to_string(bytes.size()) +
+                                    " bytes)");
+                view.data = bytes.data() + offset;
+            }
+            view.stride = stride;
+            if (!sparse)
+                return view;
         }
-        view.stride = stride;
+        // Without a bufferView the accessor is all zeros; sparse values replace some elements.
+        // Both are materialized once per accessor, tightly packed.
+        auto cached = materialized_.find(i);
+        if (cached == materialized_.end()) {
+            std::vector<uint8_t> values;
+            if (!hasView) {
+                if (view.count > materializeBudget_ / elementSize)
+                    fail(path_, name + " has no bufferView and " + std::to_string(view.count) + " elements of " +
+                                    std::to_string(elementSize) + " bytes: more than " +
+                                    std::to_string(kMaterializeFactor) +
+                                    " times the input size in zero-filled accessors");
+                materializeBudget_ -= view.count * elementSize;
+                values.assign(size_t(view.count) * elementSize, 0);
+            } else {
+                values.resize(size_t(view.count) * elementSize);
+                for (uint64_t e = 0; e < view.count; ++e)
+                    std::memcpy(values.data() + e * elementSize, view.data + e * view.stride, elementSize);
+            }
+            if (sparse)
+                applySparse(*sparse, name, view.count, elementSize, values);
+            cached = materialized_.emplace(i, std::move(values)).first;
+        }
+        view.data = cached->second.empty() ? nullptr : cached->second.data();
+        view.stride = elementSize;
         return view;
+    }
+
+    // Bytes [offset, offset + size) of bufferView `viewIndex` (glTF sparse indices and values).
+    const uint8_t* viewBytes(const json& object, uint64_t size, const std::string& where)
+    {
+        std::span<const uint8_t> bytes = bufferView(requiredUint(object, "bufferView", where), where, nullptr);
+        uint64_t offset = optionalUint(object, "byteOffset", 0, where);
+        if (offset > bytes.size() || size > bytes.size() - offset)
+            fail(path_, "truncated: " + where + " (" + std::to_string(size) + " bytes at offset " +
+                            std::to_string(offset) + ") runs past the end of its bufferView (" +
+                            std::to_string(bytes.size()) + " bytes)");
+        return bytes.data() + offset;
+    }
+
+    // Replaces the elements listed by a sparse accessor's indices with its values.
+    void applySparse(const json& sparse, const std::string& name, uint64_t count, size_t elementSize,
+                     std::vector<uint8_t>& values)
+    {
+        const std::string where = name + " sparse";
+        const uint64_t sparseCount = requiredUint(sparse, "count", where);
+        const json* indices = member(sparse, "indices");
+        const json* replacements = member(sparse, "values");
+        if (!indices || !indices->is_object() || !replacements || !replacements->is_object())
+            fail(path_, where + " needs 'indices' and 'values' objects");
+        const uint64_t indexType = requiredUint(*indices, "componentType", where + " indices");
+        const size_t indexSize = indexType == 5121 ? 1 : indexType == 5123 ? 2 : indexType == 5125 ? 4 : 0;
+        if (indexSize == 0)
+            fail(path_, where + " indices: componentType " + std::to_string(indexType) +
+                            " is not unsigned byte, short or int");
+        // Both arrays must lie in their bufferViews, which bounds sparseCount by the input size.
+        if (sparseCount > UINT64_MAX / 64)
+            fail(path_, where + ": count " + std::to_string(sparseCount) + " is too large");
+        const uint8_t* indexBytes = viewBytes(*indices, sparseCount * indexSize, where + " indices");
+        const uint8_t* valueBytes = viewBytes(*replacements, sparseCount * elementSize, where + " values");
+        for (uint64_t k = 0; k < sparseCount; ++k) {
+            uint32_t target = 0;
+            if (indexSize == 1)
+                target = indexBytes[k];
+            else if (indexSize == 2) {
+                uint16_t v;
+                std::memcpy(&v, indexBytes + k * 2, 2);
+                target = v;
+            } else
+                std::memcpy(&target, indexBytes + k * 4, 4);
+            if (target >= count)
+                fail(path_, where + ": index " + std::to_string(target) + " is outside the accessor's " +
+                                std::to_string(count) + " elements");
+            std::memcpy(values.data() + size_t(target) * elementSize, valueBytes + k * elementSize, elementSize);
+        }
     }
 
     // ---- scene graph ----
@@ -583,7 +673,8 @@ class GltfReader {
     static void transformInto(float* dst, const float* src, size_t count, const glm::mat4& m)
     {
         if (m == glm::mat4(1.0f)) {
-            std::memcpy(dst, src, count * 12);
+            if (count > 0) // dst and src may be null when there is nothing to copy
+                std::memcpy(dst, src, count * 12);
             return;
         }
         for (size_t i = 0; i < count; ++i) {
@@ -677,7 +768,8 @@ class GltfReader {
         out.positions.resize(out.positions.size() + size_t(vertexCount) * 3);
         float* dst = out.positions.data() + base * 3;
         if (positions.componentType == 5126 && positions.stride == 12) {
-            std::memcpy(dst, positions.data, size_t(vertexCount) * 12);
+            if (vertexCount > 0) // positions.data and dst are null for an empty accessor
+                std::memcpy(dst, positions.data, size_t(vertexCount) * 12);
             if (matrix != glm::mat4(1.0f))
                 transformInto(dst, dst, size_t(vertexCount), matrix);
         } else {
@@ -879,7 +971,10 @@ class GltfReader {
     std::vector<bool> bufferLoaded_;
     std::vector<std::vector<uint8_t>> decoded_;
     std::vector<std::unique_ptr<MappedFile>> external_;
+    std::map<uint64_t, std::vector<uint8_t>> materialized_; // sparse and zero-filled accessors
+    uint64_t materializeBudget_ = 0; // bytes zero-filled accessors may still take
     size_t nonTriangle_ = 0;
+    size_t instancedNodes_ = 0;
 };
 
 // ---- export helpers ----

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -43,11 +44,18 @@ MappedFile::MappedFile(const std::string& path)
     if (mapped == MAP_FAILED)
         fail(path, std::string("cannot map file: ") + std::strerror(err));
     data_ = static_cast<const uint8_t*>(mapped);
+    mapped_ = true;
+}
+
+MappedFile::MappedFile(const std::string& path, const uint8_t* data, size_t size) : data_(data), size_(size)
+{
+    if (size_ == 0)
+        fail(path, "empty file");
 }
 
 MappedFile::~MappedFile()
 {
-    if (data_)
+    if (mapped_)
         ::munmap(const_cast<uint8_t*>(data_), size_);
 }
 
@@ -117,6 +125,26 @@ void AtomicFileWriter::commit()
     if (std::rename(tempPath_.c_str(), path_.c_str()) != 0)
         fail(path_, std::string("cannot rename temporary file: ") + std::strerror(errno));
     committed_ = true;
+}
+
+namespace {
+struct PendingWarning {
+    std::string kind, message;
+};
+// The warnings of the importScene call running on this thread (null outside one).
+thread_local std::vector<PendingWarning>* pendingWarnings = nullptr;
+} // namespace
+
+void importWarning(const std::string& path, const std::string& kind, const std::string& message)
+{
+    if (!pendingWarnings) {
+        warn(path, message);
+        return;
+    }
+    for (const PendingWarning& pending : *pendingWarnings)
+        if (pending.kind == kind)
+            return;
+    pendingWarnings->push_back({kind, message});
 }
 
 std::string quoteToken(std::string_view token)
@@ -241,10 +269,18 @@ ModelFormat formatFromPath(const std::string& path)
                            : "unknown model format '." + ext + "' (expected .obj, .ply, .stl, .gltf, .glb or .drc)");
 }
 
-Scene importScene(const std::string& path)
+namespace {
+
+std::atomic<WarningSink> warningSink{nullptr};
+
+Scene importFile(const std::string& path, ModelFormat format, const detail::MappedFile& file)
 {
-    ModelFormat format = formatFromPath(path);
-    detail::MappedFile file(path);
+    std::vector<detail::PendingWarning> warnings;
+    struct Scope {
+        std::vector<detail::PendingWarning>* previous;
+        ~Scope() { detail::pendingWarnings = previous; }
+    } scope{detail::pendingWarnings};
+    detail::pendingWarnings = &warnings;
     Scene scene;
     switch (format) {
     case ModelFormat::Obj:
@@ -269,7 +305,39 @@ Scene importScene(const std::string& path)
     if (scene.mesh.triangleCount() == 0)
         fail(path, "no triangles");
     detail::validateMesh(path, scene.mesh);
+    for (const detail::PendingWarning& warning : warnings)
+        warn(path, warning.message);
     return scene;
+}
+
+} // namespace
+
+WarningSink setWarningSink(WarningSink sink)
+{
+    return warningSink.exchange(sink);
+}
+
+void warn(const std::string& subject, const std::string& problem)
+{
+    std::string line = subject + ": " + problem;
+    if (WarningSink sink = warningSink.load())
+        sink(line);
+    else
+        std::fprintf(stderr, "penumbra: warning: %s\n", line.c_str());
+}
+
+Scene importScene(const std::string& path)
+{
+    ModelFormat format = formatFromPath(path);
+    detail::MappedFile file(path);
+    return importFile(path, format, file);
+}
+
+Scene importSceneMemory(std::span<const uint8_t> bytes, const std::string& name)
+{
+    ModelFormat format = formatFromPath(name);
+    detail::MappedFile file(name, bytes.data(), bytes.size());
+    return importFile(name, format, file);
 }
 
 void exportScene(const Scene& scene, const std::string& path, const ExportOptions& options)

@@ -20,6 +20,9 @@ namespace penumbra::detail {
 class MappedFile {
   public:
     explicit MappedFile(const std::string& path);
+    // A view of bytes owned by the caller (in-memory import); throws
+    // Error("<path>: empty file") when there are none.
+    MappedFile(const std::string& path, const uint8_t* data, size_t size);
     ~MappedFile();
     MappedFile(const MappedFile&) = delete;
     MappedFile& operator=(const MappedFile&) = delete;
@@ -31,6 +34,7 @@ class MappedFile {
   private:
     const uint8_t* data_ = nullptr;
     size_t size_ = 0;
+    bool mapped_ = false;
 };
 
 // Buffered writer to "<path>.tmp-<pid>"; commit() flushes, closes and renames
@@ -130,6 +134,12 @@ struct TextCursor {
         return {start, size_t(p - start)};
     }
 };
+
+// Records a non-fatal problem of the import in progress (a skipped feature).
+// importScene reports the first message of each kind once, through
+// penumbra::warn(path, message), when the import succeeds; outside
+// importScene the message is reported at once.
+void importWarning(const std::string& path, const std::string& kind, const std::string& message);
 
 // Token text for an error message: at most 40 characters, printable only.
 std::string quoteToken(std::string_view token);

@@ -2,6 +2,7 @@
 
 #include <glm/common.hpp>
 
+#include "io_internal.h"
 #include "penumbra/error.h"
 
 namespace penumbra {
@@ -36,7 +37,7 @@ LightType parseLightType(const std::string& name)
                            LightType::Disk, LightType::Sphere})
         if (name == lightTypeName(type))
             return type;
-    fail("light type '" + name + "'", "unknown (expected point, spot, directional, rectangle, disk or sphere)");
+    fail("light type " + detail::quoteToken(name), "unknown (expected point, spot, directional, rectangle, disk or sphere)");
 }
 
 } // namespace penumbra

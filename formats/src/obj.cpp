@@ -8,6 +8,25 @@
 namespace penumbra::detail {
 namespace {
 
+// Next token of a v or f record: a lone '\' continues the record on the next
+// line, and '#' starts a comment that ends it (an empty token at the end).
+std::string_view recordToken(TextCursor& cursor)
+{
+    for (;;) {
+        std::string_view token = cursor.token();
+        if (token == "\\") {
+            cursor.skipLine();
+            continue;
+        }
+        if (!token.empty() && token[0] == '#') {
+            const void* nl = std::memchr(cursor.p, '\n', size_t(cursor.end - cursor.p));
+            cursor.p = nl ? static_cast<const char*>(nl) : cursor.end;
+            return {};
+        }
+        return token;
+    }
+}
+
 // Parses the vertex part of a face corner ("12", "-3/4/5", "7//2").
 bool parseCorner(std::string_view token, int64_t& index)
 {
@@ -42,7 +61,7 @@ Scene importObj(const std::string& path, const MappedFile& file)
             cursor.p += 2;
             float xyz[3];
             for (float& value : xyz) {
-                std::string_view token = cursor.token();
+                std::string_view token = recordToken(cursor);
                 if (token.empty())
                     lineFail("vertex has fewer than 3 coordinates");
                 if (!parseFloat(token, value))
@@ -54,13 +73,9 @@ Scene importObj(const std::string& path, const MappedFile& file)
             polygon.clear();
             const int64_t vertexCount = int64_t(mesh.positions.size() / 3);
             for (;;) {
-                std::string_view token = cursor.token();
+                std::string_view token = recordToken(cursor);
                 if (token.empty())
                     break;
-                if (token == "\\") { // line continuation
-                    cursor.skipLine();
-                    continue;
-                }
                 int64_t index = 0;
                 if (!parseCorner(token, index))
                     lineFail("malformed face corner " + quoteToken(token));
@@ -109,6 +124,12 @@ Scene importObj(const std::string& path, const MappedFile& file)
             fail(path, "no vertices or faces (not an OBJ file?)");
         fail(path, "no triangles (" + std::to_string(vertexCount) + " vertices but no faces)");
     }
+    if (pointOrLineRecords > 0)
+        importWarning(path, "obj-lines",
+                      "skipped " + std::to_string(pointOrLineRecords) + " 'l'/'p' records (lines and points)");
+    if (degenerateFaces > 0)
+        importWarning(path, "obj-degenerate",
+                      "skipped " + std::to_string(degenerateFaces) + " faces with fewer than 3 vertices");
     return scene;
 }
 

@@ -361,7 +361,8 @@ class BinaryPlyReader {
                               element.properties[size_t(iz)].type == PlyType::Float32;
         if (allFloat && !swap_ && offsets[1] == offsets[0] + 4 && offsets[2] == offsets[0] + 8) {
             if (stride == 12) {
-                std::memcpy(out, base, count * 12);
+                if (count > 0) // out is null for an empty vertex element
+                    std::memcpy(out, base, count * 12);
             } else {
                 for (size_t v = 0; v < count; ++v)
                     std::memcpy(out + v * 3, base + v * stride + offsets[0], 12);
@@ -730,6 +731,15 @@ Scene importPly(const std::string& path, const MappedFile& file)
     }
     if (mesh.indices.empty())
         fail(path, "no triangles (all " + std::to_string(faceElement->count) + " faces have fewer than 3 vertices)");
+    if (stats.degenerate > 0)
+        importWarning(path, "ply-degenerate",
+                      "skipped " + std::to_string(stats.degenerate) + " faces with fewer than 3 vertices");
+    std::string skipped;
+    for (const PlyElement& element : header.elements)
+        if (&element != vertexElement && &element != faceElement && element.count > 0)
+            skipped += (skipped.empty() ? "'" : ", '") + element.name + "' (" + std::to_string(element.count) + ")";
+    if (!skipped.empty())
+        importWarning(path, "ply-elements", "skipped elements " + skipped);
     return scene;
 }
 

@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
+#include "io_internal.h"
 #include "penumbra/error.h"
 
 namespace penumbra {
@@ -38,7 +39,7 @@ void rejectUnknownKeys(const Json& object, const std::set<std::string>& known, c
 {
     for (auto it = object.begin(); it != object.end(); ++it)
         if (!known.count(it.key()))
-            fail(subject, "unknown key '" + it.key() + "'");
+            fail(subject, "unknown key " + detail::quoteToken(it.key()));
 }
 
 // Applies one light property; false when key is not a light property.
@@ -122,7 +123,7 @@ Light parseLight(const Json& object, const std::string& subject)
     light.type = lightTypeIn(object["type"].get<std::string>(), subject);
     for (auto it = object.begin(); it != object.end(); ++it)
         if (it.key() != "type" && !setLightProperty(light, it.key(), it.value(), subject))
-            fail(subject, "unknown light key '" + it.key() + "'");
+            fail(subject, "unknown light key " + detail::quoteToken(it.key()));
     validateLight(light, subject);
     return light;
 }
@@ -153,11 +154,11 @@ Camera parseCamera(const Json& object, const std::string& subject)
     return camera;
 }
 
-Json parseJsonText(const std::string& text, const std::string& subject)
+Json parseJsonText(std::string_view text, const std::string& subject)
 {
     try {
-        return Json::parse(text);
-    } catch (const Json::parse_error& e) {
+        return Json::parse(text.begin(), text.end());
+    } catch (const Json::exception& e) { // parse_error, or out_of_range for a number like 1e400
         fail(subject, std::string("invalid JSON: ") + e.what());
     }
 }
@@ -171,7 +172,12 @@ SceneDescription loadSceneDescription(const std::string& path)
         fail(path, "cannot open scene file");
     std::stringstream text;
     text << file.rdbuf();
-    Json root = parseJsonText(text.str(), path);
+    return parseSceneDescription(text.str(), path);
+}
+
+SceneDescription parseSceneDescription(std::string_view text, const std::string& path)
+{
+    Json root = parseJsonText(text, path);
     if (!root.is_object())
         fail(path, "the scene must be a JSON object");
     rejectUnknownKeys(root, {"model", "camera", "lights"}, path);

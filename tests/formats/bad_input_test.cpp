@@ -122,6 +122,14 @@ TEST(BadPly, IndexOutOfRange)
     expectImportError("bad_index_ascii.ply", ascii, {"face 0 references vertex 4 but there are 4 vertices"});
 }
 
+TEST(BadPly, EmptyVertexElement)
+{
+    // Found by fuzz_ply: an empty vertex element in the fast float x,y,z path
+    // copied 0 bytes into a null pointer (undefined behaviour).
+    expectImportError("zero_vertices.ply", binaryPly({}, {{0, 1, 2}}),
+                      {"face 0 references vertex 0 but there are 0 vertices"});
+}
+
 TEST(BadPly, NonFinitePositions)
 {
     std::vector<float> positions = kQuad;
@@ -318,7 +326,24 @@ TEST(BadGltf, ReferencesAndBounds)
         makeGlb(triangleJson(R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "sparse": {}},
                                            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])"),
             triangleBin()),
-        {"sparse accessors are not supported"});
+        {"accessor 0 sparse has no 'count'"});
+    // Sparse indices outside the accessor, sparse values past their bufferView.
+    const std::string sparseAccessors = R"([{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+        "sparse": {"count": 1, "indices": {"bufferView": 1, "componentType": 5123}, "values": {"bufferView": 0, "byteOffset": VALUES}}},
+        {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}])";
+    auto sparseGlb = [&](const std::string& valuesOffset, uint16_t firstIndex) {
+        std::string accessors = sparseAccessors;
+        accessors.replace(accessors.find("VALUES"), 6, valuesOffset);
+        return makeGlb(triangleJson(accessors), triangleBin(2).replace(36, 2, std::string(reinterpret_cast<const char*>(&firstIndex), 2)));
+    };
+    expectImportError("sparse_index.glb", sparseGlb("0", 7), {"accessor 0 sparse: index 7 is outside the accessor's 3 elements"});
+    expectImportError("sparse_values.glb", sparseGlb("30", 0), {"truncated", "accessor 0 sparse values", "12 bytes at offset 30"});
+    // A zero-filled accessor (no bufferView) may not claim far more memory than the file holds.
+    expectImportError("zero_filled.glb",
+                      makeGlb(triangleJson(R"([{"componentType": 5126, "count": 1000000000, "type": "VEC3"}])",
+                                           R"({"attributes": {"POSITION": 0}})"),
+                              triangleBin()),
+                      {"accessor 0 has no bufferView and 1000000000 elements", "times the input size"});
 }
 
 TEST(BadGltf, CycleAndNonTriangles)
@@ -374,6 +399,33 @@ TEST(BadDraco, GarbageAndTruncation)
     exportScene(scene, path);
     std::string bytes = readFile(path);
     expectImportError("truncated.drc", bytes.substr(0, bytes.size() / 2), {"Draco"});
+}
+
+TEST(BadDraco, HostileCounts)
+{
+    // Found by fuzz_drc: 44 bytes (bitstream 1.248, edgebreaker, uint32 counts)
+    // claiming 269 M faces made libdraco allocate a 3.2 GB corner table.
+    const unsigned char bomb[] = {0x44, 0x52, 0x41, 0x43, 0x4f, 0x01, 0xf8, 0x01, 0x01, 0x4f, 0x4f, 0x02, 0x02, 0x01, 0x01,
+                                  0x08, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10,
+                                  0x10, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x08, 0x00};
+    expectImportError("bomb.drc", std::string(reinterpret_cast<const char*>(bomb), sizeof(bomb)),
+                      {"corrupt Draco data (claims 269488144 faces and 269488144 vertices in 44 bytes)"});
+    // The same in a current (2.2, varint) edgebreaker header: 2^27 faces in a 24-byte file.
+    std::string current = std::string("DRACO\x02\x02\x01\x01\x00\x00\x00", 12) + "\x80\x80\x80\x40" +
+                          "\x80\x80\x80\x40" + std::string(4, '\0');
+    expectImportError("bomb22.drc", current, {"claims 134217728 faces and 134217728 vertices in 24 bytes"});
+    // Found by fuzz_drc next: bitstream 1.1 with the metadata flag set (metadata exists only
+    // from 1.3, so libdraco ignores the flag) claiming 505 M faces (a 6 GB corner table).
+    const unsigned char oldFlag[] = {0x44, 0x52, 0x41, 0x43, 0x4f, 0x01, 0x01, 0x01, 0x01, 0x00, 0xab, 0x00,
+                                     0x09, 0x08, 0x52, 0x44, 0x00, 0x01, 0x7e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e,
+                                     0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e, 0x1e};
+    expectImportError("bomb_flag.drc", std::string(reinterpret_cast<const char*>(oldFlag), sizeof(oldFlag)),
+                      {"claims 505290270 faces"});
+    // 2.2 with metadata (one file entry "k" = 1 byte, one empty sub-element "s") before the counts.
+    std::string withMetadata = std::string("DRACO\x02\x02\x01\x01\x00\x80", 11) +
+                               std::string("\x00\x01\x01k\x01v\x01\x01s\x00\x00", 11) + std::string(1, '\0') +
+                               "\x80\x80\x80\x40" + "\x80\x80\x80\x40" + std::string(4, '\0');
+    expectImportError("bomb_metadata.drc", withMetadata, {"claims 134217728 faces and 134217728 vertices"});
 }
 
 // ---- export ----

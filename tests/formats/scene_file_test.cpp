@@ -77,6 +77,13 @@ TEST(SceneFile, RejectsBadFilesNamingTheFileAndProblem)
         {R"({"lights": [{"type": "spot", "outer_cone": 120}]})", "spot cones"},
         {R"({"lights": [{"type": "disk", "radius": -1}]})", "radius"},
         {R"({"lights": [{"type": "point", "intensity": "bright"}]})", "'intensity' must be a number"},
+        // Found by fuzz_scene_file: a number out of double range threw a JSON
+        // exception that was not turned into Error; names with line breaks broke the one-line message.
+        {R"({"camera": {"fov": 1e400}})", "invalid JSON"},
+        {"3333333333333333333333e333333333333333336", "invalid JSON"},
+        {R"({"came\nra": {}})", "unknown key 'came?ra'"},
+        {R"({"lights": [{"type": "po\nint"}]})", "light type 'po?int'"},
+        {R"({"lights": [{"type": "point", "col\nor": 1}]})", "unknown light key 'col?or'"},
     };
     int index = 0;
     for (const Case& c : cases) {
@@ -84,6 +91,7 @@ TEST(SceneFile, RejectsBadFilesNamingTheFileAndProblem)
         std::string message = errorOf([&] { loadSceneDescription(path); });
         EXPECT_NE(message.find(path), std::string::npos) << c.json << " -> " << message;
         EXPECT_NE(message.find(c.problem), std::string::npos) << c.json << " -> " << message;
+        EXPECT_EQ(message.find('\n'), std::string::npos) << c.json << " -> " << message;
     }
     std::string missing = std::string(PENUMBRA_TEST_TMP) + "/missing_scene.json";
     EXPECT_NE(errorOf([&] { loadSceneDescription(missing); }).find("missing_scene.json: cannot open"), std::string::npos);

@@ -19,4 +19,13 @@ public:
     throw Error(subject + ": " + problem);
 }
 
+// Non-fatal problems in the input (a feature that was skipped). A sink gets one
+// line "<subject>: <problem>"; the default sink prints
+// "penumbra: warning: <subject>: <problem>" to stderr. Importers report each
+// kind of problem once per file (with a count), after the import succeeded.
+using WarningSink = void (*)(const std::string& line);
+// Installs sink (nullptr: the default) and returns the previous one.
+WarningSink setWarningSink(WarningSink sink);
+void warn(const std::string& subject, const std::string& problem);
+
 } // namespace penumbra

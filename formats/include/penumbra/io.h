@@ -2,6 +2,8 @@
 // glTF 2.0 (.gltf/.glb, including KHR_draco_mesh_compression) and Draco .drc.
 #pragma once
 
+#include <cstdint>
+#include <span>
 #include <string>
 
 #include "penumbra/mesh.h"
@@ -20,6 +22,11 @@ ModelFormat formatFromPath(const std::string& path);
 // scene. Throws Error("<path>: <problem>") on a missing, truncated, malformed
 // or non-triangle file; never crashes on hostile input.
 Scene importScene(const std::string& path);
+
+// importScene on bytes in memory. name gives the format (by its extension) and
+// is the subject of messages; glTF external buffers are resolved relative to
+// its directory.
+Scene importSceneMemory(std::span<const uint8_t> bytes, const std::string& name);
 
 struct ExportOptions {
     bool binary = true;   // PLY/STL: binary or ASCII

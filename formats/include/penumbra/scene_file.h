@@ -3,6 +3,7 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "penumbra/mesh.h"
@@ -32,6 +33,9 @@ SceneDescription loadSceneDescription(const std::string& path);
 // module's dicts). Throws Error("<subject>: <problem>") as loadSceneDescription does.
 Light parseLightJson(const std::string& json, const std::string& subject);
 Camera parseCameraJson(const std::string& json, const std::string& subject);
+// loadSceneDescription on JSON text in memory; path names it in messages and
+// anchors the relative model path.
+SceneDescription parseSceneDescription(std::string_view text, const std::string& path);
 
 // Parses a light from "TYPE key=value ...", e.g.
 // "spot position=0,5,0 direction=0,-1,0 outer_cone=30 intensity=50".
