@@ -83,14 +83,7 @@ TEST(AliasFreeShadowMaps, PointLightAmongTheGeometryMatchesTheOracle)
 
 TEST(AliasFreeShadowMaps, ThinWiresAreNotLost)
 {
-    // 4 mm wires 3 m over a 40 m ground: far thinner than a shadow-map texel.
-    Mesh mesh;
-    test::addBox(mesh, {-20, -0.1f, -20}, {20, 0, 20});
-    test::addBox(mesh, {-2, 0, -2}, {2, 4, 2});
-    for (int i = 0; i < 12; ++i) {
-        float z = -9.0f + 1.5f * float(i);
-        test::addBox(mesh, {-15, 3.0f, z}, {15, 3.004f, z + 0.004f});
-    }
+    const Mesh mesh = test::wiresOverGround();
     Camera camera;
     camera.position = {0, 12, 16};
     camera.target = {0, 0, 0};

@@ -36,19 +36,6 @@ Comparison compare(const std::vector<float>& reference, const std::vector<float>
 }
 
 
-// A 40 m ground with a block and 12 wires 4 mm thick strung 3 m above it,
-// lit by a high sun: the wires' shadows are far thinner than a shadow-map texel.
-Mesh wiresOverGround()
-{
-    Mesh mesh;
-    test::addBox(mesh, {-20, -0.1f, -20}, {20, 0, 20});
-    test::addBox(mesh, {-2, 0, -2}, {2, 4, 2});
-    for (int i = 0; i < 12; ++i) {
-        float z = -9.0f + 1.5f * float(i);
-        test::addBox(mesh, {-15, 3.0f, z}, {15, 3.004f, z + 0.004f});
-    }
-    return mesh;
-}
 
 TEST(HardShadows, FullRayTracingAgreesWithTheOracle)
 {
@@ -74,7 +61,7 @@ TEST(HardShadows, FullRayTracingAgreesWithTheOracle)
 
 TEST(HardShadows, SelectiveMatchesFullRayTracingAndShadowMapMissesWires)
 {
-    Mesh mesh = wiresOverGround();
+    Mesh mesh = test::wiresOverGround();
     Camera camera;
     camera.position = {0, 12, 16};
     camera.target = {0, 0, 0};
@@ -117,7 +104,7 @@ TEST(HardShadows, SelectiveMatchesFullRayTracingOnProceduralScenes)
 
 TEST(HardShadows, DebugImageMarksTracedPixelsRed)
 {
-    Mesh mesh = wiresOverGround();
+    Mesh mesh = test::wiresOverGround();
     Renderer renderer;
     renderer.loadModel(mesh);
     RenderSettings settings;

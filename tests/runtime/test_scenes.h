@@ -48,6 +48,20 @@ inline Mesh cubeOverFloor(float turn)
     return mesh;
 }
 
+// A 40 m ground with a block and 12 wires 4 mm thick strung 3 m above it,
+// lit by a high sun: the wires' shadows are far thinner than a shadow-map texel.
+inline Mesh wiresOverGround()
+{
+    Mesh mesh;
+    addBox(mesh, {-20, -0.1f, -20}, {20, 0, 20});
+    addBox(mesh, {-2, 0, -2}, {2, 4, 2});
+    for (int i = 0; i < 12; ++i) {
+        float z = -9.0f + 1.5f * float(i);
+        addBox(mesh, {-15, 3.0f, z}, {15, 3.004f, z + 0.004f});
+    }
+    return mesh;
+}
+
 // Visibility of one method against a reference, over the pixels the reference
 // traced (covered and light-facing: reference value >= 0).
 struct Comparison {
