@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 #include <gtest/gtest.h>
 
 #include "penumbra/generate.h"
@@ -79,6 +80,44 @@ TEST(AliasFreeShadowMaps, PointLightAmongTheGeometryMatchesTheOracle)
     Result r = compareWithOracle(scene.mesh, scene.cameras[0], point, 256);
     EXPECT_GT(r.afsm.compared, 5000u);
     EXPECT_LE(r.afsm.fraction(), 1e-4) << "afsm differs from the oracle on " << r.afsm.differing << " of " << r.afsm.compared;
+}
+
+TEST(AliasFreeShadowMaps, SpotLightMatchesTheOracleInsideItsCone)
+{
+    GenerateOptions options;
+    options.triangles = 60'000;
+    Scene scene = generateScene("interior", options);
+    const Bounds bounds = computeBounds(scene.mesh);
+    Light spot;
+    spot.type = LightType::Spot;
+    spot.position = bounds.center() + glm::vec3(0.0f, 0.3f * (bounds.max.y - bounds.min.y), 0.0f);
+    spot.direction = glm::normalize(glm::vec3(0.2f, -1.0f, 0.1f));
+    spot.outerConeDegrees = 40.0f;
+    spot.innerConeDegrees = 30.0f;
+    Renderer renderer;
+    renderer.loadModel(scene.mesh);
+    renderer.setCamera(scene.cameras[0]);
+    renderer.setLights({spot});
+    RenderSettings settings;
+    settings.width = settings.height = 256;
+    settings.readbackGBuffer = true;
+    settings.shadows = ShadowMethod::AliasFree;
+    Frame afsm = renderer.render(settings);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+    OracleOptions oracleOptions;
+    oracleOptions.originOffset = afsm.stats.rayOffset;
+    std::vector<float> oracle = EmbreeOracle(scene.mesh).hardShadowVisibility(afsm.positions, afsm.normals, spot, oracleOptions);
+    // Outside the cone no light arrives (and the map, the grid, covers only the cone): compare inside it.
+    const float cosOuter = std::cos(glm::radians(spot.outerConeDegrees));
+    for (size_t i = 0; i < oracle.size(); ++i) {
+        glm::vec3 p(afsm.positions[4 * i], afsm.positions[4 * i + 1], afsm.positions[4 * i + 2]);
+        if (glm::dot(glm::normalize(p - spot.position), spot.direction) < cosOuter)
+            oracle[i] = -1.0f;
+    }
+    test::Comparison c = test::compareVisibility(oracle, afsm.visibility);
+    std::printf("afsm spot: %zu of %zu light-facing pixels in the cone differ from the oracle\n", c.differing, c.compared);
+    EXPECT_GT(c.compared, 3000u);
+    EXPECT_LE(c.fraction(), 1e-4) << "afsm differs from the oracle on " << c.differing << " of " << c.compared;
 }
 
 TEST(AliasFreeShadowMaps, ThinWiresAreNotLost)
