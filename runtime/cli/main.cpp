@@ -170,6 +170,7 @@ int runRender(const RenderArgs& args)
         if (extension != ".exr")
             fail(args.output, "--exr-layers needs an .exr output");
         settings.readbackGBuffer = true;
+        settings.readbackLightLayers = true;
     }
     std::vector<Light> commandLineLights;
     for (const std::string& spec : args.lights)
@@ -252,15 +253,8 @@ int runRender(const RenderArgs& args)
     for (uint32_t i = 0; i < std::max(args.frames, 1u); ++i)
         frame = renderer.render(settings);
     imageOptions.exposure = exposure ? *exposure : autoExposure(frame.color, imageOptions.tonemap, settings.background);
-    if (args.exrLayers) {
-        // The PIP mask: the same frame with the other debugPip, compared.
-        RenderSettings other = settings;
-        other.debugPip = !settings.debugPip;
-        other.readbackGBuffer = false;
-        Image otherColor = renderer.render(other).color;
-        imageOptions.layers = frameLayers(frame, camera, pipMask(settings.debugPip ? otherColor : frame.color,
-                                                                 settings.debugPip ? frame.color : otherColor));
-    }
+    if (args.exrLayers)
+        imageOptions.layers = frameLayers(frame, camera);
     writeImage(frame.color, args.output, imageOptions);
     std::printf("%s | load %.0f ms | -> %s\n", summaryLine(frame.stats).c_str(), loadMs, args.output.c_str());
     if (!args.compare.empty()) {
@@ -501,7 +495,7 @@ int main(int argc, char** argv)
     renderCommand->add_option("--compare", render.compare,
                               "Also write a side-by-side strip sm | srt | srt with the traced pixels red, to this image");
     renderCommand->add_flag("--exr-layers", render.exrLayers,
-                            ".exr output: also write float channels visibility.light0, pip (pixels given rays) and Z (view depth)");
+                            ".exr output: also write float channels visibility.lightN (every light), pip (pixels given rays) and Z (view depth)");
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
     renderCommand->add_option("--samples", render.samples, "Area lights, srt/frt: light samples per pixel (soft shadows)")->capture_default_str()->check(CLI::Range(4, 256));
     renderCommand->add_option("--penumbra-maps", render.penumbraMaps, "Area lights, srt: shadow maps whose edges mark the penumbra: 1 (centre) or 5 (centre and corners)")->capture_default_str()->check(CLI::IsMember({1, 5}));

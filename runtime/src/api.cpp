@@ -147,11 +147,19 @@ std::vector<ImageLayer> frameLayers(const Frame& frame, const Camera& camera, co
     if (frame.visibility.size() != pixels || frame.positions.size() != pixels * 4)
         fail("frameLayers", "the frame was rendered without readbackGBuffer");
     std::vector<ImageLayer> layers;
-    layers.push_back({"visibility.light0", frame.visibility});
-    if (!pip.empty()) {
-        if (pip.size() != pixels)
+    if (!frame.lightVisibility.empty() && frame.lightVisibility.size() % pixels == 0) {
+        for (size_t light = 0; light < frame.lightVisibility.size() / pixels; ++light)
+            layers.push_back({"visibility.light" + std::to_string(light),
+                              std::vector<float>(frame.lightVisibility.begin() + light * pixels,
+                                                 frame.lightVisibility.begin() + (light + 1) * pixels)});
+    } else {
+        layers.push_back({"visibility.light0", frame.visibility});
+    }
+    const std::vector<float>& mask = pip.empty() ? frame.pip : pip;
+    if (!mask.empty()) {
+        if (mask.size() != pixels)
             fail("frameLayers", "the pip mask differs in size from the frame");
-        layers.push_back({"pip", pip});
+        layers.push_back({"pip", mask});
     }
     ImageLayer depth{"Z", std::vector<float>(pixels, std::numeric_limits<float>::infinity())};
     glm::vec3 forward = glm::normalize(camera.target - camera.position);

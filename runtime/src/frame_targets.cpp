@@ -42,12 +42,17 @@ std::vector<vk::Buffer*> FrameTargets::mapSizedBuffers()
     return {&penumbraMask, &penumbraThinMask, &penumbraPyramid, &penumbraReceivers, &penumbraJobs};
 }
 
-std::vector<vk::Buffer*> FrameTargets::afsmBuffers() { return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSamples, &afsmShadowed}; }
+std::vector<vk::Buffer*> FrameTargets::afsmBuffers()
+{
+    return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSamples, &afsmShadowed};
+}
 
 void FrameTargets::destroyImageSized(vk::Device& device)
 {
     for (vk::Buffer* buffer : afsmBuffers()) // afsmSamples and afsmShadowed are per pixel
         vk::destroyBuffer(device, *buffer);
+    vk::destroyBuffer(device, readbackLightVisibility);
+    vk::destroyBuffer(device, readbackLightMarks);
     afsmGrid = 0;
     for (vk::Image* image : imageSized())
         vk::destroyImage(device, *image);
@@ -92,7 +97,7 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
         color = vk::createImage(device, w, h, 1, kColorFormat, storage);
         visibility = vk::createImage(device, w, h, 1, kVisibilityFormat, storage);
         const VkDeviceSize pixels = VkDeviceSize(w) * h;
-        marks = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+        marks = vk::createBuffer(device, pixels * 4, kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
         rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4, kStorageDst | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
                                    vk::MemoryUse::DeviceLocal);
         const VkBufferUsageFlags dst = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
@@ -156,6 +161,17 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     afsmShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmGrid = gridSize;
     return true;
+}
+
+void FrameTargets::ensureLightLayers(vk::Device& device)
+{
+    const VkDeviceSize bytes = VkDeviceSize(width) * height * 4 * PENUMBRA_MAX_LIGHTS;
+    if (readbackLightVisibility.size == bytes && readbackLightMarks.size == bytes)
+        return;
+    vk::destroyBuffer(device, readbackLightVisibility);
+    vk::destroyBuffer(device, readbackLightMarks);
+    readbackLightVisibility = vk::createBuffer(device, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
+    readbackLightMarks = vk::createBuffer(device, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
 }
 
 void FrameTargets::ensureThinClusterMasks(vk::Device& device, VkDeviceSize bytes)

@@ -46,6 +46,9 @@ struct FrameTargets {
     uint32_t afsmGrid = 0;   // cells per side
     vk::Buffer afsmCellFirst, afsmCellCount, afsmBlockSums; // per grid cell
     vk::Buffer afsmSamples, afsmShadowed;                   // per pixel
+    // RenderSettings::readbackLightLayers only, made on first use: every light's
+    // visibility and marks (PENUMBRA_MAX_LIGHTS slices of one image each).
+    vk::Buffer readbackLightVisibility, readbackLightMarks;
     // Fixed.
     vk::Buffer frameUniforms;    // gpu::FrameData
     vk::Buffer stats;            // uint64_t[PENUMBRA_STAT_COUNT] (device-local, copied out once per frame)
@@ -63,6 +66,8 @@ struct FrameTargets {
     // The afsm buffers for a grid of gridSize^2 cells and this image size;
     // true when they were (re)made (the passes bind again).
     bool ensureAfsm(vk::Device& device, uint32_t gridSize);
+    // The per-light read-back buffers for this image size.
+    void ensureLightLayers(vk::Device& device);
     // At least `bytes` of host-visible thin cluster masks.
     void ensureThinClusterMasks(vk::Device& device, VkDeviceSize bytes);
     void destroy(vk::Device& device);

@@ -119,6 +119,8 @@ struct Renderer::Impl::FrameScript {
             r.bindTargets();
         if (s.shadows == ShadowMethod::AliasFree)
             r.ensureAfsmTargets();
+        if (s.readbackLightLayers)
+            r.targets.ensureLightLayers(r.device);
         std::memcpy(r.targets.frameUniforms.mapped, &data, sizeof(data));
         lightFirstView.resize(lights.size());
         receiverMasks.resize(6 * lights.size());
@@ -308,8 +310,31 @@ struct Renderer::Impl::FrameScript {
             r.shade.record(cmd, {light, light + 1 == lights.size() ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u, 0u}, width(),
                            height());
             timer.mark(cmd, PassId::Shade);
+            if (settings.readbackLightLayers)
+                copyLightLayers(light);
             return;
         }
+    }
+
+    // RenderSettings::readbackLightLayers: the light's visibility and marks
+    // into its slice of the read-back buffers, before the next light rewrites them.
+    void copyLightLayers(uint32_t light)
+    {
+        FrameTargets& t = r.targets;
+        const VkDeviceSize slice = VkDeviceSize(width()) * height() * 4;
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCopy, kTransferRead);
+        vk::transition(cmd, t.visibility, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, kCompute, kStorageWrite, kCopy,
+                       kTransferRead);
+        VkBufferImageCopy region{};
+        region.bufferOffset = light * slice;
+        region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        region.imageExtent = {width(), height(), 1};
+        vkCmdCopyImageToBuffer(cmd, t.visibility.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, t.readbackLightVisibility.buffer, 1, &region);
+        vk::transition(cmd, t.visibility, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL, kCopy, kTransferRead,
+                       kCompute | kCopy, kStorageRW | kTransferRead);
+        VkBufferCopy marks{0, light * slice, slice};
+        vkCmdCopyBuffer(cmd, t.marks.buffer, t.readbackLightMarks.buffer, 1, &marks);
+        vk::memoryBarrier(cmd, kCopy, kTransferRead, kCompute | kClear, kStorageRW | kTransferWrite);
     }
 
     // The method's sequence for one light.
@@ -370,6 +395,17 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         frame.positions.assign(floats(t.readbackPosition), floats(t.readbackPosition) + pixels * 4);
         frame.normals.assign(floats(t.readbackNormal), floats(t.readbackNormal) + pixels * 4);
         frame.visibility.assign(floats(t.readbackVisibility), floats(t.readbackVisibility) + pixels);
+    }
+
+    if (settings.readbackLightLayers) {
+        const float* visibility = floats(t.readbackLightVisibility);
+        const uint32_t* marks = static_cast<const uint32_t*>(t.readbackLightMarks.mapped);
+        frame.lightVisibility.assign(visibility, visibility + pixels * lights.size());
+        frame.pip.assign(pixels, 0.0f);
+        for (size_t l = 0; l < lights.size(); ++l)
+            for (size_t i = 0; i < pixels; ++i)
+                if (marks[l * pixels + i] != 0)
+                    frame.pip[i] = 1.0f;
     }
 
     // Timings and counters.

@@ -12,6 +12,7 @@
 //
 // Record again (only after an intended change of the images, and say why in
 // the commit): PENUMBRA_UPDATE_FRAMES=1 build/runtime_tests --gtest_filter='FrameImages*'
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -207,6 +208,50 @@ TEST(FrameImages, SoftShadowsAndPipImage)
 
     renderer.setLights({scene.lights[0]});
     checkFrame("city_srt_pip", render(renderer, ShadowMethod::Selective, true));
+}
+
+} // namespace
+} // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+// RenderSettings::readbackLightLayers: light i's slice is the visibility that
+// light alone gives (light 0's is Frame::visibility), and pip marks exactly
+// the pixels some light traced.
+TEST(FrameImages, EveryLightsVisibilityAndThePipMaskAreReadBack)
+{
+    Scene scene = generated("interior");
+    const Bounds bounds = computeBounds(scene.mesh);
+    Light spot;
+    spot.type = LightType::Spot;
+    spot.position = bounds.center() + glm::vec3(0.0f, 0.25f * (bounds.max.y - bounds.min.y), 0.0f);
+    spot.direction = glm::vec3(0.3f, -1.0f, 0.2f);
+    spot.outerConeDegrees = 40.0f;
+    Renderer renderer;
+    renderer.loadModel(scene.mesh);
+    renderer.setCamera(scene.cameras[0]);
+    RenderSettings settings;
+    settings.width = settings.height = kSize;
+    settings.shadows = ShadowMethod::Selective;
+    settings.readbackGBuffer = true;
+    settings.readbackLightLayers = true;
+    renderer.setLights({scene.lights[0], spot});
+    Frame both = renderer.render(settings);
+    const size_t pixels = size_t(kSize) * kSize;
+    ASSERT_EQ(both.lightVisibility.size(), 2 * pixels);
+    ASSERT_EQ(both.pip.size(), pixels);
+    EXPECT_TRUE(std::equal(both.visibility.begin(), both.visibility.end(), both.lightVisibility.begin()));
+    renderer.setLights({spot});
+    Frame spotAlone = renderer.render(settings);
+    EXPECT_TRUE(std::equal(spotAlone.visibility.begin(), spotAlone.visibility.end(), both.lightVisibility.begin() + pixels))
+        << "light 1's slice differs from the spot rendered alone";
+    size_t marked = 0;
+    for (float v : both.pip)
+        marked += v != 0.0f;
+    EXPECT_GT(marked, 0u);
+    EXPECT_LE(marked, both.stats.pipPixels); // the union of the lights' marks, pipPixels their sum
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 
 } // namespace

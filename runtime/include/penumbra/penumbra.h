@@ -84,6 +84,7 @@ struct RenderSettings {
     float albedo = 0.8f;                // grey surface reflectance
     float background[3] = {0.06f, 0.07f, 0.09f};
     bool readbackGBuffer = false;       // also return world positions and light-0 visibility
+    bool readbackLightLayers = false;   // also return every light's visibility and the traced pixels (Frame::lightVisibility, pip)
     bool debugPip = false;              // tint the pixels given rays red (the paper's Figure 4)
     // Shadow-ray origins move this far along the light-facing normal (model
     // units); 0: shadowRayOffset of the model.
@@ -172,6 +173,11 @@ struct Frame {
     std::vector<float> positions;
     std::vector<float> normals;
     std::vector<float> visibility;
+    // With RenderSettings::readbackLightLayers: the visibility of light i at
+    // [i * pixels, (i + 1) * pixels), as above; and per pixel 1 where some
+    // light gave it rays (srt's PIP pixels, frt's light-facing ones), else 0.
+    std::vector<float> lightVisibility;
+    std::vector<float> pip;
     FrameStats stats;
 };
 
@@ -280,7 +286,9 @@ void writeImage(const Image& image, const std::string& path, const ImageOptions&
 // ImageOptions::layers: "visibility.light0" (Frame::visibility: 1 lit, 0
 // shadowed, in between in a penumbra, -1 background), "Z" (depth along the
 // camera's view axis, model units; +infinity for the background) and, when
-// pip is not empty, "pip" (1 for the pixels given rays, else 0).
+// pip is not empty, "pip" (1 for the pixels given rays, else 0). With
+// RenderSettings::readbackLightLayers too: "visibility.lightN" for every
+// light, and "pip" from Frame::pip when the argument is empty.
 std::vector<ImageLayer> frameLayers(const Frame& frame, const Camera& camera, const std::vector<float>& pip = {});
 // The pixels a debugPip render tinted: 1 where the two frames' colours
 // differ (same scene, settings differing only in debugPip), else 0.
