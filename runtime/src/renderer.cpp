@@ -62,8 +62,8 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
     const ShadowMethodSpec& spec = shadowMethodSpec(settings.shadows);
     // A penumbra mask binds every level of the map (4/3 x 4 bytes per texel) as one storage buffer.
     const uint64_t maskBytes = (1 + maskTexels(settings.shadowMapSize)) * 4;
-    const bool masks = std::any_of(spec.softMap.begin(), spec.softMap.end(), [](const MethodStep& s) { return s.step == Step::PenumbraMask; });
-    if (masks && maskBytes > limits.maxStorageBufferRange && std::any_of(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); })) {
+    const bool areaLights = std::any_of(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); });
+    if (spec.uses(Step::PenumbraMask) && maskBytes > limits.maxStorageBufferRange && areaLights) {
         uint32_t largest = settings.shadowMapSize;
         while (largest > 16 && (1 + maskTexels(largest)) * 4 > limits.maxStorageBufferRange)
             largest /= 2;
@@ -72,7 +72,6 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
                            " MiB) exceeds its storage-buffer limit (" + std::to_string(limits.maxStorageBufferRange >> 20) + " MiB); use " +
                            std::to_string(largest) + " or less");
     }
-    const bool areaLights = std::any_of(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); });
     if (areaLights && !spec.softShadows())
         fail("render", std::string(spec.name) + " does not do soft shadows (area lights) yet: use sm, srt or frt for them");
     if (settings.shadows == ShadowMethod::AliasFree && !device.aliasFree)
@@ -202,8 +201,7 @@ struct Renderer::Impl::FrameScript {
                         readReceiverMask(r.targets.viewBounds, i, layer, layer == 0 ? gridViewProj : data.lights[i].viewProj[layer],
                                          data.lights[i].viewProj[layer], r.targets.shadowSize);
         }
-        const bool thin = std::any_of(spec.hard.begin(), spec.hard.end(), [](const MethodStep& s) { return s.step == Step::ThinTriangles; });
-        if (thin && receiverGridMask) {
+        if (spec.uses(Step::ThinTriangles) && receiverGridMask) {
             // The clusters whose thin triangles may reach a receiver's texel, per light layer.
             const size_t words = (r.shadowCulling.model->clusterMin.size() + 31) / 32;
             const VkDeviceSize bytes = 6 * lights.size() * words * sizeof(uint32_t);
@@ -267,8 +265,7 @@ struct Renderer::Impl::FrameScript {
             r.penumbraMask.clear(cmd);
             r.classify.recordSoft(cmd, {light, slot, PENUMBRA_SOFT_RECEIVERS, 0, 1.0f, t.shadowSize, top, 0}, width(), height());
             const float range = l.mapRange[slot].x - l.mapEye[slot].w;
-            const bool thin = std::any_of(spec.softMap.begin(), spec.softMap.end(), [](const MethodStep& s) { return s.step == Step::ThinTriangles; });
-            r.penumbraMask.record(cmd, {glm::inverse(l.viewProj[slot]), light, slot, 0, t.shadowSize, top, thin ? 1u : 0u,
+            r.penumbraMask.record(cmd, {glm::inverse(l.viewProj[slot]), light, slot, 0, t.shadowSize, top, spec.uses(Step::ThinTriangles) ? 1u : 0u,
                                         float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0});
             timer.mark(cmd, PassId::PenumbraMask);
             return;

@@ -62,11 +62,16 @@ void Renderer::Impl::destroy()
     vk::destroyDevice(device);
 }
 
+PixelTargets Renderer::Impl::pixelTargets() const
+{
+    const FrameTargets& t = targets;
+    return {t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.marks.buffer, t.stats.buffer};
+}
+
 void Renderer::Impl::bindTargets()
 {
     const FrameTargets& t = targets;
-    const PixelTargets pixels{t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.marks.buffer,
-                              t.stats.buffer};
+    const PixelTargets pixels = pixelTargets();
     viewFit.bind(device, {t.position.view, t.frameUniforms.buffer});
     thinTriangles.bind(device, t.thinMap);
     penumbraMask.bind(device, {t.shadowMap.view, t.nearestSampler, t.thinMap.view, t.frameUniforms.buffer, &t.penumbraPyramid,
@@ -83,7 +88,7 @@ void Renderer::Impl::ensureAfsmTargets()
     FrameTargets& t = targets;
     if (!t.ensureAfsm(device, afsmGridSize(t.width, t.height)))
         return;
-    const PixelTargets pixels{t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.marks.buffer, t.stats.buffer};
+    const PixelTargets pixels = pixelTargets();
     afsm.bind(device, {pixels, &t.afsmCellFirst, &t.afsmCellCount, &t.afsmBlockSums, &t.afsmSamples, &t.afsmShadowed, t.width, t.height,
                        t.afsmGrid});
 }

@@ -67,6 +67,8 @@ struct Renderer::Impl {
     void destroy();
     // Every pass's bindings to the frame targets (after they were recreated).
     void bindTargets();
+    // The G-buffer, visibility, frame constants, marks and counters of the per-pixel passes.
+    passes::PixelTargets pixelTargets() const;
     // The afsm pass's targets, made on the first afsm frame of a size.
     void ensureAfsmTargets();
     void setGeometry(GpuGeometry uploaded);

@@ -15,12 +15,12 @@ const char* passName(PassId pass)
     return pass < PassId::Count ? names[uint32_t(pass)] : "unknown";
 }
 
-bool ShadowMethodSpec::traces() const
+bool ShadowMethodSpec::uses(Step step) const
 {
-    auto has = [](const std::vector<MethodStep>& steps) {
-        return std::any_of(steps.begin(), steps.end(), [](const MethodStep& s) { return s.step == Step::Trace; });
-    };
-    return has(hard) || has(softEnd);
+    for (const std::vector<MethodStep>* steps : {&hard, &softBegin, &softMap, &softEnd})
+        if (std::any_of(steps->begin(), steps->end(), [&](const MethodStep& s) { return s.step == step; }))
+            return true;
+    return false;
 }
 
 bool ShadowMethodSpec::softShadows() const { return !softEnd.empty(); }

@@ -60,7 +60,8 @@ struct ShadowMethodSpec {
     bool widenAreaMaps = false; // area maps fitted to the view keep room for penumbra thrown from beside it
     bool shadowViewOcclusion = true; // the light's views may be culled by occlusion queries (they draw a depth map)
 
-    bool traces() const;        // has a Trace step (the frame's ray offset and samples apply)
+    bool uses(Step step) const; // some sequence of the method has this step
+    bool traces() const { return uses(Step::Trace); } // the frame's ray offset and samples apply
     bool drawsAreaMaps() const; // an area light's maps are drawn (so they are fitted to the view)
     bool softShadows() const;   // has a sequence for area lights
 };

@@ -25,6 +25,7 @@
 
 #include "penumbra/generate.h"
 #include "penumbra/penumbra.h"
+#include "test_scenes.h"
 
 namespace penumbra {
 namespace {
@@ -157,10 +158,7 @@ TEST(FrameImages, PointLightAndSeveralLights)
 {
     Scene scene = generated("interior");
     const Bounds bounds = computeBounds(scene.mesh);
-    Light point;
-    point.type = LightType::Point;
-    point.position = bounds.center() + glm::vec3(0.0f, 0.25f * (bounds.max.y - bounds.min.y), 0.0f);
-    point.intensity = 4.0f * glm::dot(bounds.max - bounds.min, bounds.max - bounds.min);
+    const Light point = test::pointLightAmong(bounds, 0.25f);
     Renderer renderer;
     renderer.loadModel(scene.mesh);
     renderer.setCamera(scene.cameras[0]);

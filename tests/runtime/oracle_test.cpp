@@ -15,16 +15,7 @@ namespace {
 
 Frame renderGBuffer(const Mesh& mesh, const Camera& camera, const Light& light, uint32_t size)
 {
-    Renderer renderer;
-    renderer.loadModel(mesh);
-    renderer.setCamera(camera);
-    renderer.setLights({light});
-    RenderSettings settings;
-    settings.width = settings.height = size;
-    settings.readbackGBuffer = true;
-    Frame frame = renderer.render(settings);
-    EXPECT_EQ(renderer.validationMessageCount(), 0u);
-    return frame;
+    return test::renderWithGBuffer(mesh, camera, light, ShadowMethod::ShadowMap, size);
 }
 
 

@@ -15,17 +15,7 @@ namespace {
 
 Frame renderMethod(const Mesh& mesh, const Camera& camera, const Light& light, ShadowMethod method, uint32_t size)
 {
-    Renderer renderer;
-    renderer.loadModel(mesh);
-    renderer.setCamera(camera);
-    renderer.setLights({light});
-    RenderSettings settings;
-    settings.width = settings.height = size;
-    settings.shadows = method;
-    settings.readbackGBuffer = true;
-    Frame frame = renderer.render(settings);
-    EXPECT_EQ(renderer.validationMessageCount(), 0u);
-    return frame;
+    return test::renderWithGBuffer(mesh, camera, light, method, size);
 }
 
 using test::Comparison;

@@ -4,7 +4,10 @@
 #include <cmath>
 #include <vector>
 
-#include "penumbra/mesh.h"
+#include <glm/geometric.hpp>
+#include <gtest/gtest.h>
+
+#include "penumbra/penumbra.h"
 
 namespace penumbra::test {
 
@@ -60,6 +63,34 @@ inline Mesh wiresOverGround()
         addBox(mesh, {-15, 3.0f, z}, {15, 3.004f, z + 0.004f});
     }
     return mesh;
+}
+
+// One frame of the mesh from the camera with the light, G-buffer and
+// light-0 visibility read back; no validation message allowed.
+inline Frame renderWithGBuffer(const Mesh& mesh, const Camera& camera, const Light& light, ShadowMethod method, uint32_t size)
+{
+    Renderer renderer;
+    renderer.loadModel(mesh);
+    renderer.setCamera(camera);
+    renderer.setLights({light});
+    RenderSettings settings;
+    settings.width = settings.height = size;
+    settings.shadows = method;
+    settings.readbackGBuffer = true;
+    Frame frame = renderer.render(settings);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+    return frame;
+}
+
+// A point light over the middle of the bounds, `above` of their height up,
+// bright enough to light them.
+inline Light pointLightAmong(const Bounds& bounds, float above)
+{
+    Light point;
+    point.type = LightType::Point;
+    point.position = bounds.center() + glm::vec3(0.0f, above * (bounds.max.y - bounds.min.y), 0.0f);
+    point.intensity = 4.0f * glm::dot(bounds.max - bounds.min, bounds.max - bounds.min);
+    return point;
 }
 
 // Visibility of one method against a reference, over the pixels the reference
