@@ -263,6 +263,50 @@ std::vector<double> radiiOf(const std::vector<Record>& records)
     return {radii.begin(), radii.end()};
 }
 
+// One row of the floor table: a stage, its floor, time / floor.
+struct FloorRow {
+    std::string scene, shadow, method, stage;
+    double ms, floorMs;
+    double ratio() const { return floorMs > 0 ? ms / floorMs : kNoValue; }
+};
+
+// Every stage of sm and srt against its floor (RenderSettings::measureFloors),
+// then the tracer against Embree on the same rays: frt's compaction + trace
+// against the oracle's time for the same number of rays (both trace every
+// light-facing pixel of the same G-buffer).
+std::vector<FloorRow> floorRows(const std::vector<Record>& records)
+{
+    std::vector<FloorRow> rows;
+    for (const Record& r : records)
+        if (r.section == "methods")
+            for (const FloorSummary& f : r.floors)
+                rows.push_back({r.scene, shadowKindName(r.kind), r.method, f.stage, f.ms, f.floorMs});
+    for (const Record& r : records) {
+        if (r.section != "methods" || r.method != "frt" || !r.available || !r.rays)
+            continue;
+        const Record* oracle = findRecord(records, "methods", r.scene, "oracle", r.kind);
+        if (!oracle || !oracle->rays)
+            continue;
+        double traceMs = 0;
+        for (const PassSummary& pass : r.passes)
+            if (pass.name == "trace" || pass.name == "compact")
+                traceMs += pass.medianMs;
+        const double embreeMs = oracle->medianMs * double(r.rays) / double(oracle->rays);
+        rows.push_back({r.scene, shadowKindName(r.kind), "frt", "trace (Embree)", traceMs, embreeMs});
+    }
+    return rows;
+}
+
+std::string floorsCsv(const std::vector<Record>& records)
+{
+    std::ostringstream out;
+    out << "scene,shadow,method,stage,ms,floor_ms,time_over_floor\n";
+    for (const FloorRow& f : floorRows(records))
+        out << f.scene << ',' << f.shadow << ',' << f.method << ',' << csvText(f.stage) << ',' << number(f.ms) << ','
+            << number(f.floorMs) << ',' << number(f.ratio()) << '\n';
+    return out.str();
+}
+
 struct Plot {
     std::string script; // gnuplot script in the results folder
     std::string png;    // one image it writes
@@ -329,6 +373,23 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
                       "set ylabel 'ms'\n" +
                       plot + "\n");
         pngs.push_back({"stages.gp", "stages.png"});
+    }
+
+    // Every stage against its floor.
+    if (!floorRows(records).empty()) {
+        std::ostringstream data;
+        data << "# label time/floor\n";
+        for (const FloorRow& f : floorRows(records))
+            data << '"' << f.scene << ' ' << f.method << (f.shadow == "soft" ? " soft " : " ") << f.stage << "\" "
+                 << number(f.ratio(), "%.3f", "?") << '\n';
+        writeFile(dir / "floors.dat", data.str());
+        writeFile(dir / "floors.gp",
+                  header + "set output 'floors.png'\nset title 'Each stage against its floor (time / floor, 1 = at the floor), " +
+                      title +
+                      "'\nset style data histogram\nset style fill solid 0.8 border -1\nset boxwidth 0.7\n"
+                      "set xtics rotate by -60\nset logscale y\nset ylabel 'time / floor'\n"
+                      "plot 'floors.dat' using 2:xtic(1) notitle\n");
+        pngs.push_back({"floors.gp", "floors.png"});
     }
 
     // Figure 7 (left): time per simplification level, log-log; nodes per ray.
@@ -539,6 +600,23 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << " | " << ms(total) << " |\n";
     }
 
+    const std::vector<FloorRow> floors = floorRows(records);
+    if (!floors.empty()) {
+        md << "\n## Every stage against its floor\n\n"
+              "Medians over floor frames (RenderSettings::measureFloors, `penumbra render --floors`). The floor of a "
+              "per-pixel pass (view_fit, classify, compact, shade) is its null twin (shaders/floor.glsli): the same "
+              "bindings and dispatch, every input read once per pixel, the outputs written. The floor of a raster "
+              "pass (camera, shadow_map) is every triangle of the model drawn uncompressed, depth only, unculled. "
+              "Floor frames submit and wait after every pass so that each interval holds only its own work; both "
+              "columns are less the host round trip that adds. The tracer's floor is Embree on the same rays on the "
+              "CPU: frt's compaction + trace against the oracle's time for as many rays. Goal: every stage within 2x, "
+              "the tracer within 4x.\n\n"
+              "| scene | shadow | method | stage | ms | floor ms | time / floor |\n|---|---|---|---|---|---|---|\n";
+        for (const FloorRow& f : floors)
+            md << "| " << f.scene << " | " << f.shadow << " | " << f.method << " | " << f.stage << " | " << ms(f.ms) << " | "
+               << ms(f.floorMs) << " | " << number(f.ratio(), "%.1fx", "-") << " |\n";
+    }
+
     std::vector<double> levels = levelsOf(records);
     if (!levels.empty()) {
         md << "\n## Scalability over simplification levels (Figure 7, left)\n\n"
@@ -629,7 +707,7 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
     for (const std::string& image : results.images)
         md << "- [" << image << "](" << image << ")\n";
     md << "\n## Files\n\nmethods.csv / methods.json (every record of every section, with per-pass times in the JSON), "
-          "stages.csv, scalability.csv, light_size.csv; *.dat and *.gp are the plot data and gnuplot scripts "
+          "stages.csv, floors.csv, scalability.csv, light_size.csv; *.dat and *.gp are the plot data and gnuplot scripts "
           "(`gnuplot methods.gp` in this folder remakes a plot).\n";
     return md.str();
 }
@@ -664,6 +742,7 @@ std::string writeReport(SuiteResults& results)
     writeFile(dir / "scalability.csv", recordsCsv(records, "scalability"));
     writeFile(dir / "light_size.csv", recordsCsv(records, "light_size"));
     writeFile(dir / "stages.csv", stagesCsv(records));
+    writeFile(dir / "floors.csv", floorsCsv(records));
     writeFile(dir / "methods.json", recordsJson(results));
 
     std::vector<Plot> scripted = writePlotScripts(results, dir);

@@ -149,6 +149,7 @@ Light areaLightFor(const Light& light, const Bounds& bounds, double radiusFracti
 struct Measurement {
     Frame gbuffer;                 // the warm-up frame, with positions, normals and visibility
     std::vector<FrameStats> timed; // the timed frames, without G-buffer readback
+    std::vector<FrameStats> floors; // frames with RenderSettings::measureFloors (sm and srt of the methods section)
 };
 
 Frame renderShadows(Renderer& renderer, const RenderSettings& settings, ShadowKind kind, const SoftShadowParams& params)
@@ -158,7 +159,7 @@ Frame renderShadows(Renderer& renderer, const RenderSettings& settings, ShadowKi
 }
 
 Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind, const SoftShadowParams& params,
-                    uint32_t frames)
+                    uint32_t frames, bool floors = false)
 {
     Measurement m;
     settings.readbackGBuffer = true;
@@ -166,7 +167,35 @@ Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind
     settings.readbackGBuffer = false;
     for (uint32_t i = 0; i < frames; ++i)
         m.timed.push_back(renderShadows(renderer, settings, kind, params).stats);
+    settings.measureFloors = floors;
+    for (uint32_t i = 0; floors && i < frames; ++i)
+        m.floors.push_back(renderShadows(renderer, settings, kind, params).stats);
     return m;
+}
+
+// Medians over the floor frames of each stage that has a floor, both less
+// the frame's host round trip (every interval of a floor frame holds one).
+std::vector<FloorSummary> floorSummaries(const std::vector<FrameStats>& frames)
+{
+    std::vector<FloorSummary> out;
+    for (const char* stage : {"camera", "view_fit", "shadow_map", "classify", "compact", "shade"}) {
+        std::vector<double> ms, floorMs;
+        for (const FrameStats& stats : frames) {
+            double pass = -1, floor = -1, roundTrip = 0;
+            for (const PassTiming& t : stats.passes) {
+                if (t.name == stage) pass = t.gpuMs;
+                if (t.name == std::string(stage) + "_floor") floor = t.gpuMs;
+                if (t.name == "round_trip") roundTrip = t.gpuMs;
+            }
+            if (pass >= 0 && floor >= 0) {
+                ms.push_back(std::max(pass - roundTrip, 0.0));
+                floorMs.push_back(std::max(floor - roundTrip, 0.0));
+            }
+        }
+        if (!ms.empty())
+            out.push_back({stage, median(ms), median(floorMs)});
+    }
+    return out;
 }
 
 class SuiteRunner {
@@ -293,6 +322,7 @@ class SuiteRunner {
         r.rays = last.rays;
         r.nodesVisited = last.nodesVisited;
         r.penumbraFraction = kind == ShadowKind::Soft ? penumbraFraction(m.gbuffer, kind) : kNoValue;
+        r.floors = floorSummaries(m.floors);
         return r;
     }
 
@@ -310,7 +340,9 @@ class SuiteRunner {
         std::vector<Measurement> measured(methods.size());
         for (size_t i = 0; i < methods.size(); ++i) {
             step(label + " " + shadowMethodName(methods[i]));
-            measured[i] = measure(*renderer, baseSettings(methods[i]), kind, soft, options.frames);
+            const bool floors = options.floors && section == "methods" &&
+                                (methods[i] == ShadowMethod::ShadowMap || methods[i] == ShadowMethod::Selective);
+            measured[i] = measure(*renderer, baseSettings(methods[i]), kind, soft, options.frames, floors);
             stepDone(label + " " + shadowMethodName(methods[i]));
         }
 
@@ -560,7 +592,7 @@ namespace bench {
 
 size_t stageGroupOf(const std::string& passName)
 {
-    static const std::map<std::string, size_t> groups = {{"camera", 0},        {"view_fit", 0},   {"shadow_map", 0},     {"thin_triangles", 1},
+    static const std::map<std::string, size_t> groups = {{"camera", 0},        {"view_fit", 0},   {"view_fit_readback", 5},   {"shadow_map", 0},     {"thin_triangles", 1},
                                                          {"penumbra_mask", 1}, {"classify", 1},   {"compact", 2},
                                                          {"trace", 3},         {"shade", 4},      {"readback", 5},
                                                          {"afsm_casters", 0},  {"afsm_samples", 1}};

@@ -21,6 +21,13 @@ struct PassSummary {
     double bestMs = 0;
 };
 
+// A stage against its floor, medians over the floor frames (RenderSettings::measureFloors).
+struct FloorSummary {
+    std::string stage;    // pass name: camera, view_fit, shadow_map, classify, compact, shade
+    double ms = 0;        // the pass, its interval less one host round trip
+    double floorMs = 0;   // its floor, the same
+};
+
 // One measured case (or one that could not run in this build).
 struct Record {
     std::string section;      // "methods", "scalability" or "light_size"
@@ -38,6 +45,7 @@ struct Record {
     double bestMs = kNoValue;      // best of the timed frames
     double cpuMedianMs = kNoValue; // wall clock per frame: record + submit + wait + readback
     std::vector<PassSummary> passes;
+    std::vector<FloorSummary> floors; // methods section, sm and srt: every stage against its floor
     double pipFraction = kNoValue;      // pixels given rays / covered pixels
     double penumbraFraction = kNoValue; // soft: covered pixels in the penumbra
     uint64_t rays = 0;

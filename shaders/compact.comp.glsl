@@ -20,6 +20,19 @@ layout(push_constant) uniform CompactPush {
     uint phase;   // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
 } push;
 
+#ifdef PENUMBRA_FLOOR
+#include "floor.glsli"
+void main()
+{
+    if (push.phase == PENUMBRA_COMPACT_DISPATCH)
+        return;
+    uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * PENUMBRA_COMPACT_GROUP_SIZE + gl_LocalInvocationID.x;
+    // Each marked pixel writes one list entry (at its own index: the real
+    // pass then writes the list from its start, over these).
+    if (i < push.pixelCount && marks[i] != 0u)
+        rays[PENUMBRA_RAY_LIST_HEADER_UINTS + i] = i;
+}
+#else
 void main()
 {
     if (push.phase == PENUMBRA_COMPACT_DISPATCH) {
@@ -47,3 +60,4 @@ void main()
         rays[PENUMBRA_RAY_LIST_HEADER_UINTS + base + subgroupBallotExclusiveBitCount(ballot)] =
             i | (marks[i] == PENUMBRA_MARK_ONE_SAMPLE ? PENUMBRA_RAY_ONE_SAMPLE : 0u);
 }
+#endif

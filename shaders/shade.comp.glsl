@@ -22,6 +22,23 @@ layout(push_constant) uniform ShadePush {
     uint pad;
 } push;
 
+#ifdef PENUMBRA_FLOOR
+#include "floor.glsli"
+void main()
+{
+    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 size = imageSize(outColor);
+    if (any(greaterThanEqual(pixel, size)))
+        return;
+    vec4 position = imageLoad(gPosition, pixel);
+    vec4 normal = imageLoad(gNormal, pixel);
+    float visibility = imageLoad(visibilityImage, pixel).r;
+    float sum = position.x + position.w + normal.x + visibility + frame.lights[push.lightIndex].colorIntensity.x;
+    // Later lights add to the colour: written unchanged.
+    vec4 color = imageLoad(outColor, pixel);
+    imageStore(outColor, pixel, floorNever(sum) ? vec4(0.5) : color);
+}
+#else
 void main()
 {
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
@@ -78,3 +95,4 @@ void main()
         color = mix(color, vec3(1.0, 0.0, 0.0), 0.75);
     imageStore(outColor, pixel, vec4(color, 1.0));
 }
+#endif

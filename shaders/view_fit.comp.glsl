@@ -108,6 +108,23 @@ void markReceivers(uint l, ivec2 origin, ivec2 size)
     }
 }
 
+#ifdef PENUMBRA_FLOOR
+#include "floor.glsli"
+void main()
+{
+    const ivec2 size = imageSize(gPosition);
+    const ivec2 origin = ivec2(gl_GlobalInvocationID.xy) * VIEW_BOUNDS_BLOCK;
+    float sum = frame.lights[0].viewProj[0][0].x;
+    for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
+        vec3 p;
+        blockPoint(origin, size, i, p);
+        sum += p.x;
+    }
+    // The bounds keep their values: the keys are only lowered when never.
+    if (floorNever(subgroupAdd(sum)) && subgroupElect())
+        atomicMin(Keys(push.keys).keys[0], 0u);
+}
+#else
 void main()
 {
     const float inf = uintBitsToFloat(0x7F800000u);
@@ -170,3 +187,4 @@ void main()
         }
     }
 }
+#endif

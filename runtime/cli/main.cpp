@@ -51,6 +51,7 @@ struct RenderArgs {
     std::string ground = "auto";
     std::string compare;
     bool exrLayers = false;
+    bool floors = false;
 };
 
 struct PreprocessArgs {
@@ -147,6 +148,7 @@ int runRender(const RenderArgs& args)
     RenderSettings settings;
     parseSize(args.size, settings);
     settings.shadows = parseShadowMethod(args.shadows);
+    settings.measureFloors = args.floors;
     settings.cull = parseCullMode(args.cull);
     settings.fitShadowMapsToView = args.shadowFit == "view";
     settings.shadowMapSize = args.shadowMapSize;
@@ -504,6 +506,7 @@ int main(int argc, char** argv)
     renderCommand->add_option("--bias-slope", render.biasSlope, "Shadow-map depth bias, slope factor")->capture_default_str();
     renderCommand->add_option("--device", render.device, "Vulkan device: index or part of its name (see 'penumbra devices')");
     renderCommand->add_flag("--validation", render.validation, "Enable the Khronos validation layer; any message fails the run");
+    renderCommand->add_flag("--floors", render.floors, "Also time each pass's floor (its null twin, or the raster passes' uncompressed depth-only draw) as <pass>_floor");
     renderCommand->add_option("--stats", render.statsPath, "Write per-pass statistics as JSON to this file");
     renderCommand->add_option("--frames", render.frames, "Render this many frames (timings are of the last)")->capture_default_str()->check(CLI::Range(1, 10000));
 

@@ -54,6 +54,7 @@ void FrameTargets::destroyImageSized(vk::Device& device)
     vk::destroyBuffer(device, readbackLightVisibility);
     vk::destroyBuffer(device, readbackLightMarks);
     afsmGrid = 0;
+    vk::destroyImage(device, floorDepth);
     for (vk::Image* image : imageSized())
         vk::destroyImage(device, *image);
     for (vk::Buffer* buffer : imageSizedBuffers())
@@ -65,6 +66,7 @@ void FrameTargets::destroyMapSized(vk::Device& device)
 {
     vk::destroyImage(device, shadowMap);
     vk::destroyImage(device, thinMap);
+    vk::destroyImage(device, floorMapDepth);
     for (vk::Buffer* buffer : mapSizedBuffers())
         vk::destroyBuffer(device, *buffer);
     shadowSize = shadowLayers = 0;
@@ -79,6 +81,14 @@ void FrameTargets::destroy(vk::Device& device)
     if (nearestSampler)
         vkDestroySampler(device.device, nearestSampler, nullptr);
     nearestSampler = VK_NULL_HANDLE;
+}
+
+void FrameTargets::ensureFloors(vk::Device& device)
+{
+    if (!floorDepth.image)
+        floorDepth = vk::createImage(device, width, height, 1, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, true);
+    if (!floorMapDepth.image)
+        floorMapDepth = vk::createImage(device, shadowSize, shadowSize, 1, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, true);
 }
 
 bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t mapSize, uint32_t mapLayers)

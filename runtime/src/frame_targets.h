@@ -49,6 +49,10 @@ struct FrameTargets {
     // RenderSettings::readbackLightLayers only, made on first use: every light's
     // visibility and marks (PENUMBRA_MAX_LIGHTS slices of one image each).
     vk::Buffer readbackLightVisibility, readbackLightMarks;
+    // RenderSettings::measureFloors only, made on first use: the depth targets
+    // of the raster passes' floors (uncompressed depth-only draws), sized like
+    // the camera's depth and one shadow-map layer.
+    vk::Image floorDepth, floorMapDepth;
     // Fixed.
     vk::Buffer frameUniforms;    // gpu::FrameData
     vk::Buffer stats;            // uint64_t[PENUMBRA_STAT_COUNT] (device-local, copied out once per frame)
@@ -66,6 +70,8 @@ struct FrameTargets {
     // The afsm buffers for a grid of gridSize^2 cells and this image size;
     // true when they were (re)made (the passes bind again).
     bool ensureAfsm(vk::Device& device, uint32_t gridSize);
+    // The floors' depth targets for this image and map size.
+    void ensureFloors(vk::Device& device);
     // The per-light read-back buffers for this image size.
     void ensureLightLayers(vk::Device& device);
     // At least `bytes` of host-visible thin cluster masks.

@@ -212,10 +212,18 @@ void ComputeKernel::create(Device& device, const char* shader, const std::vector
         pipeline = createComputePipeline(device, shader, layout, pushBytes);
 
         set = allocateSet(device, setLayout, bindings, pool);
+        this->shader = shader;
+        this->pushBytes = pushBytes;
     } catch (...) {
         destroy(device);
         throw;
     }
+}
+
+void ComputeKernel::createFloor(Device& device)
+{
+    if (!floorPipeline)
+        floorPipeline = createComputePipeline(device, (std::string(shader) + ".floor").c_str(), layout, pushBytes);
 }
 
 void ComputeKernel::destroy(Device& device)
@@ -223,14 +231,17 @@ void ComputeKernel::destroy(Device& device)
     VkDevice d = device.device;
     if (pool) vkDestroyDescriptorPool(d, pool, nullptr);
     if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
+    if (floorPipeline) vkDestroyPipeline(d, floorPipeline, nullptr);
     if (layout) vkDestroyPipelineLayout(d, layout, nullptr);
     if (setLayout) vkDestroyDescriptorSetLayout(d, setLayout, nullptr);
     *this = {};
 }
 
-void ComputeKernel::bind(VkCommandBuffer cmd) const
+void ComputeKernel::bind(VkCommandBuffer cmd, bool floor) const
 {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+    if (floor && !floorPipeline)
+        fail("renderer", std::string(shader) + ": null pass recorded before createFloor");
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, floor ? floorPipeline : pipeline);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, nullptr);
 }
 

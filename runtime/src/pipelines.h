@@ -63,12 +63,18 @@ struct ComputeKernel {
     VkPipeline pipeline = VK_NULL_HANDLE;
     VkDescriptorPool pool = VK_NULL_HANDLE;
     VkDescriptorSet set = VK_NULL_HANDLE;
+    // The null twin (shaders/floor.glsli, "<shader>.floor"), made by createFloor for `penumbra bench`.
+    VkPipeline floorPipeline = VK_NULL_HANDLE;
+    const char* shader = nullptr;
+    uint32_t pushBytes = 0;
 
     void create(Device& device, const char* shader, const std::vector<VkDescriptorType>& bindings, uint32_t pushBytes);
+    // Makes the null twin once (same layout and set).
+    void createFloor(Device& device);
     void destroy(Device& device);
     void write(Device& device, const std::vector<Binding>& bindings) const { writeSet(device, set, bindings); }
-    // Binds the pipeline and its set.
-    void bind(VkCommandBuffer cmd) const;
+    // Binds the pipeline (floor: its null twin) and its set.
+    void bind(VkCommandBuffer cmd, bool floor = false) const;
     template <typename Push>
     void push(VkCommandBuffer cmd, const Push& push) const
     {

@@ -120,6 +120,8 @@ struct Renderer::Impl::FrameScript {
             r.ensureAfsmTargets();
         if (s.readbackLightLayers)
             r.targets.ensureLightLayers(r.device);
+        if (s.measureFloors)
+            r.ensureFloors();
         std::memcpy(r.targets.frameUniforms.mapped, &data, sizeof(data));
         lightFirstView.resize(lights.size());
         receiverMasks.resize(6 * lights.size());
@@ -135,6 +137,20 @@ struct Renderer::Impl::FrameScript {
                 receiverGridMask |= 1u << i;
         }
         timer.pool = r.queryPool;
+    }
+
+    // Ends the interval of `pass`. Floor frames (RenderSettings::measureFloors)
+    // submit and wait first, so that every interval holds exactly its own
+    // work: lavapipe's timestamps can land before work recorded ahead of them
+    // has finished, which moves time between neighbouring passes. Each
+    // interval then also holds one host round trip (PassId::RoundTrip).
+    void mark(PassId pass)
+    {
+        if (settings.measureFloors) {
+            r.submitAndWait(cmd);
+            beginCommands();
+        }
+        timer.mark(cmd, pass);
     }
 
     uint32_t layers(uint32_t light) const { return uint32_t(data.lights[light].spotCosLayers.z); }
@@ -165,14 +181,28 @@ struct Renderer::Impl::FrameScript {
         r.shadowCulling.beginFrame(r.device, settings.cull, settings.adaptiveOcclusion, std::move(views));
     }
 
+    // RenderSettings::measureFloors: a raster pass's floor, every triangle of
+    // the uncompressed model drawn depth-only from viewProj into a depth target of the pass's size.
+    void drawFloor(const vk::Image& target, const glm::mat4& viewProj)
+    {
+        vk::transition(cmd, target, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL, kDepthTests,
+                       VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT, kDepthTests,
+                       VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
+        r.shadowMap.record(cmd, r.culling, ~0u, r.floorGeometry, target, 0, {viewProj}, {});
+    }
+
     // Camera: the G-buffer, and the targets of the per-pixel passes made ready.
     void recordCamera()
     {
         FrameTargets& t = r.targets;
+        if (settings.measureFloors) {
+            drawFloor(t.floorDepth, view.viewProj);
+            mark(PassId::CameraFloor);
+        }
         vkCmdFillBuffer(cmd, t.stats.buffer, 0, VK_WHOLE_SIZE, 0);
         vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
         r.gbuffer.record(cmd, r.culling, 0, r.geometry, {&t.position, &t.normal, &t.depth}, {view.viewProj, glm::vec4(view.eye, 1.0f)});
-        timer.mark(cmd, PassId::Camera);
+        mark(PassId::Camera);
         for (vk::Image* image : {&t.color, &t.visibility})
             vk::transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);
     }
@@ -184,8 +214,13 @@ struct Renderer::Impl::FrameScript {
         std::vector<uint32_t> gridLayers(lights.size());
         for (uint32_t i = 0; i < lights.size(); ++i)
             gridLayers[i] = layers(i);
+        if (settings.measureFloors) {
+            r.viewFit.recordFloor(cmd, r.device, r.targets.viewBounds, width(), height());
+            mark(PassId::ViewFitFloor);
+        }
         r.viewFit.record(cmd, r.device, r.targets.viewBounds, r.targets.receiverGrids, viewFitMask, receiverGridMask, gridLayers, width(),
                          height());
+        mark(PassId::ViewFit);
         r.submitAndWait(cmd);
 
         for (uint32_t i = 0; i < lights.size(); ++i) {
@@ -219,7 +254,7 @@ struct Renderer::Impl::FrameScript {
         planShadowViews();
         beginCommands();
         r.shadowCulling.resetQueries(cmd);
-        timer.mark(cmd, PassId::ViewFit); // the interval includes the round trip through the host
+        mark(PassId::ViewFitReadback); // the round trip through the host
     }
 
     // One step of a light's sequence; slot: the area light's map (0: the centre), first: its first map drawn.
@@ -234,12 +269,17 @@ struct Renderer::Impl::FrameScript {
             vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
             return;
         case Step::ShadowMap:
+            if (settings.measureFloors) {
+                for (uint32_t layer = 0; layer < (area ? 1 : layers(light)); ++layer)
+                    drawFloor(t.floorMapDepth, l.viewProj[area ? slot : layer]);
+                mark(PassId::ShadowMapFloor);
+            }
             r.shadowMap.begin(cmd, t.shadowMap);
             for (uint32_t layer = 0; layer < (area ? 1 : layers(light)); ++layer)
                 r.shadowMap.record(cmd, r.shadowCulling, lightFirstView[light] + (area ? slot : layer), r.geometry, t.shadowMap, layer,
                                    {l.viewProj[area ? slot : layer]}, {settings.depthBiasConstant, settings.depthBiasSlope});
             r.shadowMap.end(cmd, t.shadowMap);
-            timer.mark(cmd, PassId::ShadowMap);
+            mark(PassId::ShadowMap);
             return;
         case Step::ThinTriangles: {
             r.thinTriangles.clear(cmd, t.thinMap);
@@ -257,7 +297,7 @@ struct Renderer::Impl::FrameScript {
                 r.thinTriangles.record(cmd, r.device, r.geometry, r.trace.modelTableAddress(), t.shadowSize, t.thinMap.layers, thin);
             }
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRead);
-            timer.mark(cmd, PassId::ThinTriangles);
+            mark(PassId::ThinTriangles);
             return;
         }
         case Step::PenumbraMask: {
@@ -267,49 +307,62 @@ struct Renderer::Impl::FrameScript {
             const float range = l.mapRange[slot].x - l.mapEye[slot].w;
             r.penumbraMask.record(cmd, {glm::inverse(l.viewProj[slot]), light, slot, 0, t.shadowSize, top, spec.uses(Step::ThinTriangles) ? 1u : 0u,
                                         float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0});
-            timer.mark(cmd, PassId::PenumbraMask);
+            mark(PassId::PenumbraMask);
             return;
         }
         case Step::Classify:
-            if (area) {
-                const uint32_t mode = slot == 0 ? step.mode : step.cornerMode;
-                const bool average = mode == PENUMBRA_SOFT_AVERAGE;
-                r.classify.recordSoft(cmd, {light, slot, mode, average && first ? 1u : 0u, average ? 1.0f / float(maps) : 1.0f, t.shadowSize,
-                                            maskTopLevel(t.shadowSize), 0}, width(), height());
-            } else {
-                r.classify.record(cmd, {light, step.mode}, width(), height());
+            for (bool floor : {true, false}) {
+                if (floor && !settings.measureFloors)
+                    continue;
+                if (area) {
+                    const uint32_t mode = slot == 0 ? step.mode : step.cornerMode;
+                    const bool average = mode == PENUMBRA_SOFT_AVERAGE;
+                    r.classify.recordSoft(cmd, {light, slot, mode, average && first ? 1u : 0u, average ? 1.0f / float(maps) : 1.0f,
+                                                t.shadowSize, maskTopLevel(t.shadowSize), 0}, width(), height(), floor);
+                } else {
+                    r.classify.record(cmd, {light, step.mode}, width(), height(), floor);
+                }
+                mark(floor ? PassId::ClassifyFloor : PassId::Classify);
             }
-            timer.mark(cmd, PassId::Classify);
             return;
         case Step::Compact:
+            if (settings.measureFloors) {
+                r.compact.recordFloor(cmd, width() * height());
+                mark(PassId::CompactFloor);
+            }
             r.compact.record(cmd, width() * height());
-            timer.mark(cmd, PassId::Compact);
+            mark(PassId::Compact);
             return;
         case Step::Trace:
             r.trace.record(cmd, light, rayOffset, area ? settings.lightSamples : 0);
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
-            timer.mark(cmd, PassId::Trace);
+            mark(PassId::Trace);
             return;
         case Step::AliasFree:
             r.afsm.clear(cmd);
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
                 r.afsm.recordSamples(cmd, light, layer, rayOffset);
-                timer.mark(cmd, PassId::AfsmSamples);
+                mark(PassId::AfsmSamples);
                 r.afsm.recordCasters(cmd, r.shadowCulling, lightFirstView[light] + layer, r.geometry, l.viewProj[layer], light, rayOffset);
-                timer.mark(cmd, PassId::AfsmCasters);
+                mark(PassId::AfsmCasters);
             }
             return;
         case Step::AfsmResolve:
             r.afsm.recordResolve(cmd, light, rayOffset);
-            timer.mark(cmd, PassId::AfsmSamples);
+            mark(PassId::AfsmSamples);
             return;
-        case Step::Shade:
-            r.shade.record(cmd, {light, light + 1 == lights.size() ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u, 0u}, width(),
-                           height());
-            timer.mark(cmd, PassId::Shade);
+        case Step::Shade: {
+            const ShadePush push{light, light + 1 == lights.size() ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u, 0u};
+            if (settings.measureFloors) {
+                r.shade.record(cmd, push, width(), height(), true);
+                mark(PassId::ShadeFloor);
+            }
+            r.shade.record(cmd, push, width(), height());
+            mark(PassId::Shade);
             if (settings.readbackLightLayers)
                 copyLightLayers(light);
             return;
+        }
         }
     }
 
@@ -373,7 +426,7 @@ struct Renderer::Impl::FrameScript {
             copyImage(t.visibility, t.readbackVisibility);
         }
         vk::memoryBarrier(cmd, kCopy | kCompute, kTransferWrite | kStorageWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
-        timer.mark(cmd, PassId::Readback);
+        mark(PassId::Readback);
     }
 
     Frame finish(std::chrono::steady_clock::time_point cpuStart);
@@ -464,6 +517,8 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     if (!readBack)
         shadowCulling.resetQueries(commandBuffer);
     frame.timer.mark(commandBuffer, PassId::Count);
+    if (settings.measureFloors)
+        frame.mark(PassId::RoundTrip); // an empty interval: the round trip every floor-frame interval holds
     frame.recordCamera();
     if (readBack)
         frame.fitToView();

@@ -44,12 +44,13 @@ void Renderer::Impl::destroy()
         vkDeviceWaitIdle(device.device);
         targets.destroy(device);
         destroyGeometry(device, geometry);
+        destroyGeometry(device, floorGeometry);
         gbuffer.destroy(device);
         viewFit.destroy(device);
         shadowMap.destroy(device);
         thinTriangles.destroy(device);
         penumbraMask.destroy(device);
-    afsm.destroy(device);
+        afsm.destroy(device);
         classify.destroy(device);
         compact.destroy(device);
         trace.destroy(device);
@@ -93,10 +94,24 @@ void Renderer::Impl::ensureAfsmTargets()
                        t.afsmGrid});
 }
 
+void Renderer::Impl::ensureFloors()
+{
+    if (!model)
+        fail("render", "floors are measured on a compressed model (loadModel), not on the uncompressed reference");
+    if (floorGeometry.chunks.empty())
+        floorGeometry = uploadReference(device, decodeMesh(*model));
+    viewFit.createFloor(device);
+    classify.createFloor(device);
+    compact.createFloor(device);
+    shade.createFloor(device);
+    targets.ensureFloors(device);
+}
+
 void Renderer::Impl::setGeometry(GpuGeometry uploaded)
 {
     vkDeviceWaitIdle(device.device);
     destroyGeometry(device, geometry);
+    destroyGeometry(device, floorGeometry);
     geometry = std::move(uploaded);
     if (geometry.encoding == GeometryEncoding::Compressed)
         trace.bindModel(device, geometry);
@@ -121,6 +136,7 @@ const DeviceInfo& Renderer::device() const { return impl->device.info; }
 void Renderer::loadModel(const CompressedModel& model)
 {
     impl->setGeometry(uploadCompressed(impl->device, model));
+    impl->model = model;
     auto cullModel = std::make_shared<const CullModel>(model, impl->geometry);
     impl->culling.setModel(cullModel);
     impl->shadowCulling.setModel(cullModel);
@@ -136,6 +152,7 @@ void Renderer::loadModel(const Mesh& mesh)
 void Renderer::loadUncompressedReference(const Mesh& mesh)
 {
     impl->setGeometry(uploadReference(impl->device, mesh));
+    impl->model.reset();
     impl->culling.clearModel();
     impl->shadowCulling.clearModel();
 }

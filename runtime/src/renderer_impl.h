@@ -30,6 +30,10 @@ constexpr uint32_t kMaxTimestamps = 256; // per frame
 struct Renderer::Impl {
     vk::Device device;
     GpuGeometry geometry;
+    // The loaded compressed model (the floors decode their uncompressed copy from it).
+    std::optional<CompressedModel> model;
+    // RenderSettings::measureFloors: the model as indexed float triangles, made on first use.
+    GpuGeometry floorGeometry;
     std::optional<Camera> camera;
     std::vector<Light> lights;
     // The passes, in frame order.
@@ -71,6 +75,8 @@ struct Renderer::Impl {
     passes::PixelTargets pixelTargets() const;
     // The afsm pass's targets, made on the first afsm frame of a size.
     void ensureAfsmTargets();
+    // The floors' null pipelines, uncompressed model and depth targets (RenderSettings::measureFloors).
+    void ensureFloors();
     void setGeometry(GpuGeometry uploaded);
     // Ends and submits the frame's command buffer and waits for it (the frame's fence).
     void submitAndWait(VkCommandBuffer cmd);

@@ -15,7 +15,11 @@ namespace penumbra {
 
 // The frame's passes, in the order stats report them.
 enum class PassId : uint32_t {
-    Camera, ViewFit, ShadowMap, ThinTriangles, PenumbraMask, AfsmSamples, AfsmCasters, Classify, Compact, Trace, Shade, Readback, Count
+    Camera, ViewFit, ViewFitReadback, ShadowMap, ThinTriangles, PenumbraMask, AfsmSamples, AfsmCasters, Classify, Compact, Trace, Shade,
+    Readback,
+    // RenderSettings::measureFloors: the null twins of the per-pixel passes and the raster passes' uncompressed depth-only draws.
+    CameraFloor, ViewFitFloor, ShadowMapFloor, ClassifyFloor, CompactFloor, ShadeFloor, RoundTrip,
+    Count
 };
 const char* passName(PassId pass);
 

@@ -120,9 +120,10 @@ void checkFrame(const std::string& name, const Frame& frame)
     }
 }
 
-Frame render(Renderer& renderer, ShadowMethod method, bool debugPip = false)
+Frame render(Renderer& renderer, ShadowMethod method, bool debugPip = false, bool floors = false)
 {
     RenderSettings settings;
+    settings.measureFloors = floors;
     settings.width = settings.height = kSize;
     settings.shadows = method;
     settings.readbackGBuffer = true;
@@ -206,6 +207,51 @@ TEST(FrameImages, SoftShadowsAndPipImage)
 
     renderer.setLights({scene.lights[0]});
     checkFrame("city_srt_pip", render(renderer, ShadowMethod::Selective, true));
+}
+
+// RenderSettings::measureFloors (penumbra bench's floor table) times null
+// twins and uncompressed depth-only draws beside the passes: the recorded
+// images stay exactly the same, and every floor of the frame's passes is timed.
+TEST(FrameImages, FloorsLeaveTheFrameUnchanged)
+{
+    Scene scene = generated("city");
+    const Bounds bounds = computeBounds(scene.mesh);
+    const float diagonal = glm::length(bounds.max - bounds.min);
+    Light rectangle;
+    rectangle.type = LightType::Rectangle;
+    rectangle.position = bounds.center() + glm::vec3(0.2f, 0.6f, 0.3f) * diagonal;
+    rectangle.direction = glm::normalize(bounds.center() - rectangle.position);
+    rectangle.width = 0.03f * diagonal;
+    rectangle.height = 0.015f * diagonal;
+    rectangle.intensity = 0.5f * diagonal * diagonal;
+    Renderer renderer;
+    renderer.loadModel(scene.mesh);
+    renderer.setCamera(scene.cameras[0]);
+    auto passNames = [](const Frame& frame) {
+        std::vector<std::string> names;
+        for (const PassTiming& pass : frame.stats.passes) {
+            EXPECT_GE(pass.gpuMs, 0.0) << pass.name;
+            names.push_back(pass.name);
+        }
+        return names;
+    };
+    auto has = [](const std::vector<std::string>& names, const char* name) {
+        return std::find(names.begin(), names.end(), name) != names.end();
+    };
+    renderer.setLights({scene.lights[0]});
+    checkFrame("city_sm", render(renderer, ShadowMethod::ShadowMap, false, true));
+    Frame srt = render(renderer, ShadowMethod::Selective, false, true);
+    checkFrame("city_srt", srt);
+    for (const char* name : {"camera_floor", "view_fit_floor", "shadow_map_floor", "classify_floor", "compact_floor", "shade_floor",
+                             "round_trip", "camera", "view_fit", "view_fit_readback", "classify", "compact", "trace", "shade"})
+        EXPECT_TRUE(has(passNames(srt), name)) << name;
+    renderer.setLights({rectangle});
+    checkFrame("city_rectangle_sm", render(renderer, ShadowMethod::ShadowMap, false, true));
+    checkFrame("city_rectangle_srt", render(renderer, ShadowMethod::Selective, false, true));
+    // An ordinary frame after floor frames has no floors.
+    Frame plain = render(renderer, ShadowMethod::Selective);
+    EXPECT_FALSE(has(passNames(plain), "classify_floor"));
+    EXPECT_FALSE(has(passNames(plain), "round_trip"));
 }
 
 } // namespace

@@ -36,6 +36,7 @@ struct SuiteOptions {
     uint32_t softShadowMaps = 4;        // soft shadows, sm: point-light shadow maps averaged over the light, 1..6
     bool progress = true;               // progress bar on stderr when it is a terminal
     bool plots = true;                  // run gnuplot on the generated scripts when it is installed
+    bool floors = true;                 // methods section, sm and srt: also N frames with every stage's floor (floors.csv)
 };
 
 // Names accepted by suiteOptions, fastest first: smoke (CI, well under a

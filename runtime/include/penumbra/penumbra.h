@@ -110,6 +110,14 @@ struct RenderSettings {
     // CullMode::All: a view whose occlusion queries cull little goes frustum-only
     // for a few frames. false (tests): queries in every view, every frame.
     bool adaptiveOcclusion = true;
+    // Benchmarks (penumbra bench's floor table): also time each pass's floor
+    // in the frame, recorded just before the pass as "<pass>_floor": for
+    // view_fit, classify, compact and shade a null twin with the same
+    // bindings that reads every input once per pixel and writes the outputs
+    // (shaders/floor.glsli); for camera and shadow_map every triangle of the
+    // model drawn uncompressed, depth only. The image is unchanged; the frame
+    // takes longer. Needs a model loaded with loadModel.
+    bool measureFloors = false;
 };
 
 // Linear-light RGBA float image, row-major, top row first.

@@ -47,16 +47,22 @@ void ClassifyPass::bind(vk::Device& device, const ClassifyTargets& t)
     soft.write(device, bindings);
 }
 
-void ClassifyPass::record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t width, uint32_t height) const
+void ClassifyPass::createFloor(vk::Device& device)
 {
-    hard.bind(cmd);
+    hard.createFloor(device);
+    soft.createFloor(device);
+}
+
+void ClassifyPass::record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t width, uint32_t height, bool floor) const
+{
+    hard.bind(cmd, floor);
     hard.push(cmd, push);
     dispatchPixels(cmd, width, height);
 }
 
-void ClassifyPass::recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t width, uint32_t height) const
+void ClassifyPass::recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t width, uint32_t height, bool floor) const
 {
-    soft.bind(cmd);
+    soft.bind(cmd, floor);
     soft.push(cmd, push);
     dispatchPixels(cmd, width, height);
 }

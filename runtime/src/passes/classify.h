@@ -53,8 +53,10 @@ class ClassifyPass {
     void destroy(vk::Device& device);
     void bind(vk::Device& device, const ClassifyTargets& targets);
     // One dispatch over a width x height image, then the barrier to the next compute pass.
-    void record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t width, uint32_t height) const;
-    void recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t width, uint32_t height) const;
+    // floor: the null twins instead (shaders/floor.glsli), after createFloor.
+    void record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t width, uint32_t height, bool floor = false) const;
+    void recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t width, uint32_t height, bool floor = false) const;
+    void createFloor(vk::Device& device);
 
   private:
     vk::ComputeKernel hard, soft;

@@ -18,6 +18,15 @@ void CompactPass::bind(vk::Device& device, VkBuffer marks, VkBuffer list)
     kernel.write(device, {vk::storageBuffer(marks), vk::storageBuffer(list)});
 }
 
+void CompactPass::recordFloor(VkCommandBuffer cmd, uint32_t pixelCount) const
+{
+    kernel.bind(cmd, true);
+    kernel.push(cmd, CompactPush{pixelCount, PENUMBRA_COMPACT_LIST});
+    const Groups2D groups = spreadGroups(groupCount(pixelCount, PENUMBRA_COMPACT_GROUP_SIZE), 65535u);
+    vkCmdDispatch(cmd, groups.x, groups.y, 1);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+}
+
 void CompactPass::record(VkCommandBuffer cmd, uint32_t pixelCount) const
 {
     vkCmdFillBuffer(cmd, rayList, 0, PENUMBRA_RAY_LIST_HEADER_UINTS * 4, 0);

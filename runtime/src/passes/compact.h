@@ -23,6 +23,9 @@ class CompactPass {
     // Clears the list's header, lists the marked pixels of pixelCount, writes
     // the dispatch size; ends with the barrier to the trace (indirect).
     void record(VkCommandBuffer cmd, uint32_t pixelCount) const;
+    // The null twin (shaders/floor.glsli): the marks read, one entry per marked pixel written; after createFloor.
+    void recordFloor(VkCommandBuffer cmd, uint32_t pixelCount) const;
+    void createFloor(vk::Device& device) { kernel.createFloor(device); }
 
   private:
     vk::ComputeKernel kernel;

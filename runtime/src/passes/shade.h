@@ -24,7 +24,9 @@ class ShadePass {
     void bind(vk::Device& device, const PixelTargets& pixels, VkImageView color);
     // Ends with the barrier that lets the next light's passes rewrite
     // visibility, marks and the ray list (also read as indirect arguments).
-    void record(VkCommandBuffer cmd, const ShadePush& push, uint32_t width, uint32_t height) const;
+    // floor: the null twin instead (shaders/floor.glsli), after createFloor.
+    void record(VkCommandBuffer cmd, const ShadePush& push, uint32_t width, uint32_t height, bool floor = false) const;
+    void createFloor(vk::Device& device) { kernel.createFloor(device); }
 
   private:
     vk::ComputeKernel kernel;

@@ -19,6 +19,16 @@ void ViewFitPass::bind(vk::Device& device, const ViewFitTargets& t)
     kernel.write(device, {vk::storageImage(t.position), vk::uniformBuffer(t.frame)});
 }
 
+void ViewFitPass::recordFloor(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, uint32_t width,
+                              uint32_t height) const
+{
+    kernel.bind(cmd, true);
+    kernel.push(cmd, ViewFitPush{vk::bufferAddress(device, viewBounds), 0, 0, 0});
+    const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * 4;
+    vkCmdDispatch(cmd, groupCount(width, tile), groupCount(height, tile), 1);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+}
+
 void ViewFitPass::record(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, const vk::Buffer& receiverGrids,
                          uint32_t fitMask, uint32_t gridMask, const std::vector<uint32_t>& gridLayers, uint32_t width,
                          uint32_t height) const
