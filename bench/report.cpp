@@ -607,8 +607,7 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
               "per-pixel pass (view_fit, classify, compact, shade) is its null twin (shaders/floor.glsli): the same "
               "bindings and dispatch, every input read once per pixel, the outputs written. The floor of a raster "
               "pass (camera, shadow_map) is every triangle of the model drawn uncompressed, depth only, unculled. "
-              "Floor frames submit and wait after every pass so that each interval holds only its own work; both "
-              "columns are less the host round trip that adds. The tracer's floor is Embree on the same rays on the "
+              "The tracer's floor is Embree on the same rays on the "
               "CPU: frt's compaction + trace against the oracle's time for as many rays. Goal: every stage within 2x, "
               "the tracer within 4x.\n\n"
               "| scene | shadow | method | stage | ms | floor ms | time / floor |\n|---|---|---|---|---|---|---|\n";

@@ -173,23 +173,21 @@ Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind
     return m;
 }
 
-// Medians over the floor frames of each stage that has a floor, both less
-// the frame's host round trip (every interval of a floor frame holds one).
+// Medians over the floor frames of each stage that has a floor.
 std::vector<FloorSummary> floorSummaries(const std::vector<FrameStats>& frames)
 {
     std::vector<FloorSummary> out;
     for (const char* stage : {"camera", "view_fit", "shadow_map", "classify", "compact", "shade"}) {
         std::vector<double> ms, floorMs;
         for (const FrameStats& stats : frames) {
-            double pass = -1, floor = -1, roundTrip = 0;
+            double pass = -1, floor = -1;
             for (const PassTiming& t : stats.passes) {
                 if (t.name == stage) pass = t.gpuMs;
                 if (t.name == std::string(stage) + "_floor") floor = t.gpuMs;
-                if (t.name == "round_trip") roundTrip = t.gpuMs;
             }
             if (pass >= 0 && floor >= 0) {
-                ms.push_back(std::max(pass - roundTrip, 0.0));
-                floorMs.push_back(std::max(floor - roundTrip, 0.0));
+                ms.push_back(pass);
+                floorMs.push_back(floor);
             }
         }
         if (!ms.empty())

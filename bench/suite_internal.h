@@ -24,8 +24,8 @@ struct PassSummary {
 // A stage against its floor, medians over the floor frames (RenderSettings::measureFloors).
 struct FloorSummary {
     std::string stage;    // pass name: camera, view_fit, shadow_map, classify, compact, shade
-    double ms = 0;        // the pass, its interval less one host round trip
-    double floorMs = 0;   // its floor, the same
+    double ms = 0;        // the pass
+    double floorMs = 0;   // its floor
 };
 
 // One measured case (or one that could not run in this build).

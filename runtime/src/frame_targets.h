@@ -27,6 +27,8 @@ constexpr VkDeviceSize kViewBoundsKeyBytes = PENUMBRA_MAX_LIGHTS * 6 * 8 * sizeo
 constexpr VkDeviceSize kReceiverGridBytes = PENUMBRA_RECEIVER_GRID_WORDS * sizeof(uint32_t);
 constexpr VkDeviceSize kReceiverGridsBytes = PENUMBRA_MAX_LIGHTS * 6 * kReceiverGridBytes;
 
+constexpr uint32_t kMaxTimestamps = 256; // per frame
+
 struct FrameTargets {
     // Sized by the image.
     uint32_t width = 0, height = 0;
@@ -60,6 +62,7 @@ struct FrameTargets {
     vk::Buffer viewBounds;       // view_fit.comp.glsl's keys and receiver grids, read back before the shadow maps
     vk::Buffer receiverGrids;    // device-local receiver grids (written with atomics, copied into viewBounds)
     vk::Buffer thinClusterMasks; // srt: per light layer, the clusters the thin-triangle pass decodes (host-written)
+    vk::Buffer timestampSettle;  // CPU devices: every frame timestamp copied here with WAIT (renderer.cpp, PassTimer)
     VkSampler nearestSampler = VK_NULL_HANDLE;
 
     // The fixed targets.

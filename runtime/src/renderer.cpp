@@ -24,16 +24,29 @@ using namespace passes;
 namespace {
 
 // Timestamps between the passes: interval i ends at timestamp i + 1.
+//
+// lavapipe (llvmpipe) takes a timestamp when its rasterizer threads reach it
+// in the scene being binned, which happens at the next flush: at the next
+// timestamp, after the commands recorded in between have run. Each interval
+// then measured the pass after the one it was named for (a 1024^2 classify
+// read as 64 ms was the shade after it). On CPU devices every timestamp is
+// therefore followed by a copy of its result with WAIT, which makes the
+// queue wait until the value is taken, before the next pass starts.
 struct PassTimer {
     VkQueryPool pool = VK_NULL_HANDLE;
-    std::vector<PassId> ended; // pass of the interval ending at each timestamp (the first: PassId::Count)
+    VkBuffer settle = VK_NULL_HANDLE; // CPU devices: where each timestamp is copied (8 bytes per query)
+    std::vector<PassId> ended;        // pass of the interval ending at each timestamp (the first: PassId::Count)
 
     void mark(VkCommandBuffer cmd, PassId pass)
     {
         if (ended.size() >= kMaxTimestamps)
             fail("render", "too many timestamps");
         ended.push_back(pass);
-        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool, uint32_t(ended.size() - 1));
+        const uint32_t query = uint32_t(ended.size() - 1);
+        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool, query);
+        if (settle)
+            vkCmdCopyQueryPoolResults(cmd, pool, query, 1, settle, query * sizeof(uint64_t), sizeof(uint64_t),
+                                      VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
     }
 };
 
@@ -137,20 +150,8 @@ struct Renderer::Impl::FrameScript {
                 receiverGridMask |= 1u << i;
         }
         timer.pool = r.queryPool;
-    }
-
-    // Ends the interval of `pass`. Floor frames (RenderSettings::measureFloors)
-    // submit and wait first, so that every interval holds exactly its own
-    // work: lavapipe's timestamps can land before work recorded ahead of them
-    // has finished, which moves time between neighbouring passes. Each
-    // interval then also holds one host round trip (PassId::RoundTrip).
-    void mark(PassId pass)
-    {
-        if (settings.measureFloors) {
-            r.submitAndWait(cmd);
-            beginCommands();
-        }
-        timer.mark(cmd, pass);
+        if (r.device.info.type == "cpu")
+            timer.settle = r.targets.timestampSettle.buffer;
     }
 
     uint32_t layers(uint32_t light) const { return uint32_t(data.lights[light].spotCosLayers.z); }
@@ -197,12 +198,12 @@ struct Renderer::Impl::FrameScript {
         FrameTargets& t = r.targets;
         if (settings.measureFloors) {
             drawFloor(t.floorDepth, view.viewProj);
-            mark(PassId::CameraFloor);
+            timer.mark(cmd, PassId::CameraFloor);
         }
         vkCmdFillBuffer(cmd, t.stats.buffer, 0, VK_WHOLE_SIZE, 0);
         vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
         r.gbuffer.record(cmd, r.culling, 0, r.geometry, {&t.position, &t.normal, &t.depth}, {view.viewProj, glm::vec4(view.eye, 1.0f)});
-        mark(PassId::Camera);
+        timer.mark(cmd, PassId::Camera);
         for (vk::Image* image : {&t.color, &t.visibility})
             vk::transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);
     }
@@ -216,11 +217,11 @@ struct Renderer::Impl::FrameScript {
             gridLayers[i] = layers(i);
         if (settings.measureFloors) {
             r.viewFit.recordFloor(cmd, r.device, r.targets.viewBounds, width(), height());
-            mark(PassId::ViewFitFloor);
+            timer.mark(cmd, PassId::ViewFitFloor);
         }
         r.viewFit.record(cmd, r.device, r.targets.viewBounds, r.targets.receiverGrids, viewFitMask, receiverGridMask, gridLayers, width(),
                          height());
-        mark(PassId::ViewFit);
+        timer.mark(cmd, PassId::ViewFit);
         r.submitAndWait(cmd);
 
         for (uint32_t i = 0; i < lights.size(); ++i) {
@@ -254,7 +255,7 @@ struct Renderer::Impl::FrameScript {
         planShadowViews();
         beginCommands();
         r.shadowCulling.resetQueries(cmd);
-        mark(PassId::ViewFitReadback); // the round trip through the host
+        timer.mark(cmd, PassId::ViewFitReadback); // the round trip through the host
     }
 
     // One step of a light's sequence; slot: the area light's map (0: the centre), first: its first map drawn.
@@ -272,14 +273,14 @@ struct Renderer::Impl::FrameScript {
             if (settings.measureFloors) {
                 for (uint32_t layer = 0; layer < (area ? 1 : layers(light)); ++layer)
                     drawFloor(t.floorMapDepth, l.viewProj[area ? slot : layer]);
-                mark(PassId::ShadowMapFloor);
+                timer.mark(cmd, PassId::ShadowMapFloor);
             }
             r.shadowMap.begin(cmd, t.shadowMap);
             for (uint32_t layer = 0; layer < (area ? 1 : layers(light)); ++layer)
                 r.shadowMap.record(cmd, r.shadowCulling, lightFirstView[light] + (area ? slot : layer), r.geometry, t.shadowMap, layer,
                                    {l.viewProj[area ? slot : layer]}, {settings.depthBiasConstant, settings.depthBiasSlope});
             r.shadowMap.end(cmd, t.shadowMap);
-            mark(PassId::ShadowMap);
+            timer.mark(cmd, PassId::ShadowMap);
             return;
         case Step::ThinTriangles: {
             r.thinTriangles.clear(cmd, t.thinMap);
@@ -297,7 +298,7 @@ struct Renderer::Impl::FrameScript {
                 r.thinTriangles.record(cmd, r.device, r.geometry, r.trace.modelTableAddress(), t.shadowSize, t.thinMap.layers, thin);
             }
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRead);
-            mark(PassId::ThinTriangles);
+            timer.mark(cmd, PassId::ThinTriangles);
             return;
         }
         case Step::PenumbraMask: {
@@ -307,7 +308,7 @@ struct Renderer::Impl::FrameScript {
             const float range = l.mapRange[slot].x - l.mapEye[slot].w;
             r.penumbraMask.record(cmd, {glm::inverse(l.viewProj[slot]), light, slot, 0, t.shadowSize, top, spec.uses(Step::ThinTriangles) ? 1u : 0u,
                                         float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0});
-            mark(PassId::PenumbraMask);
+            timer.mark(cmd, PassId::PenumbraMask);
             return;
         }
         case Step::Classify:
@@ -322,43 +323,43 @@ struct Renderer::Impl::FrameScript {
                 } else {
                     r.classify.record(cmd, {light, step.mode}, width(), height(), floor);
                 }
-                mark(floor ? PassId::ClassifyFloor : PassId::Classify);
+                timer.mark(cmd, floor ? PassId::ClassifyFloor : PassId::Classify);
             }
             return;
         case Step::Compact:
             if (settings.measureFloors) {
                 r.compact.recordFloor(cmd, width() * height());
-                mark(PassId::CompactFloor);
+                timer.mark(cmd, PassId::CompactFloor);
             }
             r.compact.record(cmd, width() * height());
-            mark(PassId::Compact);
+            timer.mark(cmd, PassId::Compact);
             return;
         case Step::Trace:
             r.trace.record(cmd, light, rayOffset, area ? settings.lightSamples : 0);
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
-            mark(PassId::Trace);
+            timer.mark(cmd, PassId::Trace);
             return;
         case Step::AliasFree:
             r.afsm.clear(cmd);
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
                 r.afsm.recordSamples(cmd, light, layer, rayOffset);
-                mark(PassId::AfsmSamples);
+                timer.mark(cmd, PassId::AfsmSamples);
                 r.afsm.recordCasters(cmd, r.shadowCulling, lightFirstView[light] + layer, r.geometry, l.viewProj[layer], light, rayOffset);
-                mark(PassId::AfsmCasters);
+                timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
         case Step::AfsmResolve:
             r.afsm.recordResolve(cmd, light, rayOffset);
-            mark(PassId::AfsmSamples);
+            timer.mark(cmd, PassId::AfsmSamples);
             return;
         case Step::Shade: {
             const ShadePush push{light, light + 1 == lights.size() ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u, 0u};
             if (settings.measureFloors) {
                 r.shade.record(cmd, push, width(), height(), true);
-                mark(PassId::ShadeFloor);
+                timer.mark(cmd, PassId::ShadeFloor);
             }
             r.shade.record(cmd, push, width(), height());
-            mark(PassId::Shade);
+            timer.mark(cmd, PassId::Shade);
             if (settings.readbackLightLayers)
                 copyLightLayers(light);
             return;
@@ -426,7 +427,7 @@ struct Renderer::Impl::FrameScript {
             copyImage(t.visibility, t.readbackVisibility);
         }
         vk::memoryBarrier(cmd, kCopy | kCompute, kTransferWrite | kStorageWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
-        mark(PassId::Readback);
+        timer.mark(cmd, PassId::Readback);
     }
 
     Frame finish(std::chrono::steady_clock::time_point cpuStart);
@@ -517,8 +518,6 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     if (!readBack)
         shadowCulling.resetQueries(commandBuffer);
     frame.timer.mark(commandBuffer, PassId::Count);
-    if (settings.measureFloors)
-        frame.mark(PassId::RoundTrip); // an empty interval: the round trip every floor-frame interval holds
     frame.recordCamera();
     if (readBack)
         frame.fitToView();

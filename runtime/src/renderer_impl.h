@@ -25,8 +25,6 @@
 
 namespace penumbra {
 
-constexpr uint32_t kMaxTimestamps = 256; // per frame
-
 struct Renderer::Impl {
     vk::Device device;
     GpuGeometry geometry;

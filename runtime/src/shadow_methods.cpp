@@ -12,8 +12,7 @@ const char* passName(PassId pass)
     static const char* const names[] = {"camera",         "view_fit",       "view_fit_readback", "shadow_map",  "thin_triangles",
                                         "penumbra_mask",  "afsm_samples",   "afsm_casters",      "classify",    "compact",
                                         "trace",          "shade",          "readback",          "camera_floor", "view_fit_floor",
-                                        "shadow_map_floor", "classify_floor", "compact_floor",   "shade_floor",
-                                        "round_trip"};
+                                        "shadow_map_floor", "classify_floor", "compact_floor",   "shade_floor"};
     static_assert(sizeof(names) / sizeof(names[0]) == size_t(PassId::Count));
     return pass < PassId::Count ? names[uint32_t(pass)] : "unknown";
 }

@@ -18,7 +18,7 @@ enum class PassId : uint32_t {
     Camera, ViewFit, ViewFitReadback, ShadowMap, ThinTriangles, PenumbraMask, AfsmSamples, AfsmCasters, Classify, Compact, Trace, Shade,
     Readback,
     // RenderSettings::measureFloors: the null twins of the per-pixel passes and the raster passes' uncompressed depth-only draws.
-    CameraFloor, ViewFitFloor, ShadowMapFloor, ClassifyFloor, CompactFloor, ShadeFloor, RoundTrip,
+    CameraFloor, ViewFitFloor, ShadowMapFloor, ClassifyFloor, CompactFloor, ShadeFloor,
     Count
 };
 const char* passName(PassId pass);

@@ -243,7 +243,7 @@ TEST(FrameImages, FloorsLeaveTheFrameUnchanged)
     Frame srt = render(renderer, ShadowMethod::Selective, false, true);
     checkFrame("city_srt", srt);
     for (const char* name : {"camera_floor", "view_fit_floor", "shadow_map_floor", "classify_floor", "compact_floor", "shade_floor",
-                             "round_trip", "camera", "view_fit", "view_fit_readback", "classify", "compact", "trace", "shade"})
+                             "camera", "view_fit", "view_fit_readback", "classify", "compact", "trace", "shade"})
         EXPECT_TRUE(has(passNames(srt), name)) << name;
     renderer.setLights({rectangle});
     checkFrame("city_rectangle_sm", render(renderer, ShadowMethod::ShadowMap, false, true));
@@ -251,7 +251,6 @@ TEST(FrameImages, FloorsLeaveTheFrameUnchanged)
     // An ordinary frame after floor frames has no floors.
     Frame plain = render(renderer, ShadowMethod::Selective);
     EXPECT_FALSE(has(passNames(plain), "classify_floor"));
-    EXPECT_FALSE(has(passNames(plain), "round_trip"));
 }
 
 } // namespace
