@@ -39,35 +39,31 @@ uvec2 classifyPixel()
         return uvec2(0u);
     uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
-    if (position.w == 0.0) {
-        imageStore(visibilityImage, pixel, vec4(-1.0));
-        marks[index] = 0u;
-        return uvec2(0u);
-    }
+    // Background pixels take the same path (one store of each output per
+    // pixel: lavapipe would run a separate early-out path for every pixel).
+    bool covered = position.w != 0.0;
     LightData light = frame.lights[push.lightIndex];
     vec3 p = position.xyz;
     vec3 n = imageLoad(gNormal, pixel).xyz;
     float distance;
     vec3 L = towardLight(light, p, distance);
-    bool lightFacing = dot(n, L) > 0.0;
+    bool lightFacing = covered && dot(n, L) > 0.0;
 
     ivec2 size = textureSize(shadowMap, 0).xy;
     ShadowLookup s = projectToShadowMap(light, p, size);
-    float visibility = 1.0;
-    if (s.inside)
-        visibility = s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
-    imageStore(visibilityImage, pixel, vec4(visibility));
+    float visibility = !s.inside || s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
+    imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
 
-    bool mark = false;
-    if (lightFacing && push.mode == PENUMBRA_CLASSIFY_ALL)
-        mark = true;
-    else if (lightFacing && push.mode == PENUMBRA_CLASSIFY_PIP && s.inside) {
+    bool mark = lightFacing && push.mode == PENUMBRA_CLASSIFY_ALL;
+    // The PIP tests, skipped on lavapipe in sm and frt frames and in srt
+    // subgroups with no pixel to test (PENUMBRA_SKIP_UNLESS, config.h).
+    PENUMBRA_SKIP_UNLESS(lightFacing && push.mode == PENUMBRA_CLASSIFY_PIP && s.inside) {
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
         mark = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
                (visibility == 1.0 && thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r), light, s, size, n, L));
     }
     marks[index] = mark ? 1u : 0u;
-    return uvec2(1u, mark ? 1u : 0u);
+    return uvec2(covered ? 1u : 0u, mark ? 1u : 0u);
 }
 
 #include "pixel_counts.glsli"

@@ -3,6 +3,15 @@
 #ifndef PENUMBRA_SHADERS_CONFIG_H
 #define PENUMBRA_SHADERS_CONFIG_H
 
+#ifndef __cplusplus
+// Runs the statement after it when cond holds, as a loop of at most one
+// iteration. lavapipe (llvmpipe) executes both sides of every if for all
+// lanes of a SIMD register, masked, even when no lane takes the branch, but
+// leaves a loop as soon as no lane is in it: work that most pixels skip is
+// skipped for the whole register this way. Elsewhere it is an if.
+#define PENUMBRA_SKIP_UNLESS(cond) for (bool skipUnless_ = (cond); skipUnless_; skipUnless_ = false)
+#endif
+
 #define PENUMBRA_MAX_LIGHTS 8            // lights shaded per frame
 #define PENUMBRA_SHADE_GROUP_SIZE 8      // shade.comp and classify.comp workgroups are 8x8 pixels
 #define PENUMBRA_THIN_TRIANGLES_GROUP_SIZE 64 // thin_triangles.comp: BVH nodes per workgroup, strip bytes decoded at once

@@ -47,7 +47,9 @@ void main()
         return;
 
     vec4 position = imageLoad(gPosition, pixel);
-    vec3 color = push.firstLight != 0u ? vec3(0.0) : imageLoad(outColor, pixel).rgb;
+    vec3 color = vec3(0.0);
+    PENUMBRA_SKIP_UNLESS(push.firstLight == 0u) // later lights add to the colour
+        color = imageLoad(outColor, pixel).rgb;
     if (position.w == 0.0) {
         if (push.firstLight != 0u)
             imageStore(outColor, pixel, frame.background);
@@ -87,11 +89,11 @@ void main()
 
     float visibility = max(imageLoad(visibilityImage, pixel).r, 0.0);
     bool area = type == PENUMBRA_LIGHT_RECTANGLE || type == PENUMBRA_LIGHT_DISK || type == PENUMBRA_LIGHT_SPHERE;
-    if (area && visibility > 0.0 && visibility < 1.0)
+    PENUMBRA_SKIP_UNLESS(area && visibility > 0.0 && visibility < 1.0)
         atomicAdd(stats[PENUMBRA_STAT_PENUMBRA], uint64_t(1));
     float nDotL = max(dot(n, toLight), 0.0);
     color += albedo * light.colorIntensity.rgb * light.colorIntensity.w * attenuation * nDotL * visibility;
-    if (push.debugPip != 0u && marks[pixel.y * size.x + pixel.x] != 0u)
+    PENUMBRA_SKIP_UNLESS(push.debugPip != 0u && marks[pixel.y * size.x + pixel.x] != 0u)
         color = mix(color, vec3(1.0, 0.0, 0.0), 0.75);
     imageStore(outColor, pixel, vec4(color, 1.0));
 }

@@ -27,9 +27,8 @@
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
 
 // Pixels per invocation, a side: a workgroup covers PENUMBRA_SHADE_GROUP_SIZE *
-// VIEW_BOUNDS_BLOCK pixels a side and adds its bounds with one atomic per key.
+// VIEW_BOUNDS_BLOCK pixels a side; each subgroup adds its bounds with one atomic per key.
 #define VIEW_BOUNDS_BLOCK 4
-#define GROUP_INVOCATIONS (PENUMBRA_SHADE_GROUP_SIZE * PENUMBRA_SHADE_GROUP_SIZE)
 
 // C++: runtime/src/passes/view_fit.h (ViewFitBinding).
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
@@ -46,8 +45,6 @@ layout(push_constant) uniform ViewBoundsPush {
     uint gridMask;   // bit l: light l writes its receiver grids (directional, point, spot)
 } push;
 
-shared vec3 sharedLo[GROUP_INVOCATIONS], sharedNegHi[GROUP_INVOCATIONS];
-shared bool sharedBehind[GROUP_INVOCATIONS];
 
 // Unsigned key with the order of the float.
 uint orderKey(float f)
@@ -69,21 +66,18 @@ bool blockPoint(ivec2 origin, ivec2 size, int i, out vec3 p)
     return g.w > 0.0;
 }
 
-// The receiver grids of light l. The lookup is projectToShadowMap's (and
-// shadowLayer's), written out on the uniform's fields: passing the LightData
-// to them copies it per pixel, which made this pass about 30 ms slower on
-// lavapipe at 1024^2 (measured: 24-40 ms against 60-72 ms for the whole
-// view_fit interval). Keep the two in step.
-void markReceivers(uint l, ivec2 origin, ivec2 size)
+// The receiver grids of light l for the block's points. The lookup is
+// projectToShadowMap's (and shadowLayer's), written out on the uniform's
+// fields: passing the LightData to them copies it per pixel, which made this
+// pass about 30 ms slower on lavapipe at 1024^2. Keep the two in step.
+void markReceivers(uint l, vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK], uint valid)
 {
     const uint type = uint(frame.lights[l].positionType.w);
     const vec3 lightPosition = frame.lights[l].positionType.xyz;
     Grid cells = Grid(push.grid);
     uint lastBit = ~0u;
     for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
-        vec3 p;
-        if (!blockPoint(origin, size, i, p))
-            continue;
+        vec3 p = points[i];
         uint layer = 0u; // shadowLayer: a point light's cube face
         if (type == PENUMBRA_LIGHT_POINT) {
             vec3 d = p - lightPosition;
@@ -95,16 +89,18 @@ void markReceivers(uint l, ivec2 origin, ivec2 size)
             else
                 layer = d.z >= 0.0 ? 4u : 5u;
         }
-        vec4 clip = frame.lights[l].viewProj[layer] * vec4(p, 1.0);
+        vec4 clip = frame.lights[l].viewProj[0] * vec4(p, 1.0);
+        PENUMBRA_SKIP_UNLESS(layer != 0u) // cube faces other than +X: only point lights
+            clip = frame.lights[l].viewProj[layer] * vec4(p, 1.0);
         vec3 ndc = clip.xyz / clip.w;
         bool inside = clip.w > 0.0 && all(lessThanEqual(abs(ndc.xy), vec2(1.0))) && ndc.z <= 1.0;
-        if (!inside && type != PENUMBRA_LIGHT_DIRECTIONAL)
-            continue;
         ivec2 cell = clamp(ivec2((ndc.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID)), ivec2(0), ivec2(PENUMBRA_RECEIVER_GRID - 1));
         uint bit = ((6u * l + layer) * PENUMBRA_RECEIVER_GRID + uint(cell.y)) * PENUMBRA_RECEIVER_GRID + uint(cell.x);
-        if (bit != lastBit) // neighbouring pixels mostly share a cell
+        bool marks = (valid & (1u << i)) != 0u && (inside || type == PENUMBRA_LIGHT_DIRECTIONAL);
+        // Neighbouring pixels mostly share a cell: an atomic only where the cell changes.
+        PENUMBRA_SKIP_UNLESS(marks && bit != lastBit)
             atomicOr(cells.bits[bit >> 5u], 1u << (bit & 31u));
-        lastBit = bit;
+        lastBit = marks ? bit : lastBit;
     }
 }
 
@@ -130,13 +126,19 @@ void main()
     const float inf = uintBitsToFloat(0x7F800000u);
     const ivec2 size = imageSize(gPosition);
     const ivec2 origin = ivec2(gl_GlobalInvocationID.xy) * VIEW_BOUNDS_BLOCK;
-    for (uint l = 0u; l < PENUMBRA_MAX_LIGHTS; ++l)
-        if ((push.gridMask & (1u << l)) != 0u)
-            markReceivers(l, origin, size);
+    // The block's points, read once for every light and map.
+    vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK];
+    uint valid = 0u;
+    for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i)
+        if (blockPoint(origin, size, i, points[i]))
+            valid |= 1u << i;
+    // Only the lights in the masks (lavapipe would run the body of a skipped
+    // iteration masked): one iteration per set bit.
+    for (uint lights = push.gridMask; lights != 0u; lights &= lights - 1u)
+        markReceivers(uint(findLSB(lights)), points, valid);
     Keys out_ = Keys(push.keys);
-    for (uint l = 0u; l < PENUMBRA_MAX_LIGHTS; ++l) {
-        if ((push.lightMask & (1u << l)) == 0u)
-            continue;
+    for (uint lights = push.lightMask; lights != 0u; lights &= lights - 1u) {
+        const uint l = uint(findLSB(lights));
         const bool perspective = isAreaLight(frame.lights[l]);
         const uint maps = perspective ? uint(frame.lights[l].spotCosLayers.w) : 1u;
         for (uint k = 0u; k < maps; ++k) {
@@ -144,46 +146,30 @@ void main()
             vec3 lo = vec3(inf), negHi = vec3(inf);
             bool behind = false;
             for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
-                vec3 p;
-                if (!blockPoint(origin, size, i, p))
-                    continue;
-                vec4 clip = viewProj * vec4(p, 1.0); // orthographic: w = 1
-                if (clip.w <= 0.0) {
-                    behind = true;
-                    continue;
-                }
+                vec4 clip = viewProj * vec4(points[i], 1.0); // orthographic: w = 1
+                bool used = (valid & (1u << i)) != 0u;
+                behind = behind || (used && clip.w <= 0.0);
+                used = used && clip.w > 0.0;
                 vec3 c = clip.xyz / clip.w;
-                lo = min(lo, c);
-                negHi = min(negHi, -c);
+                lo = used ? min(lo, c) : lo;
+                negHi = used ? min(negHi, -c) : negHi;
             }
+            // One atomic per key and subgroup (no workgroup barrier: on lavapipe
+            // each one switches between the workgroup's subgroups).
             lo = subgroupMin(lo);
             negHi = subgroupMin(negHi);
             behind = subgroupMax(behind ? 1u : 0u) != 0u; // the device offers arithmetic, not vote
-            if (subgroupElect()) {
-                sharedLo[gl_SubgroupID] = lo;
-                sharedNegHi[gl_SubgroupID] = negHi;
-                sharedBehind[gl_SubgroupID] = behind;
+            uint base = 8u * (6u * l + k);
+            PENUMBRA_SKIP_UNLESS(subgroupElect() && lo.x != inf) {
+                atomicMin(out_.keys[base + 0u], orderKey(lo.x));
+                atomicMin(out_.keys[base + 1u], orderKey(lo.y));
+                atomicMin(out_.keys[base + 2u], orderKey(lo.z));
+                atomicMin(out_.keys[base + 3u], orderKey(negHi.x));
+                atomicMin(out_.keys[base + 4u], orderKey(negHi.y));
+                atomicMin(out_.keys[base + 5u], orderKey(negHi.z));
             }
-            barrier();
-            if (gl_LocalInvocationIndex == 0u) {
-                for (uint s = 1u; s < gl_NumSubgroups; ++s) {
-                    lo = min(lo, sharedLo[s]);
-                    negHi = min(negHi, sharedNegHi[s]);
-                    behind = behind || sharedBehind[s];
-                }
-                uint base = 8u * (6u * l + k);
-                if (lo.x != inf) {
-                    atomicMin(out_.keys[base + 0u], orderKey(lo.x));
-                    atomicMin(out_.keys[base + 1u], orderKey(lo.y));
-                    atomicMin(out_.keys[base + 2u], orderKey(lo.z));
-                    atomicMin(out_.keys[base + 3u], orderKey(negHi.x));
-                    atomicMin(out_.keys[base + 4u], orderKey(negHi.y));
-                    atomicMin(out_.keys[base + 5u], orderKey(negHi.z));
-                }
-                if (behind)
-                    atomicMin(out_.keys[base + 6u], 0u);
-            }
-            barrier();
+            PENUMBRA_SKIP_UNLESS(subgroupElect() && behind)
+                atomicMin(out_.keys[base + 6u], 0u);
         }
     }
 }

@@ -24,7 +24,6 @@ void FrameTargets::create(vk::Device& device)
                                   vk::MemoryUse::Readback, vk::Addressable::Yes);
     receiverGrids = vk::createBuffer(device, kReceiverGridsBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                                      vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
-    timestampSettle = vk::createBuffer(device, kMaxTimestamps * sizeof(uint64_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::DeviceLocal);
     VkSamplerCreateInfo samplerInfo{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
     samplerInfo.magFilter = samplerInfo.minFilter = VK_FILTER_NEAREST;
     samplerInfo.addressModeU = samplerInfo.addressModeV = samplerInfo.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
@@ -77,7 +76,7 @@ void FrameTargets::destroy(vk::Device& device)
 {
     destroyImageSized(device);
     destroyMapSized(device);
-    for (vk::Buffer* buffer : {&frameUniforms, &stats, &readbackStats, &viewBounds, &receiverGrids, &thinClusterMasks, &timestampSettle})
+    for (vk::Buffer* buffer : {&frameUniforms, &stats, &readbackStats, &viewBounds, &receiverGrids, &thinClusterMasks})
         vk::destroyBuffer(device, *buffer);
     if (nearestSampler)
         vkDestroySampler(device.device, nearestSampler, nullptr);

@@ -62,7 +62,6 @@ struct FrameTargets {
     vk::Buffer viewBounds;       // view_fit.comp.glsl's keys and receiver grids, read back before the shadow maps
     vk::Buffer receiverGrids;    // device-local receiver grids (written with atomics, copied into viewBounds)
     vk::Buffer thinClusterMasks; // srt: per light layer, the clusters the thin-triangle pass decodes (host-written)
-    vk::Buffer timestampSettle;  // CPU devices: every frame timestamp copied here with WAIT (renderer.cpp, PassTimer)
     VkSampler nearestSampler = VK_NULL_HANDLE;
 
     // The fixed targets.
