@@ -74,8 +74,13 @@ void markReceivers(uint l, vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK], u
 {
     const uint type = uint(frame.lights[l].positionType.w);
     const vec3 lightPosition = frame.lights[l].positionType.xyz;
+    // Read once: uniform-buffer reads in the loop below would be repeated per point.
+    const mat4 viewProj0 = frame.lights[l].viewProj[0];
     Grid cells = Grid(push.grid);
-    uint lastBit = ~0u;
+    // Cells are ORed into one word of the grid (32 cells of a row) per lane,
+    // written with an atomic when the next point's cell lies in another word,
+    // and at the end once per subgroup when all its lanes share the word.
+    uint word = ~0u, bits = 0u;
     for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
         vec3 p = points[i];
         uint layer = 0u; // shadowLayer: a point light's cube face
@@ -89,7 +94,7 @@ void markReceivers(uint l, vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK], u
             else
                 layer = d.z >= 0.0 ? 4u : 5u;
         }
-        vec4 clip = frame.lights[l].viewProj[0] * vec4(p, 1.0);
+        vec4 clip = viewProj0 * vec4(p, 1.0);
         PENUMBRA_SKIP_UNLESS(layer != 0u) // cube faces other than +X: only point lights
             clip = frame.lights[l].viewProj[layer] * vec4(p, 1.0);
         vec3 ndc = clip.xyz / clip.w;
@@ -97,11 +102,19 @@ void markReceivers(uint l, vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK], u
         ivec2 cell = clamp(ivec2((ndc.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID)), ivec2(0), ivec2(PENUMBRA_RECEIVER_GRID - 1));
         uint bit = ((6u * l + layer) * PENUMBRA_RECEIVER_GRID + uint(cell.y)) * PENUMBRA_RECEIVER_GRID + uint(cell.x);
         bool marks = (valid & (1u << i)) != 0u && (inside || type == PENUMBRA_LIGHT_DIRECTIONAL);
-        // Neighbouring pixels mostly share a cell: an atomic only where the cell changes.
-        PENUMBRA_SKIP_UNLESS(marks && bit != lastBit)
-            atomicOr(cells.bits[bit >> 5u], 1u << (bit & 31u));
-        lastBit = marks ? bit : lastBit;
+        PENUMBRA_SKIP_UNLESS(marks && word != ~0u && (bit >> 5u) != word) {
+            atomicOr(cells.bits[word], bits);
+            bits = 0u;
+        }
+        word = marks ? bit >> 5u : word;
+        bits |= marks ? 1u << (bit & 31u) : 0u;
     }
+    bool oneWord = subgroupMin(word) == subgroupMax(word);
+    uint sharedBits = subgroupOr(bits);
+    PENUMBRA_SKIP_UNLESS(oneWord && word != ~0u && subgroupElect())
+        atomicOr(cells.bits[word], sharedBits);
+    PENUMBRA_SKIP_UNLESS(!oneWord && word != ~0u)
+        atomicOr(cells.bits[word], bits);
 }
 
 #ifdef PENUMBRA_FLOOR
