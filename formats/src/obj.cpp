@@ -2,6 +2,7 @@
 // relative indices; v, v/vt, v//vn and v/vt/vn corners) and export.
 // Everything else (vt, vn, groups, materials, smoothing) is ignored.
 #include <algorithm>
+#include <cmath>
 
 #include "io_internal.h"
 
@@ -66,6 +67,23 @@ Scene importObj(const std::string& path, const MappedFile& file)
                     lineFail("vertex has fewer than 3 coordinates");
                 if (!parseFloat(token, value))
                     lineFail("malformed number " + quoteToken(token));
+            }
+            // Optional: w, or the common colour extension 'v x y z r g b' (also after a w).
+            float extra[4];
+            size_t extraCount = 0;
+            for (std::string_view token = recordToken(cursor); !token.empty() && extraCount < 4;
+                 token = extraCount < 4 ? recordToken(cursor) : std::string_view{}) {
+                if (!parseFloat(token, extra[extraCount]))
+                    break; // anything else after the position is ignored, as before
+                ++extraCount;
+            }
+            if (extraCount >= 3) {
+                if (mesh.colors.empty())
+                    mesh.colors.assign(mesh.positions.size(), 1.0f); // earlier vertices: white
+                for (size_t k = extraCount - 3; k < extraCount; ++k)
+                    mesh.colors.push_back(std::isfinite(extra[k]) ? std::clamp(extra[k], 0.0f, 1.0f) : 0.0f);
+            } else if (!mesh.colors.empty()) {
+                mesh.colors.insert(mesh.colors.end(), {1.0f, 1.0f, 1.0f});
             }
             mesh.positions.insert(mesh.positions.end(), xyz, xyz + 3);
         } else if (c == 'f' && cursor.p + 1 < cursor.end && (cursor.p[1] == ' ' || cursor.p[1] == '\t')) {
