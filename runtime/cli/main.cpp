@@ -49,6 +49,7 @@ struct RenderArgs {
     std::string exposure = "auto";
     std::string tonemap = "filmic";
     std::string ground = "auto";
+    std::string colors = "on";
     std::string compare;
     bool exrLayers = false;
 };
@@ -156,6 +157,7 @@ int runRender(const RenderArgs& args)
     settings.depthBiasConstant = args.biasConstant;
     settings.depthBiasSlope = args.biasSlope;
     settings.debugPip = args.debugImage == "pip";
+    settings.colors = args.colors == "on";
     checkImagePath(args.output);
     if (!args.compare.empty())
         checkImagePath(args.compare);
@@ -358,7 +360,8 @@ int runPreprocess(const PreprocessArgs& args)
         progress.update(std::string(label) + "write", 1.0);
         writeModelFile(model, path);
         progress.finish();
-        uint64_t bytes = model.clusters.size_bytes() + model.nodes.size_bytes() + model.vertices.size_bytes() + model.indices.size_bytes();
+        uint64_t bytes = model.clusters.size_bytes() + model.nodes.size_bytes() + model.vertices.size_bytes() + model.indices.size_bytes() +
+                         model.materials.size_bytes();
         std::printf("%s: %llu triangles (%.4g of %zu%s), %u clusters, %u nodes, %.2f B/tri, max error %.3g, %.2f s "
                     "(%.2f M tris/s incl. import %.2f s)\n",
                     path.c_str(), (unsigned long long)model.header.triangleCount, double(model.header.triangleCount) / scene.mesh.triangleCount(),
@@ -390,14 +393,16 @@ int runInfo(const std::string& path)
                 h.build.maxClusterVertices, h.build.maxClusterTriangles, h.build.maxLeafTriangles, h.build.sahBins);
     struct Row { const char* name; uint64_t bytes; } rows[] = {
         {"clusters", model.clusters.size_bytes()}, {"nodes", model.nodes.size_bytes()},
-        {"vertices", model.vertices.size_bytes()}, {"indices", model.indices.size_bytes()}};
+        {"vertices", model.vertices.size_bytes()}, {"indices", model.indices.size_bytes()},
+        {"materials", model.materials.size_bytes()}};
     uint64_t total = 0;
     std::printf("  %-16s %14s %10s\n", "section", "bytes", "B/tri");
     for (const Row& row : rows) {
         std::printf("  %-16s %14llu %10.3f\n", row.name, (unsigned long long)row.bytes, double(row.bytes) / triangles);
         total += row.bytes;
     }
-    std::printf("  %-16s %14llu %10.3f\n", "geometry + BVH", (unsigned long long)total, double(total) / triangles);
+    std::printf("  %-16s %14llu %10.3f\n", "total", (unsigned long long)total, double(total) / triangles);
+    std::printf("  materials        %u\n", h.materialCount);
     return 0;
 }
 
@@ -492,6 +497,11 @@ int main(int argc, char** argv)
                               "its width, not already standing on a wider floor; not for .penumbra files), below (always, under "
                               "the model), off, or y=VALUE")
         ->capture_default_str();
+    renderCommand->add_option("--colors", render.colors,
+                              "Material colours of the model (glTF base colour, PLY/OBJ vertex or face colours): on, or off "
+                              "(every surface grey, as before colours were read)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--compare", render.compare,
                               "Also write a side-by-side strip sm | srt | srt with the traced pixels red, to this image");
     renderCommand->add_flag("--exr-layers", render.exrLayers,
