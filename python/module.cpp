@@ -126,6 +126,8 @@ public:
             CompressedModel compressed;
             if (endsWith(path, ".penumbra")) {
                 compressed = openModelFile(path);
+                scene.cameras = penumbra::modelCameras(compressed); // the source glTF's, stored by preprocess
+                scene.lights = penumbra::modelLights(compressed);
                 bounds.min = glm::vec3(compressed.header.boundsMin[0], compressed.header.boundsMin[1], compressed.header.boundsMin[2]);
                 bounds.max = glm::vec3(compressed.header.boundsMax[0], compressed.header.boundsMax[1], compressed.header.boundsMax[2]);
             } else {
@@ -226,7 +228,8 @@ py::dict preprocessFile(const std::filesystem::path& inputPath, const std::files
         SimplifiedMesh simplified;
         if (simplify < 1.0f)
             simplified = simplifyMesh(scene.mesh, simplify);
-        CompressedModel model = buildCompressedModel(simplify < 1.0f ? simplified.mesh : scene.mesh, options, &stats);
+        CompressedModel model = withScene(buildCompressedModel(simplify < 1.0f ? simplified.mesh : scene.mesh, options, &stats),
+                                          scene.cameras, scene.lights);
         model.header.sourceTriangleCount = scene.mesh.triangleCount();
         model.header.build.simplifyTarget = simplify;
         model.header.simplifyError = simplified.error;

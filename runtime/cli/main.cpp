@@ -202,6 +202,9 @@ int runRender(const RenderArgs& args)
                      scene.mesh.triangleCount());
     } else if (modelPath.size() > 9 && modelPath.substr(modelPath.size() - 9) == ".penumbra") {
         compressed = openModelFile(modelPath);
+        // The cameras and lights the preprocessor stored from the source scene.
+        scene.cameras = modelCameras(compressed);
+        scene.lights = modelLights(compressed);
     } else {
         scene = importScene(modelPath);
     }
@@ -353,7 +356,7 @@ int runPreprocess(const PreprocessArgs& args)
         }
         options.progress = [&](const char* stage, double fraction) { progress.update(std::string(label) + stage, fraction); };
         PreprocessStats stats;
-        CompressedModel model = buildCompressedModel(*mesh, options, &stats);
+        CompressedModel model = withScene(buildCompressedModel(*mesh, options, &stats), scene.cameras, scene.lights);
         model.header.sourceTriangleCount = scene.mesh.triangleCount();
         model.header.build.simplifyTarget = ratio;
         model.header.simplifyError = ratio < 1.0f ? simplified.error : 0.0f;
@@ -403,6 +406,8 @@ int runInfo(const std::string& path)
     }
     std::printf("  %-16s %14llu %10.3f\n", "total", (unsigned long long)total, double(total) / triangles);
     std::printf("  materials        %u\n", h.materialCount);
+    std::printf("  scene            %u camera(s), %u light(s), %llu bytes\n", h.cameraCount, h.lightCount,
+                (unsigned long long)(model.cameras.size_bytes() + model.lights.size_bytes()));
     return 0;
 }
 

@@ -1,5 +1,6 @@
 // Colours from the model (materials' base colour, vertex and face colours)
-// through preprocessing into the shade pass (issue 21, part 4).
+// through preprocessing into the shade pass, and the cameras and lights a
+// preprocessed file keeps from its source glTF (issue 21, parts 4 and 6).
 #include <sys/wait.h>
 
 #include <cmath>
@@ -186,6 +187,50 @@ TEST(Colors, PreprocessedFileKeepsTheMaterialsAndTheImage)
     Frame fromFile = renderScene(renderer, scene, true);
     EXPECT_EQ(fromSource.color.rgba, fromFile.color.rgba);
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
+}
+
+// Part 6: the glTF's camera and KHR_lights_punctual lights go into the file and
+// are used when it is rendered, as they are for the source.
+TEST(Colors, PreprocessedFileKeepsTheCamerasAndLights)
+{
+    const std::string source = tmp("scene_city.glb"), model = tmp("scene_city.penumbra");
+    std::string output;
+    ASSERT_EQ(runCli("generate city --triangles 20000 -o " + source), 0);
+    ASSERT_EQ(runCli("preprocess " + source + " -o " + model + " --quiet", &output), 0) << output;
+    Scene scene = importScene(source);
+    ASSERT_FALSE(scene.cameras.empty());
+    ASSERT_FALSE(scene.lights.empty());
+    CompressedModel file = openModelFile(model);
+    std::vector<Camera> cameras = modelCameras(file);
+    std::vector<Light> lights = modelLights(file);
+    ASSERT_EQ(cameras.size(), scene.cameras.size());
+    ASSERT_EQ(lights.size(), scene.lights.size());
+    for (size_t i = 0; i < cameras.size(); ++i) {
+        EXPECT_EQ(cameras[i].position, scene.cameras[i].position);
+        EXPECT_EQ(cameras[i].target, scene.cameras[i].target);
+        EXPECT_EQ(cameras[i].up, scene.cameras[i].up);
+        EXPECT_EQ(cameras[i].yfovDegrees, scene.cameras[i].yfovDegrees);
+        EXPECT_EQ(cameras[i].nearPlane, scene.cameras[i].nearPlane);
+        EXPECT_EQ(cameras[i].farPlane, scene.cameras[i].farPlane);
+    }
+    for (size_t i = 0; i < lights.size(); ++i) {
+        EXPECT_EQ(lights[i].type, scene.lights[i].type);
+        EXPECT_EQ(lights[i].direction, scene.lights[i].direction);
+        EXPECT_EQ(lights[i].color, scene.lights[i].color);
+        EXPECT_EQ(lights[i].intensity, scene.lights[i].intensity);
+    }
+    // The CLI renders both the same: same camera, same lights, same pixels.
+    const std::string fromSource = tmp("scene_city_source.png"), fromFile = tmp("scene_city_file.png");
+    const std::string options = " --size 80x60 --shadows srt --exposure 1 --tonemap none --ground off";
+    ASSERT_EQ(runCli("render " + source + " -o " + fromSource + options, &output), 0) << output;
+    ASSERT_EQ(runCli("render " + model + " -o " + fromFile + options, &output), 0) << output;
+    std::ifstream a(fromSource, std::ios::binary), b(fromFile, std::ios::binary);
+    std::string bytesA((std::istreambuf_iterator<char>(a)), {}), bytesB((std::istreambuf_iterator<char>(b)), {});
+    EXPECT_FALSE(bytesA.empty());
+    EXPECT_EQ(bytesA, bytesB);
+    // Without the stored scene the file would be framed by the default camera and the default sun.
+    ASSERT_EQ(runCli("info " + model, &output), 0) << output;
+    EXPECT_NE(output.find("scene            1 camera(s), 1 light(s)"), std::string::npos) << output;
 }
 
 } // namespace
