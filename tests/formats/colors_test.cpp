@@ -89,3 +89,46 @@ TEST(ImportColors, ObjVertexColours)
 
 } // namespace
 } // namespace penumbra::test
+
+namespace penumbra::test {
+namespace {
+
+std::vector<std::string> warnings;
+void captureWarning(const std::string& line)
+{
+    warnings.push_back(line);
+}
+
+TEST(ImportColors, ObjMaterialsFromTheMtlLibrary)
+{
+    writeFile("colors_parts.mtl", "# two materials\nnewmtl steel\nKa 0 0 0\nKd 0.5 0.5 0.6\n\nnewmtl paint\nKd 1 0.25 0\n"
+                                  "newmtl spectral\nKd spectral curve.spd\n");
+    std::string path = writeFile("colors_parts.obj", "mtllib colors_parts.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+                                                     "f 1 2 3\nusemtl paint\nf 2 4 3\nusemtl steel\nf 1 3 2\n"
+                                                     "usemtl paint\nf 4 2 3 1\n");
+    warnings.clear();
+    WarningSink previous = setWarningSink(captureWarning);
+    Mesh mesh = importScene(path).mesh;
+    setWarningSink(previous);
+    EXPECT_TRUE(warnings.empty());
+    ASSERT_EQ(mesh.materials.size(), 3u); // default (before the first usemtl), paint, steel
+    EXPECT_EQ(mesh.materials[0].baseColor, glm::vec4(1.0f));
+    EXPECT_EQ(mesh.materials[1].name, "paint");
+    EXPECT_EQ(mesh.materials[1].baseColor, glm::vec4(1, 0.25f, 0, 1));
+    EXPECT_EQ(mesh.materials[2].baseColor, glm::vec4(0.5f, 0.5f, 0.6f, 1));
+    EXPECT_EQ(mesh.triangleMaterials, (std::vector<uint32_t>{0, 1, 2, 1, 1}));
+
+    // A missing library: one warning, white surfaces, the geometry as before.
+    std::string missing = writeFile("colors_missing.obj", "mtllib nowhere.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n");
+    setWarningSink(captureWarning);
+    Mesh white = importScene(missing).mesh;
+    setWarningSink(previous);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("could not read material library 'nowhere.mtl' (surfaces stay white)"), std::string::npos)
+        << warnings[0];
+    EXPECT_EQ(white.materials.at(1).baseColor, glm::vec4(1.0f));
+    EXPECT_EQ(white.triangleCount(), 1u);
+}
+
+} // namespace
+} // namespace penumbra::test
