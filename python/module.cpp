@@ -229,7 +229,7 @@ py::dict preprocessFile(const std::filesystem::path& inputPath, const std::files
         if (simplify < 1.0f)
             simplified = simplifyMesh(scene.mesh, simplify);
         CompressedModel model = withScene(buildCompressedModel(simplify < 1.0f ? simplified.mesh : scene.mesh, options, &stats),
-                                          scene.cameras, scene.lights);
+                                          scene.cameras, scene.lights, input);
         model.header.sourceTriangleCount = scene.mesh.triangleCount();
         model.header.build.simplifyTarget = simplify;
         model.header.simplifyError = simplified.error;

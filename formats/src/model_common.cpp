@@ -125,27 +125,6 @@ std::vector<Light> modelLights(const CompressedModel& model)
     return lights;
 }
 
-CompressedModel withScene(const CompressedModel& model, const std::vector<Camera>& cameras, const std::vector<Light>& lights)
-{
-    struct Storage {
-        std::shared_ptr<const void> base;
-        std::vector<model::CameraRecord> cameras;
-        std::vector<model::LightRecord> lights;
-    };
-    auto storage = std::make_shared<Storage>();
-    storage->base = model.storage;
-    for (const Camera& camera : cameras)
-        storage->cameras.push_back(cameraRecord(camera));
-    for (const Light& light : lights)
-        storage->lights.push_back(lightRecord(light));
-    CompressedModel result = model;
-    result.cameras = storage->cameras;
-    result.lights = storage->lights;
-    result.header.cameraCount = uint32_t(storage->cameras.size());
-    result.header.lightCount = uint32_t(storage->lights.size());
-    result.storage = std::move(storage);
-    return result;
-}
 
 glm::vec3 decodePosition(const model::ClusterRecord& cluster, const model::QuantizedVertex& vertex)
 {

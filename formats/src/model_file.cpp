@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "io_internal.h"
+#include "penumbra/error.h"
 #include "penumbra/model_format.h"
 
 namespace penumbra {
@@ -99,6 +100,43 @@ void writeModelFile(const CompressedModel& model, const std::string& path)
     }
     writeZeros(out, header.fileSize - written);
     out.commit();
+}
+
+CompressedModel withScene(const CompressedModel& model, const std::vector<Camera>& cameras, const std::vector<Light>& lights,
+                          const std::string& subject)
+{
+    struct Storage {
+        std::shared_ptr<const void> base;
+        std::vector<model::CameraRecord> cameras;
+        std::vector<model::LightRecord> lights;
+    };
+    auto storage = std::make_shared<Storage>();
+    storage->base = model.storage;
+    for (size_t i = 0; i < cameras.size() && storage->cameras.size() < model::kMaxCameras; ++i) {
+        const model::CameraRecord record = cameraRecord(cameras[i]);
+        try {
+            validateCameraRecord(record, "camera " + std::to_string(i));
+            storage->cameras.push_back(record);
+        } catch (const Error& e) {
+            warn(subject, std::string(e.what()) + " (not stored)");
+        }
+    }
+    for (size_t i = 0; i < lights.size() && storage->lights.size() < model::kMaxLights; ++i) {
+        const model::LightRecord record = lightRecord(lights[i]);
+        try {
+            validateLightRecord(record, "light " + std::to_string(i));
+            storage->lights.push_back(record);
+        } catch (const Error& e) {
+            warn(subject, std::string(e.what()) + " (not stored)");
+        }
+    }
+    CompressedModel result = model;
+    result.cameras = storage->cameras;
+    result.lights = storage->lights;
+    result.header.cameraCount = uint32_t(storage->cameras.size());
+    result.header.lightCount = uint32_t(storage->lights.size());
+    result.storage = std::move(storage);
+    return result;
 }
 
 CompressedModel openModelFile(const std::string& path)

@@ -420,69 +420,65 @@ void validateMaterials(const CompressedModel& model, const std::string& subject)
 
 void validateCameras(const CompressedModel& model, const std::string& subject)
 {
-    for (size_t i = 0; i < model.cameras.size(); ++i) {
-        const CameraRecord& c = model.cameras[i];
-        auto bad = [&](const std::string& problem) { fail(subject, "camera " + str(uint64_t(i)) + ": " + problem); };
-        if (!finite3(c.position) || !finite3(c.target) || !finite3(c.up))
-            bad("non-finite position, target or up");
-        const float view[3] = {c.target[0] - c.position[0], c.target[1] - c.position[1], c.target[2] - c.position[2]};
-        if (zero3(view))
-            bad("position and target are equal");
-        const float side[3] = {view[1] * c.up[2] - view[2] * c.up[1], view[2] * c.up[0] - view[0] * c.up[2],
-                               view[0] * c.up[1] - view[1] * c.up[0]};
-        if (zero3(side))
-            bad("up is zero or parallel to the view direction");
-        if (c.projection > 1)
-            bad("unknown projection " + str(c.projection));
-        if (!(c.yfovDegrees > 0.0f && c.yfovDegrees < 180.0f))
-            bad("field of view " + strf(c.yfovDegrees) + " is outside (0, 180) degrees");
-        if (!(c.orthoHeight > 0.0f) || !std::isfinite(c.orthoHeight))
-            bad("orthographic height " + strf(c.orthoHeight) + " is not a finite value > 0");
-        if (!(c.nearPlane >= 0.0f) || !std::isfinite(c.nearPlane) || !std::isfinite(c.farPlane) ||
-            !(c.farPlane == 0.0f || c.farPlane > c.nearPlane))
-            bad("near " + strf(c.nearPlane) + " / far " + strf(c.farPlane) + " planes are not 0 <= near < far (or far 0)");
-        if (c.reserved[0] != 0 || c.reserved[1] != 0)
-            bad("reserved field is not zero");
-    }
+    for (size_t i = 0; i < model.cameras.size(); ++i)
+        validateCameraRecord(model.cameras[i], subject + ": camera " + str(uint64_t(i)));
 }
 
 void validateLights(const CompressedModel& model, const std::string& subject)
 {
-    for (size_t i = 0; i < model.lights.size(); ++i) {
-        const LightRecord& l = model.lights[i];
-        auto bad = [&](const std::string& problem) { fail(subject, "light " + str(uint64_t(i)) + ": " + problem); };
-        if (l.type > uint32_t(LightType::Sphere))
-            bad("unknown type " + str(l.type));
-        if (!finite3(l.position) || !finite3(l.direction) || !finite3(l.up) || !finite3(l.color))
-            bad("non-finite position, direction, up or colour");
-        if (zero3(l.direction))
-            bad("zero direction");
-        for (float c : l.color)
-            if (c < 0.0f)
-                bad("negative colour component " + strf(c));
-        const float scalars[] = {l.intensity, l.range, l.innerConeDegrees, l.outerConeDegrees, l.width, l.height, l.radius};
-        for (float v : scalars)
-            if (!(v >= 0.0f) || !std::isfinite(v))
-                bad("intensity, range, cone angles and sizes must be finite values >= 0");
-        if (l.type == uint32_t(LightType::Spot) &&
-            !(l.outerConeDegrees > 0.0f && l.outerConeDegrees < 90.0f && l.innerConeDegrees <= l.outerConeDegrees))
-            bad("spot cone inner " + strf(l.innerConeDegrees) + " / outer " + strf(l.outerConeDegrees) +
-                " degrees is not 0 <= inner <= outer < 90");
-        if (l.type == uint32_t(LightType::Rectangle)) {
-            if (!(l.width > 0.0f && l.height > 0.0f))
-                bad("rectangle width and height must be > 0");
-            const float side[3] = {l.direction[1] * l.up[2] - l.direction[2] * l.up[1],
-                                   l.direction[2] * l.up[0] - l.direction[0] * l.up[2],
-                                   l.direction[0] * l.up[1] - l.direction[1] * l.up[0]};
-            if (zero3(side))
-                bad("rectangle up is zero or parallel to its direction");
-        }
-        if ((l.type == uint32_t(LightType::Disk) || l.type == uint32_t(LightType::Sphere)) && !(l.radius > 0.0f))
-            bad("radius must be > 0");
-    }
+    for (size_t i = 0; i < model.lights.size(); ++i)
+        validateLightRecord(model.lights[i], subject + ": light " + str(uint64_t(i)));
 }
 
 } // namespace
+
+void validateCameraRecord(const CameraRecord& c, const std::string& subject)
+{
+    auto bad = [&](const std::string& problem) { throw Error(subject + ": " + problem); };
+    if (!finite3(c.position) || !finite3(c.target) || !finite3(c.up))
+        bad("non-finite position, target or up");
+    const float view[3] = {c.target[0] - c.position[0], c.target[1] - c.position[1], c.target[2] - c.position[2]};
+    if (zero3(view))
+        bad("position and target are equal");
+    const float side[3] = {view[1] * c.up[2] - view[2] * c.up[1], view[2] * c.up[0] - view[0] * c.up[2],
+                           view[0] * c.up[1] - view[1] * c.up[0]};
+    if (zero3(side))
+        bad("up is zero or parallel to the view direction");
+    if (c.projection > 1)
+        bad("unknown projection " + str(c.projection));
+    if (!(c.yfovDegrees > 0.0f && c.yfovDegrees < 180.0f))
+        bad("field of view " + strf(c.yfovDegrees) + " is outside (0, 180) degrees");
+    if (!(c.orthoHeight > 0.0f) || !std::isfinite(c.orthoHeight))
+        bad("orthographic height " + strf(c.orthoHeight) + " is not a finite value > 0");
+    if (!(c.nearPlane >= 0.0f) || !std::isfinite(c.nearPlane) || !std::isfinite(c.farPlane) ||
+        !(c.farPlane == 0.0f || c.farPlane > c.nearPlane))
+        bad("near " + strf(c.nearPlane) + " / far " + strf(c.farPlane) + " planes are not 0 <= near < far (or far 0)");
+    if (c.reserved[0] != 0 || c.reserved[1] != 0)
+        bad("reserved field is not zero");
+}
+
+// The renderer's rules for a light (validateLight in scene_file.cpp), plus finite values and a known type.
+void validateLightRecord(const LightRecord& l, const std::string& subject)
+{
+    auto bad = [&](const std::string& problem) { throw Error(subject + ": " + problem); };
+    if (l.type > uint32_t(LightType::Sphere))
+        bad("unknown type " + str(l.type));
+    if (!finite3(l.position) || !finite3(l.direction) || !finite3(l.up) || !finite3(l.color))
+        bad("non-finite position, direction, up or colour");
+    const float scalars[] = {l.intensity, l.range, l.innerConeDegrees, l.outerConeDegrees, l.width, l.height, l.radius};
+    for (float v : scalars)
+        if (!std::isfinite(v))
+            bad("non-finite intensity, range, cone angle or size");
+    if (zero3(l.direction) && l.type != uint32_t(LightType::Point) && l.type != uint32_t(LightType::Sphere))
+        bad("zero direction");
+    if (l.intensity < 0.0f || l.range < 0.0f || l.width <= 0.0f || l.height <= 0.0f || l.radius <= 0.0f)
+        bad("intensity " + strf(l.intensity) + " and range " + strf(l.range) + " must be >= 0, width " + strf(l.width) +
+            ", height " + strf(l.height) + " and radius " + strf(l.radius) + " > 0");
+    if (l.type == uint32_t(LightType::Spot) &&
+        !(l.outerConeDegrees > 0.0f && l.outerConeDegrees < 90.0f && l.innerConeDegrees <= l.outerConeDegrees))
+        bad("spot cone inner " + strf(l.innerConeDegrees) + " / outer " + strf(l.outerConeDegrees) +
+            " degrees is not inner <= outer, 0 < outer < 90");
+}
 
 void validateModel(const CompressedModel& model, const std::string& subject)
 {

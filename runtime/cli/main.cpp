@@ -356,7 +356,7 @@ int runPreprocess(const PreprocessArgs& args)
         }
         options.progress = [&](const char* stage, double fraction) { progress.update(std::string(label) + stage, fraction); };
         PreprocessStats stats;
-        CompressedModel model = withScene(buildCompressedModel(*mesh, options, &stats), scene.cameras, scene.lights);
+        CompressedModel model = withScene(buildCompressedModel(*mesh, options, &stats), scene.cameras, scene.lights, args.input);
         model.header.sourceTriangleCount = scene.mesh.triangleCount();
         model.header.build.simplifyTarget = ratio;
         model.header.simplifyError = ratio < 1.0f ? simplified.error : 0.0f;

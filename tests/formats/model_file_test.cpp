@@ -661,19 +661,37 @@ TEST(ModelFileBad, MaterialsCamerasAndLights)
     EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.type = 6; }), "m: light 0: unknown type 6");
     EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.direction[0] = r.direction[1] = r.direction[2] = 0; }),
                           "light 0: zero direction");
-    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.color[2] = -1; }), "light 0: negative colour component -1");
-    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.intensity = NAN; }), "light 0: intensity, range");
+    EXPECT_EQ(withLight([](model::LightRecord& r) { // a point light needs no direction, as for the renderer
+                  r.type = uint32_t(LightType::Point);
+                  r.direction[0] = r.direction[1] = r.direction[2] = 0;
+              }),
+              "");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.color[2] = INFINITY; }), "light 0: non-finite position");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.intensity = NAN; }), "light 0: non-finite intensity");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.intensity = -1; }), "light 0: intensity -1 and range 0 must be >= 0");
     EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.type = uint32_t(LightType::Spot), r.outerConeDegrees = 95; }),
                           "light 0: spot cone inner");
     EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.type = uint32_t(LightType::Rectangle), r.width = 0; }),
-                          "light 0: rectangle width and height");
-    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) {
-                              r.type = uint32_t(LightType::Rectangle);
-                              r.up[0] = r.direction[0], r.up[1] = r.direction[1], r.up[2] = r.direction[2];
-                          }),
-                          "light 0: rectangle up is zero or parallel");
+                          "width 0, height 1 and radius 0.5 > 0");
     EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.type = uint32_t(LightType::Sphere), r.radius = 0; }),
-                          "light 0: radius must be > 0");
+                          "radius 0 > 0");
+
+    // withScene leaves out what the format rejects, with a warning.
+    static std::vector<std::string> warnings;
+    warnings.clear();
+    WarningSink previous = setWarningSink([](const std::string& line) { warnings.push_back(line); });
+    Camera flat;
+    flat.target = flat.position;
+    Light spot;
+    spot.type = LightType::Spot;
+    spot.outerConeDegrees = 90.0f;
+    CompressedModel kept = withScene(view(cubeModel()), {flat, Camera{}}, {spot, Light{}}, "part.glb");
+    setWarningSink(previous);
+    EXPECT_EQ(kept.cameras.size(), 1u);
+    EXPECT_EQ(kept.lights.size(), 1u);
+    ASSERT_EQ(warnings.size(), 2u);
+    EXPECT_EQ(warnings[0], "part.glb: camera 0: position and target are equal (not stored)");
+    EXPECT_NE(warnings[1].find("part.glb: light 0: spot cone inner 20 / outer 90 degrees"), std::string::npos) << warnings[1];
 
     // The section table: optional sections exactly when counted, unused entries all zero.
     auto data = cubeModel();

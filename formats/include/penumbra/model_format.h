@@ -213,7 +213,14 @@ Camera cameraFromRecord(const model::CameraRecord& record);
 Light lightFromRecord(const model::LightRecord& record);
 std::vector<Camera> modelCameras(const CompressedModel& model);
 std::vector<Light> modelLights(const CompressedModel& model);
-CompressedModel withScene(const CompressedModel& model, const std::vector<Camera>& cameras, const std::vector<Light>& lights);
+// Cameras and lights that the format would reject (a degenerate node transform,
+// a spot cone of 90 degrees) are left out, with one warning each naming subject.
+CompressedModel withScene(const CompressedModel& model, const std::vector<Camera>& cameras, const std::vector<Light>& lights,
+                          const std::string& subject = "scene");
+// The checks of one camera or light record (validateModel applies them to
+// every record). Throw Error("<subject>: <problem>").
+void validateCameraRecord(const model::CameraRecord& record, const std::string& subject);
+void validateLightRecord(const model::LightRecord& record, const std::string& subject);
 
 // Decoded position of a cluster's local vertex (exactly the GPU's arithmetic).
 glm::vec3 decodePosition(const model::ClusterRecord& cluster, const model::QuantizedVertex& vertex);
