@@ -145,6 +145,13 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     // Colours (mesh.h): materials kept apart by the clusters, or a colour per cluster.
     if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
         fail("preprocess", "vertex colours do not match the vertices");
+    for (float c : mesh.colors)
+        if (!(c >= 0.0f && c <= 1.0f))
+            fail("preprocess", "vertex colour component outside [0, 1]");
+    for (const Material& material : mesh.materials)
+        for (int k = 0; k < 4; ++k)
+            if (!(material.baseColor[k] >= 0.0f && material.baseColor[k] <= 1.0f))
+                fail("preprocess", "material base colour component outside [0, 1]");
     if (!mesh.triangleMaterials.empty()) {
         if (mesh.triangleMaterials.size() != inputTriangles)
             fail("preprocess", "triangle materials do not match the triangles");

@@ -464,6 +464,28 @@ TEST(Preprocess, Errors)
     bad = {};
     bad.sahBins = 1;
     EXPECT_THROW(buildCompressedModel(ok, bad), Error);
+    // Colours: sizes, indices and values.
+    auto message = [](const Mesh& mesh) {
+        try {
+            buildCompressedModel(mesh, {});
+        } catch (const Error& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    Mesh colors = ok;
+    colors.colors = {1, 1, 1, 0, 0, 0};
+    EXPECT_EQ(message(colors), "preprocess: vertex colours do not match the vertices");
+    colors.colors = {1, 1, 1, 0, 0, 0, 0.5f, NAN, 0};
+    EXPECT_EQ(message(colors), "preprocess: vertex colour component outside [0, 1]");
+    Mesh materials = ok;
+    materials.materials = {{glm::vec4(1.5f), ""}};
+    EXPECT_EQ(message(materials), "preprocess: material base colour component outside [0, 1]");
+    materials.materials = {{glm::vec4(1.0f), ""}};
+    materials.triangleMaterials = {1};
+    EXPECT_EQ(message(materials), "preprocess: triangle material index out of range");
+    materials.triangleMaterials = {0, 0};
+    EXPECT_EQ(message(materials), "preprocess: triangle materials do not match the triangles");
 }
 
 TEST(Preprocess, ProgressIsReported)
