@@ -126,6 +126,8 @@ public:
             CompressedModel compressed;
             if (endsWith(path, ".penumbra")) {
                 compressed = openModelFile(path);
+                scene.cameras = penumbra::modelCameras(compressed); // the source glTF's, stored by preprocess
+                scene.lights = penumbra::modelLights(compressed);
                 bounds.min = glm::vec3(compressed.header.boundsMin[0], compressed.header.boundsMin[1], compressed.header.boundsMin[2]);
                 bounds.max = glm::vec3(compressed.header.boundsMax[0], compressed.header.boundsMax[1], compressed.header.boundsMax[2]);
             } else {
@@ -226,7 +228,8 @@ py::dict preprocessFile(const std::filesystem::path& inputPath, const std::files
         SimplifiedMesh simplified;
         if (simplify < 1.0f)
             simplified = simplifyMesh(scene.mesh, simplify);
-        CompressedModel model = buildCompressedModel(simplify < 1.0f ? simplified.mesh : scene.mesh, options, &stats);
+        CompressedModel model = withScene(buildCompressedModel(simplify < 1.0f ? simplified.mesh : scene.mesh, options, &stats),
+                                          scene.cameras, scene.lights, input);
         model.header.sourceTriangleCount = scene.mesh.triangleCount();
         model.header.build.simplifyTarget = simplify;
         model.header.simplifyError = simplified.error;
@@ -235,7 +238,8 @@ py::dict preprocessFile(const std::filesystem::path& inputPath, const std::files
     return py::dict("output"_a = output, "input_triangles"_a = stats.inputTriangles, "triangles"_a = stats.triangles,
                     "clusters"_a = stats.clusters, "nodes"_a = stats.nodes, "vertices"_a = stats.vertices,
                     "bvh_depth"_a = stats.bvhDepth, "max_position_error"_a = stats.maxPositionError,
-                    "bytes_per_triangle"_a = stats.bytesPerTriangle, "seconds"_a = stats.totalSeconds);
+                    "bytes_per_triangle"_a = stats.bytesPerTriangle, "materials"_a = stats.materials,
+                    "seconds"_a = stats.totalSeconds);
 }
 
 } // namespace
@@ -263,7 +267,7 @@ PYBIND11_MODULE(penumbra, m)
             "render",
             [](PyRenderer& self, const py::object& size, const std::string& shadows, const std::string& cull, const std::string& shadowFit,
                uint32_t shadowMapSize, uint32_t samples, uint32_t penumbraMaps, uint32_t smMaps, float biasConstant, float biasSlope,
-               float ambient, float albedo, std::array<float, 3> background, bool debugPip, bool gbuffer) {
+               float ambient, float albedo, std::array<float, 3> background, bool debugPip, bool gbuffer, bool colors) {
                 RenderSettings s;
                 std::tie(s.width, s.height) = toSize(size);
                 s.shadows = parseShadowMethod(shadows);
@@ -280,16 +284,17 @@ PYBIND11_MODULE(penumbra, m)
                 std::copy(background.begin(), background.end(), s.background);
                 s.debugPip = debugPip;
                 s.readbackGBuffer = gbuffer;
+                s.colors = colors;
                 return self.render(s);
             },
             "Renders a frame: linear RGBA float32 array (height, width, 4), top row first. Keywords as the CLI's options; "
-            "gbuffer=True also fills .gbuffer",
+            "gbuffer=True also fills .gbuffer; colors=False renders every surface grey (the CLI's --colors off)",
             py::kw_only(), py::arg("size") = py::make_tuple(d.width, d.height), py::arg("shadows") = "srt",
             py::arg("cull") = cullModeName(d.cull), py::arg("shadow_fit") = "view", py::arg("shadow_map_size") = d.shadowMapSize,
             py::arg("samples") = d.lightSamples, py::arg("penumbra_maps") = d.penumbraMaps, py::arg("sm_maps") = d.softShadowMaps,
             py::arg("bias_constant") = d.depthBiasConstant, py::arg("bias_slope") = d.depthBiasSlope, py::arg("ambient") = d.ambient,
             py::arg("albedo") = d.albedo, py::arg("background") = std::array<float, 3>{d.background[0], d.background[1], d.background[2]},
-            py::arg("debug_pip") = false, py::arg("gbuffer") = false)
+            py::arg("debug_pip") = false, py::arg("gbuffer") = false, py::arg("colors") = d.colors)
         .def_property_readonly("stats", &PyRenderer::stats, "The last frame's statistics (the CLI's --stats JSON) as a dict")
         .def_readonly("gbuffer", &PyRenderer::gbuffer,
                       "After render(gbuffer=True): dict of position (h, w, 4), normal (h, w, 4) and visibility of light 0 "

@@ -56,8 +56,11 @@ void main()
         return;
     }
 
-    vec3 n = imageLoad(gNormal, pixel).xyz;
-    float albedo = frame.shading.y;
+    vec4 normal = imageLoad(gNormal, pixel);
+    vec3 n = normal.xyz;
+    vec3 albedo = vec3(frame.shading.y);
+    if (frame.shading.z != 0.0) // --colors on: the material's colour packed by gbuffer.frag
+        albedo *= vec3(uvec3(uint(normal.w)) >> uvec3(0u, 8u, 16u) & 255u) / 255.0;
     if (push.firstLight != 0u)
         color = vec3(albedo * frame.shading.x * (0.75 + 0.25 * n.y));
 

@@ -224,6 +224,11 @@ class GltfReader {
                     stack.push_back({index((*children)[c], where + " child"), world, pending.depth + 1});
             }
         }
+        // Materials: only when some primitive names one (the others get a white default).
+        if (!materialUsed_) {
+            scene.mesh.materials.clear();
+            scene.mesh.triangleMaterials.clear();
+        }
         if (scene.mesh.indices.empty()) {
             if (nonTriangle_ > 0)
                 fail(path_, "no triangles (points or lines only)");
@@ -630,6 +635,39 @@ class GltfReader {
 
     // ---- meshes ----
 
+    // The material of a primitive: its index in out.materials, the document's
+    // materials (base colour factor) read on first use, then a white default.
+    uint32_t primitiveMaterial(const json& primitive, const std::string& where, Mesh& out)
+    {
+        const size_t count = arraySize("materials");
+        if (out.materials.empty()) {
+            for (size_t m = 0; m < count; ++m) {
+                const std::string name = "material " + std::to_string(m);
+                const json& material = item("materials", m, name);
+                Material result;
+                if (const json* nameValue = member(material, "name"); nameValue && nameValue->is_string())
+                    result.name = nameValue->get<std::string>();
+                if (const json* pbr = member(material, "pbrMetallicRoughness")) {
+                    if (!pbr->is_object())
+                        fail(path_, name + ": pbrMetallicRoughness is not an object");
+                    double factor[4] = {1, 1, 1, 1};
+                    numberArray(*pbr, "baseColorFactor", factor, name + " pbrMetallicRoughness");
+                    for (int k = 0; k < 4; ++k)
+                        result.baseColor[k] = float(std::clamp(factor[k], 0.0, 1.0));
+                }
+                out.materials.push_back(result);
+            }
+            out.materials.push_back({glm::vec4(1.0f), "default"});
+        }
+        const json* index = member(primitive, "material");
+        if (!index)
+            return uint32_t(count);
+        materialUsed_ = true;
+        if (!index->is_number_unsigned() || index->get<uint64_t>() >= count)
+            fail(path_, where + ": material must be an index below " + std::to_string(count));
+        return uint32_t(index->get<uint64_t>());
+    }
+
     void appendMesh(uint64_t meshIndex, const glm::dmat4& world, Mesh& out, const std::string& nodeName)
     {
         const std::string meshName = "mesh " + std::to_string(meshIndex);
@@ -653,10 +691,12 @@ class GltfReader {
             }
             const json* extensions = member(primitive, "extensions");
             const json* draco = extensions ? member(*extensions, "KHR_draco_mesh_compression") : nullptr;
+            const uint32_t material = primitiveMaterial(primitive, where, out);
             if (draco)
                 appendDracoPrimitive(*draco, where, matrix, flip, out);
             else
                 appendPlainPrimitive(primitive, mode, where, matrix, flip, out);
+            out.triangleMaterials.resize(out.triangleCount(), material);
         }
     }
 
@@ -973,6 +1013,7 @@ class GltfReader {
     std::vector<std::unique_ptr<MappedFile>> external_;
     std::map<uint64_t, std::vector<uint8_t>> materialized_; // sparse and zero-filled accessors
     uint64_t materializeBudget_ = 0; // bytes zero-filled accessors may still take
+    bool materialUsed_ = false; // some primitive names a material
     size_t nonTriangle_ = 0;
     size_t instancedNodes_ = 0;
 };

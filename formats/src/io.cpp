@@ -188,6 +188,26 @@ void validateMesh(const std::string& path, const Mesh& mesh)
                 fail(path, "triangle " + std::to_string(i / 3) + " references vertex " + std::to_string(idx[i]) +
                                " but there are " + std::to_string(vertexCount) + " vertices");
     }
+    // Colours: importers clamp them to [0, 1]; these are the invariants the preprocessor relies on.
+    if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
+        fail(path, "internal error: " + std::to_string(mesh.colors.size() / 3) + " vertex colours for " +
+                       std::to_string(vertexCount) + " vertices");
+    for (float c : mesh.colors)
+        if (!(c >= 0.0f && c <= 1.0f))
+            fail(path, "vertex colour component " + std::to_string(c) + " is outside [0, 1]");
+    for (const Material& material : mesh.materials)
+        for (int k = 0; k < 4; ++k)
+            if (!(material.baseColor[k] >= 0.0f && material.baseColor[k] <= 1.0f))
+                fail(path, "material '" + material.name + "' has a base colour component outside [0, 1]");
+    if (!mesh.triangleMaterials.empty()) {
+        if (mesh.triangleMaterials.size() != mesh.triangleCount())
+            fail(path, "internal error: " + std::to_string(mesh.triangleMaterials.size()) + " triangle materials for " +
+                           std::to_string(mesh.triangleCount()) + " triangles");
+        for (size_t t = 0; t < mesh.triangleMaterials.size(); ++t)
+            if (mesh.triangleMaterials[t] >= mesh.materials.size())
+                fail(path, "triangle " + std::to_string(t) + " names material " + std::to_string(mesh.triangleMaterials[t]) +
+                               " but there are " + std::to_string(mesh.materials.size()));
+    }
 }
 
 void weldTriangles(const std::vector<float>& corners, Mesh& mesh)

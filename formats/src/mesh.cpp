@@ -18,6 +18,22 @@ Bounds computeBounds(const Mesh& mesh)
     return bounds;
 }
 
+glm::vec3 Mesh::triangleColor(size_t triangle) const
+{
+    glm::vec3 color(1.0f);
+    if (!materials.empty())
+        color = glm::vec3(materials[triangleMaterials.empty() ? 0 : triangleMaterials[triangle]].baseColor);
+    if (!colors.empty()) {
+        glm::vec3 sum(0.0f);
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = indices[triangle * 3 + k];
+            sum += glm::vec3(colors[v * 3], colors[v * 3 + 1], colors[v * 3 + 2]);
+        }
+        color *= sum / 3.0f;
+    }
+    return color;
+}
+
 const char* lightTypeName(LightType type)
 {
     switch (type) {

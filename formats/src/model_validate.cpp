@@ -48,6 +48,12 @@ const char* sectionName(uint32_t type)
         return "Vertices";
     case SectionType::Indices:
         return "Indices";
+    case SectionType::Materials:
+        return "Materials";
+    case SectionType::Cameras:
+        return "Cameras";
+    case SectionType::Lights:
+        return "Lights";
     }
     return "unknown";
 }
@@ -63,6 +69,12 @@ uint32_t elementSizeOf(uint32_t type)
         return sizeof(QuantizedVertex);
     case SectionType::Indices:
         return 1;
+    case SectionType::Materials:
+        return sizeof(MaterialRecord);
+    case SectionType::Cameras:
+        return sizeof(CameraRecord);
+    case SectionType::Lights:
+        return sizeof(LightRecord);
     }
     return 0;
 }
@@ -79,6 +91,12 @@ uint64_t declaredCount(const FileHeader& header, uint32_t type)
         return header.vertexCount;
     case SectionType::Indices:
         return header.indexBytes;
+    case SectionType::Materials:
+        return header.materialCount;
+    case SectionType::Cameras:
+        return header.cameraCount;
+    case SectionType::Lights:
+        return header.lightCount;
     }
     return 0;
 }
@@ -128,7 +146,13 @@ void validateHeaderFields(const FileHeader& header, const std::string& subject)
         fail(subject, "maxPositionError " + strf(header.maxPositionError) + " is not a finite value >= 0");
     if (!(header.simplifyError >= 0.0f) || !std::isfinite(header.simplifyError))
         fail(subject, "simplifyError " + strf(header.simplifyError) + " is not a finite value >= 0");
-    bool reservedZero = header.reserved0 == 0;
+    if (header.materialCount < 1 || header.materialCount > kMaxMaterials)
+        fail(subject, "header materialCount " + str(header.materialCount) + " is outside 1.." + str(kMaxMaterials));
+    if (header.cameraCount > kMaxCameras)
+        fail(subject, "header cameraCount " + str(header.cameraCount) + " is above " + str(kMaxCameras));
+    if (header.lightCount > kMaxLights)
+        fail(subject, "header lightCount " + str(header.lightCount) + " is above " + str(kMaxLights));
+    bool reservedZero = true;
     for (uint64_t reserved : header.reserved1)
         reservedZero &= reserved == 0;
     if (!reservedZero)
@@ -198,8 +222,9 @@ void validateClusters(const CompressedModel& model, const std::string& subject, 
             if (!std::isfinite(boxMin + 65535.0f * step))
                 failCluster(c, "quantization range overflows on axis " + str(uint64_t(axis)));
         }
-        if (cluster.reserved != 0)
-            failCluster(c, "reserved field is not zero");
+        if (cluster.material >= model.materials.size())
+            failCluster(c, "material " + str(cluster.material) + " out of range (" + str(uint64_t(model.materials.size())) +
+                               " materials)");
         if (cluster.node >= model.nodes.size())
             failCluster(c, "node " + str(cluster.node) + " out of range (" + str(uint64_t(model.nodes.size())) +
                                " nodes)");
@@ -375,7 +400,85 @@ void validateTree(const CompressedModel& model, const std::string& subject, uint
                               " triangles, the cluster " + str(model.clusters[c].triangleCount));
 }
 
+bool finite3(const float* v)
+{
+    return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+}
+
+bool zero3(const float* v)
+{
+    return v[0] == 0.0f && v[1] == 0.0f && v[2] == 0.0f;
+}
+
+void validateMaterials(const CompressedModel& model, const std::string& subject)
+{
+    for (size_t m = 0; m < model.materials.size(); ++m)
+        for (float c : model.materials[m].baseColor)
+            if (!(c >= 0.0f && c <= 1.0f))
+                fail(subject, "material " + str(uint64_t(m)) + ": base colour component " + strf(c) + " is outside [0, 1]");
+}
+
+void validateCameras(const CompressedModel& model, const std::string& subject)
+{
+    for (size_t i = 0; i < model.cameras.size(); ++i)
+        validateCameraRecord(model.cameras[i], subject + ": camera " + str(uint64_t(i)));
+}
+
+void validateLights(const CompressedModel& model, const std::string& subject)
+{
+    for (size_t i = 0; i < model.lights.size(); ++i)
+        validateLightRecord(model.lights[i], subject + ": light " + str(uint64_t(i)));
+}
+
 } // namespace
+
+void validateCameraRecord(const CameraRecord& c, const std::string& subject)
+{
+    auto bad = [&](const std::string& problem) { throw Error(subject + ": " + problem); };
+    if (!finite3(c.position) || !finite3(c.target) || !finite3(c.up))
+        bad("non-finite position, target or up");
+    const float view[3] = {c.target[0] - c.position[0], c.target[1] - c.position[1], c.target[2] - c.position[2]};
+    if (zero3(view))
+        bad("position and target are equal");
+    const float side[3] = {view[1] * c.up[2] - view[2] * c.up[1], view[2] * c.up[0] - view[0] * c.up[2],
+                           view[0] * c.up[1] - view[1] * c.up[0]};
+    if (zero3(side))
+        bad("up is zero or parallel to the view direction");
+    if (c.projection > 1)
+        bad("unknown projection " + str(c.projection));
+    if (!(c.yfovDegrees > 0.0f && c.yfovDegrees < 180.0f))
+        bad("field of view " + strf(c.yfovDegrees) + " is outside (0, 180) degrees");
+    if (!(c.orthoHeight > 0.0f) || !std::isfinite(c.orthoHeight))
+        bad("orthographic height " + strf(c.orthoHeight) + " is not a finite value > 0");
+    if (!(c.nearPlane >= 0.0f) || !std::isfinite(c.nearPlane) || !std::isfinite(c.farPlane) ||
+        !(c.farPlane == 0.0f || c.farPlane > c.nearPlane))
+        bad("near " + strf(c.nearPlane) + " / far " + strf(c.farPlane) + " planes are not 0 <= near < far (or far 0)");
+    if (c.reserved[0] != 0 || c.reserved[1] != 0)
+        bad("reserved field is not zero");
+}
+
+// The renderer's rules for a light (validateLight in scene_file.cpp), plus finite values and a known type.
+void validateLightRecord(const LightRecord& l, const std::string& subject)
+{
+    auto bad = [&](const std::string& problem) { throw Error(subject + ": " + problem); };
+    if (l.type > uint32_t(LightType::Sphere))
+        bad("unknown type " + str(l.type));
+    if (!finite3(l.position) || !finite3(l.direction) || !finite3(l.up) || !finite3(l.color))
+        bad("non-finite position, direction, up or colour");
+    const float scalars[] = {l.intensity, l.range, l.innerConeDegrees, l.outerConeDegrees, l.width, l.height, l.radius};
+    for (float v : scalars)
+        if (!std::isfinite(v))
+            bad("non-finite intensity, range, cone angle or size");
+    if (zero3(l.direction) && l.type != uint32_t(LightType::Point) && l.type != uint32_t(LightType::Sphere))
+        bad("zero direction");
+    if (l.intensity < 0.0f || l.range < 0.0f || l.width <= 0.0f || l.height <= 0.0f || l.radius <= 0.0f)
+        bad("intensity " + strf(l.intensity) + " and range " + strf(l.range) + " must be >= 0, width " + strf(l.width) +
+            ", height " + strf(l.height) + " and radius " + strf(l.radius) + " > 0");
+    if (l.type == uint32_t(LightType::Spot) &&
+        !(l.outerConeDegrees > 0.0f && l.outerConeDegrees < 90.0f && l.innerConeDegrees <= l.outerConeDegrees))
+        bad("spot cone inner " + strf(l.innerConeDegrees) + " / outer " + strf(l.outerConeDegrees) +
+            " degrees is not inner <= outer, 0 < outer < 90");
+}
 
 void validateModel(const CompressedModel& model, const std::string& subject)
 {
@@ -393,6 +496,18 @@ void validateModel(const CompressedModel& model, const std::string& subject)
     if (header.indexBytes != model.indices.size())
         fail(subject, "header says " + str(header.indexBytes) + " index bytes but there are " +
                           str(uint64_t(model.indices.size())));
+    if (header.materialCount != model.materials.size())
+        fail(subject, "header says " + str(header.materialCount) + " materials but there are " +
+                          str(uint64_t(model.materials.size())));
+    if (header.cameraCount != model.cameras.size())
+        fail(subject, "header says " + str(header.cameraCount) + " cameras but there are " +
+                          str(uint64_t(model.cameras.size())));
+    if (header.lightCount != model.lights.size())
+        fail(subject, "header says " + str(header.lightCount) + " lights but there are " +
+                          str(uint64_t(model.lights.size())));
+    validateMaterials(model, subject);
+    validateCameras(model, subject);
+    validateLights(model, subject);
     uint32_t maxIndexBytes = 0;
     validateClusters(model, subject, maxIndexBytes);
     validateNodeLinks(model, subject);
@@ -408,6 +523,14 @@ CompressedModel openModelMemory(std::span<const uint8_t> bytes, std::shared_ptr<
         fail(subject, "internal error: model buffer is not 8-byte aligned");
     if (size >= sizeof(kMagic) && std::memcmp(data, kMagic, sizeof(kMagic)) != 0)
         fail(subject, "not a Penumbra model file (bad magic)");
+    // The version first: an older file has another header size.
+    if (size >= 12) {
+        uint32_t version = 0;
+        std::memcpy(&version, data + 8, sizeof(version));
+        if (version != kVersion)
+            fail(subject, "unsupported version " + str(version) + " (this build reads version " + str(kVersion) +
+                              "; run penumbra preprocess on the source model again)");
+    }
     if (size < sizeof(FileHeader))
         fail(subject, "truncated: file has " + str(size) + " bytes, the header alone needs " +
                           str(uint64_t(sizeof(FileHeader))));
@@ -415,9 +538,6 @@ CompressedModel openModelMemory(std::span<const uint8_t> bytes, std::shared_ptr<
     // Header.
     FileHeader header;
     std::memcpy(&header, data, sizeof(header));
-    if (header.version != kVersion)
-        fail(subject,
-             "unsupported version " + str(header.version) + " (this build reads version " + str(kVersion) + ")");
     if (header.headerSize != sizeof(FileHeader))
         fail(subject, "header size " + str(header.headerSize) + " is not " + str(uint64_t(sizeof(FileHeader))));
     FileHeader unsummed = header;
@@ -432,16 +552,24 @@ CompressedModel openModelMemory(std::span<const uint8_t> bytes, std::shared_ptr<
         fail(subject, "file size " + str(header.fileSize) + " is not a multiple of " + str(kSectionAlignment));
     validateHeaderFields(header, subject);
 
-    // Section table: each type once, aligned, inside the file, sized by the header's counts.
-    std::array<const SectionEntry*, kSectionCount> byType{};
-    for (uint32_t i = 0; i < kSectionCount; ++i) {
+    // Section table: each type at most once, aligned, inside the file, sized by the header's counts;
+    // types 1-5 always, Cameras and Lights exactly when their count is not 0; unused entries all zero.
+    std::array<const SectionEntry*, kSectionTypes> byType{};
+    std::vector<const SectionEntry*> present;
+    for (uint32_t i = 0; i < kSectionSlots; ++i) {
         const SectionEntry& entry = header.sections[i];
-        if (entry.type < 1 || entry.type > kSectionCount)
+        if (entry.type == 0) {
+            if (entry.elementSize != 0 || entry.offset != 0 || entry.size != 0 || entry.checksum != 0)
+                fail(subject, "section table entry " + str(i) + " is unused (type 0) but not all zero");
+            continue;
+        }
+        if (entry.type > kSectionTypes)
             fail(subject, "section table entry " + str(i) + " has unknown type " + str(entry.type));
         const std::string name = std::string("section ") + sectionName(entry.type);
         if (byType[entry.type - 1])
             fail(subject, name + " appears twice in the section table");
         byType[entry.type - 1] = &entry;
+        present.push_back(&entry);
         const uint32_t elementSize = elementSizeOf(entry.type);
         if (entry.elementSize != elementSize)
             fail(subject, name + ": element size " + str(entry.elementSize) + ", expected " + str(elementSize));
@@ -457,26 +585,33 @@ CompressedModel openModelMemory(std::span<const uint8_t> bytes, std::shared_ptr<
             fail(subject, name + ": " + str(entry.size) + " bytes at offset " + str(entry.offset) +
                               " run past the end of the file (" + str(size) + " bytes)");
     }
-    std::array<const SectionEntry*, kSectionCount> byOffset = byType;
+    for (uint32_t type = 1; type <= kSectionTypes; ++type) {
+        const bool wanted = declaredCount(header, type) > 0 || type <= uint32_t(SectionType::Materials);
+        if (wanted && !byType[type - 1])
+            fail(subject, std::string("section ") + sectionName(type) + " is missing from the section table");
+        if (!wanted && byType[type - 1])
+            fail(subject, std::string("section ") + sectionName(type) + " is present but the header's count is 0");
+    }
+    std::vector<const SectionEntry*> byOffset = present;
     std::sort(byOffset.begin(), byOffset.end(),
               [](const SectionEntry* a, const SectionEntry* b) { return a->offset < b->offset; });
-    for (uint32_t i = 0; i + 1 < kSectionCount; ++i)
+    for (size_t i = 0; i + 1 < byOffset.size(); ++i)
         if (byOffset[i]->offset + byOffset[i]->size > byOffset[i + 1]->offset)
             fail(subject, std::string("sections ") + sectionName(byOffset[i]->type) + " and " +
                               sectionName(byOffset[i + 1]->type) + " overlap");
 
     // Every byte outside the header and the payloads is zero padding.
     uint64_t gapBegin = sizeof(FileHeader);
-    for (uint32_t i = 0; i <= kSectionCount; ++i) {
-        const uint64_t gapEnd = i < kSectionCount ? byOffset[i]->offset : size;
+    for (size_t i = 0; i <= byOffset.size(); ++i) {
+        const uint64_t gapEnd = i < byOffset.size() ? byOffset[i]->offset : size;
         for (uint64_t at = gapBegin; at < gapEnd; ++at)
             if (data[at] != 0)
                 fail(subject, "nonzero padding byte at offset " + str(at));
-        if (i < kSectionCount)
+        if (i < byOffset.size())
             gapBegin = byOffset[i]->offset + byOffset[i]->size;
     }
 
-    for (const SectionEntry* entry : byType)
+    for (const SectionEntry* entry : present)
         if (XXH64(data + entry->offset, entry->size, 0) != entry->checksum)
             fail(subject, std::string("checksum mismatch in section ") + sectionName(entry->type));
 
@@ -489,6 +624,11 @@ CompressedModel openModelMemory(std::span<const uint8_t> bytes, std::shared_ptr<
     model.vertices = {reinterpret_cast<const QuantizedVertex*>(section(SectionType::Vertices)),
                       size_t(header.vertexCount)};
     model.indices = {section(SectionType::Indices), size_t(header.indexBytes)};
+    model.materials = {reinterpret_cast<const MaterialRecord*>(section(SectionType::Materials)), header.materialCount};
+    if (header.cameraCount)
+        model.cameras = {reinterpret_cast<const CameraRecord*>(section(SectionType::Cameras)), header.cameraCount};
+    if (header.lightCount)
+        model.lights = {reinterpret_cast<const LightRecord*>(section(SectionType::Lights)), header.lightCount};
     model.storage = std::move(keepAlive);
     validateModel(model, subject);
     return model;

@@ -1,7 +1,16 @@
 // Wavefront OBJ import (v and f records; polygons fan-triangulated; negative
 // relative indices; v, v/vt, v//vn and v/vt/vn corners) and export.
-// Everything else (vt, vn, groups, materials, smoothing) is ignored.
+// Colours: 'v x y z r g b' vertex colours, and materials from 'usemtl' with
+// their Kd from the 'mtllib' files. Everything else (vt, vn, groups,
+// smoothing, the other mtl properties) is ignored.
 #include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <unordered_map>
+
+#include <glm/vec3.hpp>
 
 #include "io_internal.h"
 
@@ -36,6 +45,47 @@ bool parseCorner(std::string_view token, int64_t& index)
 
 } // namespace
 
+// True when the record at cursor.p is `keyword` followed by a blank.
+bool isRecord(const TextCursor& cursor, std::string_view keyword)
+{
+    return size_t(cursor.end - cursor.p) > keyword.size() && std::memcmp(cursor.p, keyword.data(), keyword.size()) == 0 &&
+           (cursor.p[keyword.size()] == ' ' || cursor.p[keyword.size()] == '\t');
+}
+
+// Kd of every `newmtl` in an mtl file (later definitions of a name win).
+void readMtl(const std::string& path, std::unordered_map<std::string, glm::vec3>& kd)
+{
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(path, error)) // never a device or a pipe
+        fail(path, "not a regular file");
+    MappedFile file(path);
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()), reinterpret_cast<const char*>(file.data()) + file.size()};
+    std::string current;
+    while (!cursor.atEnd()) {
+        cursor.skipBlanks();
+        if (isRecord(cursor, "newmtl")) {
+            cursor.p += 6;
+            current = std::string(cursor.token());
+        } else if (isRecord(cursor, "Kd") && !current.empty()) {
+            cursor.p += 2;
+            glm::vec3 color(1.0f);
+            bool ok = true;
+            for (int k = 0; k < 3; ++k) {
+                std::string_view token = cursor.token();
+                float value = 0.0f;
+                if (token.empty() || !parseFloat(token, value) || !std::isfinite(value)) {
+                    ok = false; // 'Kd spectral ...', 'Kd xyz ...': not read
+                    break;
+                }
+                color[k] = std::clamp(value, 0.0f, 1.0f);
+            }
+            if (ok)
+                kd[current] = color;
+        }
+        cursor.skipLine();
+    }
+}
+
 Scene importObj(const std::string& path, const MappedFile& file)
 {
     Scene scene;
@@ -51,6 +101,10 @@ Scene importObj(const std::string& path, const MappedFile& file)
     int64_t maxForwardIndex = 0; // largest positive index, checked once all vertices are known
     size_t maxForwardLine = 0;
     std::vector<uint32_t> polygon;
+    // Materials: `mtllib` files (next to the OBJ), `usemtl` names in order of first use.
+    std::vector<std::string> mtlFiles;
+    std::unordered_map<std::string, uint32_t> materialIndex;
+    uint32_t currentMaterial = 0; // faces before the first usemtl: material 0, a white default
 
     while (!cursor.atEnd()) {
         cursor.skipBlanks();
@@ -66,6 +120,23 @@ Scene importObj(const std::string& path, const MappedFile& file)
                     lineFail("vertex has fewer than 3 coordinates");
                 if (!parseFloat(token, value))
                     lineFail("malformed number " + quoteToken(token));
+            }
+            // Optional: w, or the common colour extension 'v x y z r g b' (also after a w).
+            float extra[4];
+            size_t extraCount = 0;
+            for (std::string_view token = recordToken(cursor); !token.empty() && extraCount < 4;
+                 token = extraCount < 4 ? recordToken(cursor) : std::string_view{}) {
+                if (!parseFloat(token, extra[extraCount]))
+                    break; // anything else after the position is ignored, as before
+                ++extraCount;
+            }
+            if (extraCount >= 3) {
+                if (mesh.colors.empty())
+                    mesh.colors.assign(mesh.positions.size(), 1.0f); // earlier vertices: white
+                for (size_t k = extraCount - 3; k < extraCount; ++k)
+                    mesh.colors.push_back(std::isfinite(extra[k]) ? std::clamp(extra[k], 0.0f, 1.0f) : 0.0f);
+            } else if (!mesh.colors.empty()) {
+                mesh.colors.insert(mesh.colors.end(), {1.0f, 1.0f, 1.0f});
             }
             mesh.positions.insert(mesh.positions.end(), xyz, xyz + 3);
         } else if (c == 'f' && cursor.p + 1 < cursor.end && (cursor.p[1] == ' ' || cursor.p[1] == '\t')) {
@@ -106,7 +177,24 @@ Scene importObj(const std::string& path, const MappedFile& file)
                     mesh.indices.push_back(polygon[k - 1]);
                     mesh.indices.push_back(polygon[k]);
                 }
+                if (!mesh.materials.empty())
+                    mesh.triangleMaterials.resize(mesh.triangleCount(), currentMaterial);
             }
+        } else if (isRecord(cursor, "usemtl")) {
+            cursor.p += 6;
+            const std::string name(cursor.token());
+            if (mesh.materials.empty()) {
+                mesh.materials.push_back({glm::vec4(1.0f), "default"});
+                mesh.triangleMaterials.assign(mesh.triangleCount(), 0);
+            }
+            auto [it, added] = materialIndex.emplace(name, uint32_t(mesh.materials.size()));
+            if (added)
+                mesh.materials.push_back({glm::vec4(1.0f), name});
+            currentMaterial = it->second;
+        } else if (isRecord(cursor, "mtllib")) {
+            cursor.p += 6;
+            for (std::string_view token = cursor.token(); !token.empty(); token = cursor.token())
+                mtlFiles.emplace_back(token);
         } else if ((c == 'l' || c == 'p') && cursor.p + 1 < cursor.end && (cursor.p[1] == ' ' || cursor.p[1] == '\t')) {
             ++pointOrLineRecords;
         }
@@ -123,6 +211,32 @@ Scene importObj(const std::string& path, const MappedFile& file)
         if (vertexCount == 0)
             fail(path, "no vertices or faces (not an OBJ file?)");
         fail(path, "no triangles (" + std::to_string(vertexCount) + " vertices but no faces)");
+    }
+    // Base colours from the mtl files' Kd; a missing file or material is a warning (the surface stays white).
+    if (!mesh.materials.empty()) {
+        std::unordered_map<std::string, glm::vec3> kd;
+        const size_t slash = path.find_last_of('/');
+        const std::string directory = slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
+        std::string missingFiles;
+        for (const std::string& name : mtlFiles) {
+            try {
+                readMtl(directory + name, kd);
+            } catch (const Error&) {
+                missingFiles += (missingFiles.empty() ? "'" : ", '") + name + "'";
+            }
+        }
+        if (!missingFiles.empty())
+            importWarning(path, "obj-mtllib", "could not read material library " + missingFiles + " (surfaces stay white)");
+        size_t unknown = 0;
+        for (size_t m = 1; m < mesh.materials.size(); ++m) {
+            auto it = kd.find(mesh.materials[m].name);
+            if (it != kd.end())
+                mesh.materials[m].baseColor = glm::vec4(it->second, 1.0f);
+            else
+                ++unknown;
+        }
+        if (unknown > 0 && missingFiles.empty())
+            importWarning(path, "obj-usemtl", std::to_string(unknown) + " material(s) named by usemtl have no Kd in the material libraries (white)");
     }
     if (pointOrLineRecords > 0)
         importWarning(path, "obj-lines",

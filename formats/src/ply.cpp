@@ -6,9 +6,13 @@
 // allocation.
 #include <algorithm>
 #include <bit>
+#include <cmath>
+#include <unordered_map>
 #include <cinttypes>
 #include <cstdio>
 #include <optional>
+
+#include <glm/vec3.hpp>
 
 #include "io_internal.h"
 
@@ -278,6 +282,65 @@ int64_t loadInteger(const uint8_t* p, PlyType type, bool swap)
                    std::to_string(vertexCount) + " vertices");
 }
 
+// Colour properties of an element: red, green, blue (or diffuse_red, ...).
+struct ColorProperties {
+    int index[3] = {-1, -1, -1};
+    bool present() const { return index[0] >= 0 && index[1] >= 0 && index[2] >= 0; }
+    // Channel of property i, or -1.
+    int channel(size_t i) const { return int(i) == index[0] ? 0 : int(i) == index[1] ? 1 : int(i) == index[2] ? 2 : -1; }
+};
+
+ColorProperties findColors(const PlyElement& element)
+{
+    ColorProperties colors;
+    const char* names[3][2] = {{"red", "diffuse_red"}, {"green", "diffuse_green"}, {"blue", "diffuse_blue"}};
+    for (int c = 0; c < 3; ++c) {
+        colors.index[c] = element.find(names[c][0]);
+        if (colors.index[c] < 0)
+            colors.index[c] = element.find(names[c][1]);
+        if (colors.index[c] >= 0 && element.properties[size_t(colors.index[c])].isList)
+            colors.index[c] = -1;
+    }
+    return colors;
+}
+
+// A colour value in [0, 1]: integers over their type's maximum (uchar 255, ushort 65535), floats as they are.
+float colorValue(double value, PlyType type)
+{
+    double scale = 1.0;
+    switch (type) {
+    case PlyType::Int8: scale = 127.0; break;
+    case PlyType::Uint8: scale = 255.0; break;
+    case PlyType::Int16: scale = 32767.0; break;
+    case PlyType::Uint16: scale = 65535.0; break;
+    case PlyType::Int32: scale = 2147483647.0; break;
+    case PlyType::Uint32: scale = 4294967295.0; break;
+    default: break;
+    }
+    double v = value / scale;
+    return std::isfinite(v) ? float(std::clamp(v, 0.0, 1.0)) : 0.0f;
+}
+
+// Face colours to materials: one per distinct colour (8 bits per channel).
+void faceColorsToMaterials(const std::vector<glm::vec3>& triangleColors, Mesh& mesh)
+{
+    if (triangleColors.empty())
+        return;
+    std::unordered_map<uint32_t, uint32_t> byColor;
+    mesh.triangleMaterials.resize(triangleColors.size());
+    for (size_t t = 0; t < triangleColors.size(); ++t) {
+        const glm::vec3 c = triangleColors[t];
+        const uint32_t key = uint32_t(std::lround(c.r * 255.0f)) | uint32_t(std::lround(c.g * 255.0f)) << 8 |
+                             uint32_t(std::lround(c.b * 255.0f)) << 16;
+        auto [it, added] = byColor.emplace(key, uint32_t(mesh.materials.size()));
+        if (added)
+            mesh.materials.push_back({glm::vec4(float(key & 255) / 255.0f, float(key >> 8 & 255) / 255.0f,
+                                                float(key >> 16) / 255.0f, 1.0f),
+                                      ""});
+        mesh.triangleMaterials[t] = it->second;
+    }
+}
+
 // Growable index output written through a raw cursor (no per-push capacity checks).
 struct IndexOutput {
     std::vector<uint32_t>& indices;
@@ -341,7 +404,8 @@ class BinaryPlyReader {
             readVerticesGeneric(element, mesh, ix, iy, iz);
             return;
         }
-        size_t offsets[3] = {0, 0, 0};
+        size_t offsets[3] = {0, 0, 0}, colorOffsets[3] = {0, 0, 0};
+        const ColorProperties colors = findColors(element);
         size_t running = 0;
         for (size_t i = 0; i < element.properties.size(); ++i) {
             if (int(i) == ix)
@@ -350,9 +414,20 @@ class BinaryPlyReader {
                 offsets[1] = running;
             if (int(i) == iz)
                 offsets[2] = running;
+            if (colors.channel(i) >= 0)
+                colorOffsets[colors.channel(i)] = running;
             running += plyTypeSize(element.properties[i].type);
         }
         const size_t count = size_t(element.count);
+        if (colors.present()) {
+            mesh.colors.resize(count * 3);
+            for (size_t v = 0; v < count; ++v)
+                for (int c = 0; c < 3; ++c) {
+                    const PlyType type = element.properties[size_t(colors.index[c])].type;
+                    mesh.colors[v * 3 + size_t(c)] =
+                        colorValue(loadNumber(data_ + offset_ + v * stride + colorOffsets[c], type, swap_), type);
+                }
+        }
         mesh.positions.resize(count * 3);
         float* out = mesh.positions.data();
         const uint8_t* base = data_ + offset_;
@@ -529,9 +604,14 @@ class BinaryPlyReader {
         const PlyProperty& list = element.properties[size_t(listIndex)];
         const size_t countSize = plyTypeSize(list.countType);
         const size_t itemSize = plyTypeSize(list.type);
+        const ColorProperties colors = findColors(element);
         for (uint64_t f = 0; f < element.count; ++f) {
+            glm::vec3 color(1.0f);
             for (size_t i = 0; i < element.properties.size(); ++i) {
                 if (int(i) != listIndex) {
+                    if (colors.present() && colors.channel(i) >= 0 && remaining() >= plyTypeSize(element.properties[i].type))
+                        color[colors.channel(i)] = colorValue(loadNumber(data_ + offset_, element.properties[i].type, swap_),
+                                                              element.properties[i].type);
                     skipProperty(element, f, element.properties[i]);
                     continue;
                 }
@@ -565,10 +645,13 @@ class BinaryPlyReader {
                     previous = uint32_t(index);
                 }
             }
+            if (colors.present())
+                triangleColors.resize((out.used) / 3, color);
         }
     }
 
   public:
+    std::vector<glm::vec3> triangleColors; // per triangle, from the face colours (empty without)
     bool faceIndexSigned_ = true;
 
   private:
@@ -612,7 +695,11 @@ class AsciiPlyReader {
             fail(path_, "too many vertices (" + std::to_string(element.count) + ", limit 4294967295)");
         if (vertices)
             vertices->positions.resize(size_t(element.count) * 3);
+        const ColorProperties colors = vertices || faces ? findColors(element) : ColorProperties{};
+        if (vertices && colors.present())
+            vertices->colors.resize(size_t(element.count) * 3);
         for (uint64_t r = 0; r < element.count; ++r) {
+            glm::vec3 faceColor(1.0f);
             for (size_t i = 0; i < element.properties.size(); ++i) {
                 const PlyProperty& property = element.properties[i];
                 if (!property.isList) {
@@ -623,6 +710,15 @@ class AsciiPlyReader {
                             malformed(token);
                         int c = int(i) == ix ? 0 : int(i) == iy ? 1 : 2;
                         vertices->positions[size_t(r) * 3 + size_t(c)] = value;
+                    } else if (colors.present() && colors.channel(i) >= 0) {
+                        float value;
+                        if (!parseFloat(token, value))
+                            malformed(token);
+                        const float c = colorValue(value, property.type);
+                        if (vertices)
+                            vertices->colors[size_t(r) * 3 + size_t(colors.channel(i))] = c;
+                        else
+                            faceColor[colors.channel(i)] = c;
                     }
                     continue;
                 }
@@ -655,8 +751,12 @@ class AsciiPlyReader {
                     previous = uint32_t(index);
                 }
             }
+            if (faces && colors.present())
+                triangleColors.resize(faces->indices.size() / 3, faceColor);
         }
     }
+
+    std::vector<glm::vec3> triangleColors; // per triangle, from the face colours (empty without)
 
   private:
     std::string_view next(const PlyElement& element, uint64_t record)
@@ -715,6 +815,7 @@ Scene importPly(const std::string& path, const MappedFile& file)
             reader.readElement(element, isVertex ? &mesh : nullptr, isFace ? listIndex : -1, vertexCount,
                                isFace ? &mesh : nullptr, stats);
         }
+        faceColorsToMaterials(reader.triangleColors, mesh);
     } else {
         BinaryPlyReader reader(path, file, header);
         reader.faceIndexSigned_ = faceElement->properties[size_t(listIndex)].type == PlyType::Int32 ||
@@ -728,6 +829,7 @@ Scene importPly(const std::string& path, const MappedFile& file)
             else
                 reader.skipElement(element);
         }
+        faceColorsToMaterials(reader.triangleColors, mesh);
     }
     if (mesh.indices.empty())
         fail(path, "no triangles (all " + std::to_string(faceElement->count) + " faces have fewer than 3 vertices)");

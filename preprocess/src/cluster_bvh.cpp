@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 
 #include <immintrin.h>
@@ -54,6 +55,7 @@ struct CentroidBox {
 };
 
 constexpr uint32_t kMaxBins = 256;
+constexpr uint32_t kMaterialRegion = 16; // clusters' worth of triangles below which materials are split apart
 
 // Bin boxes as 4-lane min/max (the 4th lane holds the triangle index bits of a
 // TriangleRef and is ignored), so growing a bin is two SIMD instructions.
@@ -219,6 +221,7 @@ struct Builder {
     TriangleRef* refs;
     const PreprocessOptions& options;
     const float* inflate;
+    const uint32_t* materials; // per input triangle; null: clusters may mix them (one material, or colours per cluster)
     // Unique-vertex counting without sorting: stamp[v] == epoch marks v as seen.
     // One array per thread, allocated once (4 bytes per mesh vertex).
     std::vector<uint32_t>& stamp = threadStamp();
@@ -279,16 +282,73 @@ struct Builder {
         return fittingRun(refs + begin, nullptr, n, false, vertexCount) == n;
     }
 
-    // Makes nodes[index] a cluster if it fits one; returns whether it did.
+    // Makes nodes[index] a cluster if it fits one (a subtree of one-material
+    // clusters if it fits one but mixes materials); returns whether it did.
     bool tryCluster(TopTree& tree, uint32_t index)
     {
         const TopNode node = tree.nodes[index];
         uint32_t vertices = 0;
         if (!fitsCluster(node.begin, node.end, &vertices))
             return false;
+        if (materials && mixesMaterials(node.begin, node.end) && sahSplitAllowed(node.depth, node.end - node.begin)) {
+            splitByMaterial(tree, index);
+            return true;
+        }
         tree.nodes[index].cluster = uint32_t(tree.clusters.size());
         tree.clusters.push_back({node.begin, node.end, index, node.depth, vertices});
         return true;
+    }
+
+    // Materials are separated in regions of at most kMaterialRegion clusters' worth, so that the
+    // clusters below fill up with one material (splitting only at cluster size leaves many small
+    // clusters: +1.4 B/tri on a city whose 18 k parts have one of 8 materials each, against -0.4 this way).
+    bool splitsByMaterial(const TopNode& node) const
+    {
+        const uint32_t n = node.end - node.begin;
+        return materials && n <= kMaterialRegion * options.maxClusterTriangles && sahSplitAllowed(node.depth, n) &&
+               mixesMaterials(node.begin, node.end);
+    }
+
+    bool mixesMaterials(uint32_t begin, uint32_t end) const
+    {
+        for (uint32_t i = begin + 1; i < end; ++i)
+            if (materials[refs[i].triangle] != materials[refs[begin].triangle])
+                return true;
+        return false;
+    }
+
+    // Splits a node that fits a cluster but mixes materials: its triangles
+    // ordered by material (stably, so each keeps the spatial order), cut at
+    // the material boundary nearest the middle; both halves fit a cluster
+    // too and are split again until each holds one material. Children are
+    // built depth first, so clusters keep the file's order.
+    void splitByMaterial(TopTree& tree, uint32_t index)
+    {
+        const uint32_t first = splitByMaterialOnce(tree, index);
+        tryCluster(tree, first);
+        tryCluster(tree, first + 1);
+    }
+
+    // Orders a node's triangles by material and makes the two children either side of the
+    // material boundary nearest the middle; returns the first child.
+    uint32_t splitByMaterialOnce(TopTree& tree, uint32_t index)
+    {
+        const TopNode node = tree.nodes[index];
+        std::stable_sort(refs + node.begin, refs + node.end, [this](const TriangleRef& a, const TriangleRef& b) {
+            return materials[a.triangle] < materials[b.triangle];
+        });
+        uint32_t cut = 0;
+        uint64_t bestDistance = ~uint64_t(0);
+        for (uint32_t i = node.begin + 1; i < node.end; ++i) {
+            if (materials[refs[i].triangle] == materials[refs[i - 1].triangle])
+                continue;
+            uint64_t distance = uint64_t(std::abs(int64_t(2 * uint64_t(i)) - int64_t(uint64_t(node.begin) + node.end)));
+            if (distance < bestDistance) {
+                bestDistance = distance;
+                cut = i;
+            }
+        }
+        return addChildren(tree, index, cut);
     }
 
     // Appends the two children [begin, mid) and [mid, end) of nodes[index]; returns the first.
@@ -404,6 +464,12 @@ struct Builder {
             stack.pop_back();
             const TopNode node = tree.nodes[index];
             const uint32_t n = node.end - node.begin;
+            if (splitsByMaterial(node)) {
+                const uint32_t first = splitByMaterialOnce(tree, index);
+                stack.push_back(first + 1);
+                stack.push_back(first);
+                continue;
+            }
             if (n <= 4 * options.maxClusterTriangles && sahSplitAllowed(node.depth, n)) {
                 buildFillRegion(tree, index);
                 continue;
@@ -421,7 +487,8 @@ struct Builder {
 } // namespace
 
 TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm::vec3& meanExtent,
-                     const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress)
+                     const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress,
+                     const uint32_t* materials)
 {
     // Centroids are stored as vertex sums (3x), so the triangle size is scaled likewise.
     const float inflate[3] = {3.0f * meanExtent.x, 3.0f * meanExtent.y, 3.0f * meanExtent.z};
@@ -437,7 +504,8 @@ TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm
         uint32_t index = pending.back();
         pending.pop_back();
         TopNode node = tree.nodes[index];
-        if (node.end - node.begin <= taskSize) {
+        // A node that the builder would split by material is a task too (thread-count independence).
+        if (node.end - node.begin <= taskSize || Builder{mesh, refs.data(), options, inflate, materials}.splitsByMaterial(node)) {
             tasks.push_back(index);
             continue;
         }
@@ -467,7 +535,7 @@ TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm
         threads, tasks.size(),
         [&](uint64_t k) {
             uint32_t t = order[k];
-            Builder builder{mesh, refs.data(), options, inflate};
+            Builder builder{mesh, refs.data(), options, inflate, materials};
             subtrees[t].nodes.push_back(tree.nodes[tasks[t]]);
             builder.build(subtrees[t], 0);
             trianglesDone += tree.nodes[tasks[t]].end - tree.nodes[tasks[t]].begin;

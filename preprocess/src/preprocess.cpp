@@ -8,7 +8,9 @@
 //            (cluster_tree.cpp, quantize.cpp, strips.cpp)
 //   layout   node array with 8-bit bounds (node_layout.cpp), sections
 #include <algorithm>
+#include <array>
 #include <atomic>
+#include <map>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -140,6 +142,26 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     });
     if (badPosition)
         fail("preprocess", "non-finite vertex position");
+    // Colours (mesh.h): materials kept apart by the clusters, or a colour per cluster.
+    if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
+        fail("preprocess", "vertex colours do not match the vertices");
+    for (float c : mesh.colors)
+        if (!(c >= 0.0f && c <= 1.0f))
+            fail("preprocess", "vertex colour component outside [0, 1]");
+    for (const Material& material : mesh.materials)
+        for (int k = 0; k < 4; ++k)
+            if (!(material.baseColor[k] >= 0.0f && material.baseColor[k] <= 1.0f))
+                fail("preprocess", "material base colour component outside [0, 1]");
+    if (!mesh.triangleMaterials.empty()) {
+        if (mesh.triangleMaterials.size() != inputTriangles)
+            fail("preprocess", "triangle materials do not match the triangles");
+        for (uint32_t m : mesh.triangleMaterials)
+            if (m >= mesh.materials.size())
+                fail("preprocess", "triangle material index out of range");
+    }
+    const bool splitMaterials = mesh.colors.empty() && mesh.materials.size() > 1 &&
+                                mesh.materials.size() <= kMaxSplitMaterials && !mesh.triangleMaterials.empty();
+    const bool clusterColors = !mesh.colors.empty() || mesh.materials.size() > kMaxSplitMaterials;
     for (uint64_t c = 0; c < chunks; ++c)
         kept[c + 1] += kept[c];
     const uint64_t triangleCount = kept[chunks];
@@ -179,7 +201,8 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     // ---- tree --------------------------------------------------------------------
     progress.begin("tree");
     stageStart = Clock::now();
-    TopTree tree = buildTopTree(mesh, refs, meanExtent, options, threads, [&](double f) { progress.report(f); });
+    TopTree tree = buildTopTree(mesh, refs, meanExtent, options, threads, [&](double f) { progress.report(f); },
+                                splitMaterials ? mesh.triangleMaterials.data() : nullptr);
     std::vector<uint32_t> triangles(triangleCount);
     parallelFor(threads, (triangleCount + chunkSize - 1) / chunkSize, [&](uint64_t c) {
         for (uint64_t i = c * chunkSize, e = std::min(triangleCount, (c + 1) * chunkSize); i < e; ++i)
@@ -205,14 +228,48 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     data->vertices.resize(vertexTotal);
     std::vector<BuiltCluster> built(clusterCount);
     const bool wantSource = decodedTriangleSource != nullptr;
+    // Per cluster: its material (split: the first triangle's; all the same unless the depth budget
+    // forbade the split) or the mean colour of its triangles.
+    std::vector<uint32_t> clusterMaterial(clusterCount, 0);
+    std::vector<glm::vec3> clusterColor(clusterColors ? clusterCount : 0);
     parallelFor(
         threads, clusterCount,
         [&](uint64_t c) {
             const ClusterRange& r = tree.clusters[c];
+            if (splitMaterials)
+                clusterMaterial[c] = mesh.triangleMaterials[triangles[r.begin]];
+            if (clusterColors) {
+                glm::dvec3 sum(0.0);
+                for (uint32_t i = r.begin; i < r.end; ++i)
+                    sum += glm::dvec3(mesh.triangleColor(triangles[i]));
+                clusterColor[c] = glm::clamp(glm::vec3(sum / double(r.end - r.begin)), 0.0f, 1.0f);
+            }
             buildCluster(mesh, triangles.data() + r.begin, r.end - r.begin, r.vertices, r.depth, options, wantSource,
                          data->vertices.data() + vertexOffset[c], built[c]);
         },
         [&](uint64_t done) { progress.report(double(done) / double(clusterCount)); });
+    if (splitMaterials)
+        for (size_t c = 0; c < clusterCount; ++c)
+            for (uint32_t i = tree.clusters[c].begin; i < tree.clusters[c].end; ++i)
+                stats.mixedMaterialTriangles += mesh.triangleMaterials[triangles[i]] != clusterMaterial[c];
+    // The material table: the mesh's materials, a palette of the clusters' colours (equal ones
+    // shared), or one white material.
+    if (clusterColors) {
+        std::map<std::array<float, 3>, uint32_t> palette;
+        for (size_t c = 0; c < clusterCount; ++c) {
+            const std::array<float, 3> key = {clusterColor[c].x, clusterColor[c].y, clusterColor[c].z};
+            auto [it, added] = palette.emplace(key, uint32_t(data->materials.size()));
+            if (added)
+                data->materials.push_back({{key[0], key[1], key[2], 1.0f}});
+            clusterMaterial[c] = it->second;
+        }
+    } else if (!mesh.materials.empty()) {
+        // One material (no splitting needed) or the split ones.
+        for (const Material& material : mesh.materials)
+            data->materials.push_back({{material.baseColor.r, material.baseColor.g, material.baseColor.b, material.baseColor.a}});
+    } else {
+        data->materials.push_back({{1.0f, 1.0f, 1.0f, 1.0f}});
+    }
     triangles = {};
     stats.clusterSeconds = secondsSince(stageStart);
 
@@ -269,7 +326,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         record.firstIndex = uint32_t(byteOffset[i]);
         record.indexBytes = uint32_t(c.bytes.size());
         record.node = layout.clusterNode[i];
-        record.reserved = 0;
+        record.material = clusterMaterial[i];
         data->clusters[i] = record;
         std::copy(c.bytes.begin(), c.bytes.end(), data->indices.begin() + byteOffset[i]);
         if (wantSource)
@@ -287,6 +344,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     h.indexBytes = byteTotal;
     h.clusterCount = uint32_t(clusterCount);
     h.nodeCount = uint32_t(data->nodes.size());
+    h.materialCount = uint32_t(data->materials.size());
     h.bvhDepth = layout.depth;
     for (int a = 0; a < 3; ++a) {
         h.boundsMin[a] = root.min[a];
@@ -314,8 +372,10 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     stats.widenedBounds = layout.widened;
     stats.bvhDepth = layout.depth;
     stats.maxPositionError = maxError;
+    stats.materials = h.materialCount;
     stats.bytesPerTriangle = double(clusterCount * sizeof(model::ClusterRecord) + h.nodeCount * sizeof(model::Node) +
-                                    vertexTotal * sizeof(model::QuantizedVertex) + byteTotal) /
+                                    vertexTotal * sizeof(model::QuantizedVertex) + byteTotal +
+                                    h.materialCount * sizeof(model::MaterialRecord)) /
                              double(triangleCount);
     if (statsOut)
         *statsOut = stats;

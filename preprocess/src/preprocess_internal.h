@@ -95,8 +95,16 @@ struct TopTree {
 // triangles using <= maxClusterVertices vertices. Reorders refs. Clusters come
 // out in the depth-first order in which layoutNodes numbers them.
 // meanExtent: the average triangle bounding-box extent per axis.
+// materials (per input triangle, or null): a node that fits a cluster but
+// mixes materials is split by material until every cluster has one (unless
+// the depth budget forbids it: then the cluster takes its first triangle's).
 TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm::vec3& meanExtent,
-                     const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress);
+                     const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress,
+                     const uint32_t* materials = nullptr);
+
+// At most this many materials are kept apart by the clusters; with more (or
+// with vertex colours) each cluster gets the mean colour of its triangles.
+inline constexpr size_t kMaxSplitMaterials = 4096;
 
 // ---- one cluster (cluster_tree.cpp, quantize.cpp, strips.cpp) ------------------
 

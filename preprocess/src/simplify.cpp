@@ -47,6 +47,20 @@ SimplifiedMesh simplifyMesh(const Mesh& mesh, float ratio)
     }
     simplified.resize(count);
 
+    // Colours: vertex colours stay with their vertices; a simplified triangle takes the material of
+    // the last input triangle that used its first vertex (materials are not kept apart by the simplifier).
+    std::vector<uint32_t> vertexMaterial;
+    if (!mesh.triangleMaterials.empty()) {
+        vertexMaterial.assign(vertexCount, 0);
+        for (size_t t = 0; t < mesh.triangleMaterials.size(); ++t)
+            for (int k = 0; k < 3; ++k)
+                vertexMaterial[mesh.indices[3 * t + k]] = mesh.triangleMaterials[t];
+        result.mesh.triangleMaterials.resize(count / 3);
+        for (size_t t = 0; t < count / 3; ++t)
+            result.mesh.triangleMaterials[t] = vertexMaterial[simplified[3 * t]];
+    }
+    result.mesh.materials = mesh.materials;
+
     // Compact: keep used vertices in first-use order.
     std::vector<uint32_t> remap(vertexCount, 0xFFFFFFFFu);
     uint32_t next = 0;
@@ -57,6 +71,9 @@ SimplifiedMesh simplifyMesh(const Mesh& mesh, float ratio)
             remap[v] = next++;
             result.mesh.positions.insert(result.mesh.positions.end(), mesh.positions.begin() + 3 * size_t(v),
                                          mesh.positions.begin() + 3 * size_t(v) + 3);
+            if (!mesh.colors.empty())
+                result.mesh.colors.insert(result.mesh.colors.end(), mesh.colors.begin() + 3 * size_t(v),
+                                          mesh.colors.begin() + 3 * size_t(v) + 3);
         }
         result.mesh.indices[i] = remap[v];
     }

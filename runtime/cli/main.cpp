@@ -49,6 +49,7 @@ struct RenderArgs {
     std::string exposure = "auto";
     std::string tonemap = "filmic";
     std::string ground = "auto";
+    std::string colors = "on";
     std::string compare;
     bool exrLayers = false;
     bool floors = false;
@@ -158,6 +159,7 @@ int runRender(const RenderArgs& args)
     settings.depthBiasConstant = args.biasConstant;
     settings.depthBiasSlope = args.biasSlope;
     settings.debugPip = args.debugImage == "pip";
+    settings.colors = args.colors == "on";
     checkImagePath(args.output);
     if (!args.compare.empty())
         checkImagePath(args.compare);
@@ -202,6 +204,9 @@ int runRender(const RenderArgs& args)
                      scene.mesh.triangleCount());
     } else if (modelPath.size() > 9 && modelPath.substr(modelPath.size() - 9) == ".penumbra") {
         compressed = openModelFile(modelPath);
+        // The cameras and lights the preprocessor stored from the source scene.
+        scene.cameras = modelCameras(compressed);
+        scene.lights = modelLights(compressed);
     } else {
         scene = importScene(modelPath);
     }
@@ -353,14 +358,15 @@ int runPreprocess(const PreprocessArgs& args)
         }
         options.progress = [&](const char* stage, double fraction) { progress.update(std::string(label) + stage, fraction); };
         PreprocessStats stats;
-        CompressedModel model = buildCompressedModel(*mesh, options, &stats);
+        CompressedModel model = withScene(buildCompressedModel(*mesh, options, &stats), scene.cameras, scene.lights, args.input);
         model.header.sourceTriangleCount = scene.mesh.triangleCount();
         model.header.build.simplifyTarget = ratio;
         model.header.simplifyError = ratio < 1.0f ? simplified.error : 0.0f;
         progress.update(std::string(label) + "write", 1.0);
         writeModelFile(model, path);
         progress.finish();
-        uint64_t bytes = model.clusters.size_bytes() + model.nodes.size_bytes() + model.vertices.size_bytes() + model.indices.size_bytes();
+        uint64_t bytes = model.clusters.size_bytes() + model.nodes.size_bytes() + model.vertices.size_bytes() + model.indices.size_bytes() +
+                         model.materials.size_bytes();
         std::printf("%s: %llu triangles (%.4g of %zu%s), %u clusters, %u nodes, %.2f B/tri, max error %.3g, %.2f s "
                     "(%.2f M tris/s incl. import %.2f s)\n",
                     path.c_str(), (unsigned long long)model.header.triangleCount, double(model.header.triangleCount) / scene.mesh.triangleCount(),
@@ -392,14 +398,18 @@ int runInfo(const std::string& path)
                 h.build.maxClusterVertices, h.build.maxClusterTriangles, h.build.maxLeafTriangles, h.build.sahBins);
     struct Row { const char* name; uint64_t bytes; } rows[] = {
         {"clusters", model.clusters.size_bytes()}, {"nodes", model.nodes.size_bytes()},
-        {"vertices", model.vertices.size_bytes()}, {"indices", model.indices.size_bytes()}};
+        {"vertices", model.vertices.size_bytes()}, {"indices", model.indices.size_bytes()},
+        {"materials", model.materials.size_bytes()}};
     uint64_t total = 0;
     std::printf("  %-16s %14s %10s\n", "section", "bytes", "B/tri");
     for (const Row& row : rows) {
         std::printf("  %-16s %14llu %10.3f\n", row.name, (unsigned long long)row.bytes, double(row.bytes) / triangles);
         total += row.bytes;
     }
-    std::printf("  %-16s %14llu %10.3f\n", "geometry + BVH", (unsigned long long)total, double(total) / triangles);
+    std::printf("  %-16s %14llu %10.3f\n", "total", (unsigned long long)total, double(total) / triangles);
+    std::printf("  materials        %u\n", h.materialCount);
+    std::printf("  scene            %u camera(s), %u light(s), %llu bytes\n", h.cameraCount, h.lightCount,
+                (unsigned long long)(model.cameras.size_bytes() + model.lights.size_bytes()));
     return 0;
 }
 
@@ -494,6 +504,11 @@ int main(int argc, char** argv)
                               "its width, not already standing on a wider floor; not for .penumbra files), below (always, under "
                               "the model), off, or y=VALUE")
         ->capture_default_str();
+    renderCommand->add_option("--colors", render.colors,
+                              "Material colours of the model (glTF base colour, PLY/OBJ vertex or face colours): on, or off "
+                              "(every surface grey, as before colours were read)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--compare", render.compare,
                               "Also write a side-by-side strip sm | srt | srt with the traced pixels red, to this image");
     renderCommand->add_flag("--exr-layers", render.exrLayers,

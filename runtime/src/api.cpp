@@ -218,6 +218,15 @@ void addGround(Mesh& mesh, const Bounds& modelBounds, float y)
             // Counter-clockwise seen from +y: x grows to the right, z toward the viewer.
             mesh.indices.insert(mesh.indices.end(), {a, d, b, b, d, c2});
         }
+    // The ground is white: a material of its own when the model has materials, white vertices when it has colours.
+    if (!mesh.colors.empty())
+        mesh.colors.resize(mesh.positions.size(), 1.0f);
+    if (!mesh.materials.empty()) {
+        if (mesh.triangleMaterials.empty())
+            mesh.triangleMaterials.assign(mesh.triangleCount() - 2 * kQuads * kQuads, 0);
+        mesh.triangleMaterials.resize(mesh.triangleCount(), uint32_t(mesh.materials.size()));
+        mesh.materials.push_back({glm::vec4(1.0f), "ground"});
+    }
 }
 
 Ground parseGround(const std::string& text)
@@ -262,8 +271,18 @@ Mesh decodeMesh(const CompressedModel& model)
         const uint8_t* strips = model.indices.data() + cluster.firstIndex;
         forEachStripTriangle(strips, strips + cluster.indexBytes, [&](uint32_t a, uint32_t b, uint32_t c) {
             mesh.indices.insert(mesh.indices.end(), {first + a, first + b, first + c});
+            mesh.triangleMaterials.push_back(cluster.material);
         });
     }
+    // Materials: the table as stored (one white material means none).
+    const bool plain = model.materials.size() == 1 && model.materials[0].baseColor[0] == 1.0f &&
+                       model.materials[0].baseColor[1] == 1.0f && model.materials[0].baseColor[2] == 1.0f &&
+                       model.materials[0].baseColor[3] == 1.0f;
+    if (plain)
+        mesh.triangleMaterials.clear();
+    else
+        for (const model::MaterialRecord& m : model.materials)
+            mesh.materials.push_back({glm::vec4(m.baseColor[0], m.baseColor[1], m.baseColor[2], m.baseColor[3]), ""});
     return mesh;
 }
 

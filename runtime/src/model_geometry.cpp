@@ -1,6 +1,7 @@
 #include "model_geometry.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <thread>
 
@@ -118,6 +119,17 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         }
         geometry.indirect = vk::createBufferWithData(device, commands.data(), commands.size() * sizeof(VkDrawIndexedIndirectCommand),
                                                      VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
+        // Each cluster's material colour, packed for the G-buffer (8 bits per channel, linear).
+        std::vector<uint32_t> albedo(model.clusters.size());
+        for (size_t c = 0; c < model.clusters.size(); ++c) {
+            const float* rgb = model.materials[model.clusters[c].material].baseColor;
+            uint32_t packed = 0;
+            for (int k = 0; k < 3; ++k)
+                packed |= uint32_t(std::lround(std::clamp(rgb[k], 0.0f, 1.0f) * 255.0f)) << (8 * k);
+            albedo[c] = packed;
+        }
+        geometry.albedo = vk::createBufferWithData(device, albedo.data(), albedo.size() * sizeof(uint32_t),
+                                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
         if (model.nodes.size() * sizeof(float) <= limit) {
             std::vector<float> altitudes = leafMinimumAltitudes(model);
             geometry.leafAltitudes = vk::createBufferWithData(device, altitudes.data(), altitudes.size() * sizeof(float),
@@ -129,6 +141,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
     }
     geometry.deviceBytes = model.vertices.size_bytes() + model.indices.size_bytes() + model.clusters.size_bytes() +
                            model.nodes.size_bytes() + model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand) +
+                           geometry.albedo.size +
                            geometry.leafAltitudes.size;
     return geometry;
 }
@@ -170,6 +183,7 @@ void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
         vk::destroyBuffer(device, nodes);
     vk::destroyBuffer(device, geometry.clusters);
     vk::destroyBuffer(device, geometry.indirect);
+    vk::destroyBuffer(device, geometry.albedo);
     vk::destroyBuffer(device, geometry.leafAltitudes);
     geometry = {};
 }

@@ -35,6 +35,7 @@ struct GpuGeometry {
     std::vector<Chunk> chunks;
     vk::Buffer clusters;          // ClusterRecord[] as per-instance vertex data (reference: one identity record)
     vk::Buffer indirect;          // VkDrawIndexedIndirectCommand per cluster
+    vk::Buffer albedo;            // uint per cluster: its material's linear RGB, 8 bits each (gbuffer.vert); compressed only
     // The BVH (model::Node[]) for the ray tracer, in chunks of 2^nodeChunkShift
     // nodes (node i is in nodeChunks[i >> nodeChunkShift]); compressed only.
     std::vector<vk::Buffer> nodeChunks;

@@ -123,7 +123,7 @@ struct Renderer::Impl::FrameScript {
         const Camera camera = r.camera ? *r.camera : defaultCamera(bounds);
         view = cameraViewProjection(camera, bounds, float(s.width) / float(s.height));
         data.cameraPosition = glm::vec4(view.eye, 1.0f);
-        data.shading = glm::vec4(s.ambient, s.albedo, 0.0f, 0.0f);
+        data.shading = glm::vec4(s.ambient, s.albedo, s.colors ? 1.0f : 0.0f, 0.0f);
         data.background = glm::vec4(s.background[0], s.background[1], s.background[2], 1.0f);
         data.pip = glm::vec4(float(PENUMBRA_PIP_DELTA_FRACTION), 0.0f, 0.0f, 0.0f);
         uint32_t maxLayers = 1;
@@ -209,7 +209,8 @@ struct Renderer::Impl::FrameScript {
         }
         vkCmdFillBuffer(cmd, t.stats.buffer, 0, VK_WHOLE_SIZE, 0);
         vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
-        r.gbuffer.record(cmd, r.culling, 0, r.geometry, {&t.position, &t.normal, &t.depth}, {view.viewProj, glm::vec4(view.eye, 1.0f)});
+        r.gbuffer.record(cmd, r.culling, 0, r.geometry, {&t.position, &t.normal, &t.depth},
+                         {view.viewProj, glm::vec4(view.eye, 1.0f), r.geometry.albedo.buffer ? vk::bufferAddress(r.device, r.geometry.albedo) : 0});
         timer.mark(cmd, PassId::Camera);
         for (vk::Image* image : {&t.color, &t.visibility})
             vk::transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);

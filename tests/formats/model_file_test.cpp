@@ -173,6 +173,8 @@ std::shared_ptr<CompressedModelData> buildModel(const std::vector<TestCluster>& 
     header.clusterCount = clusterCount;
     header.nodeCount = nodeCount;
     header.bvhDepth = clusterCount == 1 ? 2 : 3;
+    data->materials = {{{1.0f, 1.0f, 1.0f, 1.0f}}};
+    header.materialCount = 1;
     return data;
 }
 
@@ -262,7 +264,7 @@ void fixChecksums(std::string& bytes)
 {
     FileHeader header = headerOf(bytes);
     for (SectionEntry& entry : header.sections)
-        if (entry.offset <= bytes.size() && entry.size <= bytes.size() - entry.offset)
+        if (entry.type != 0 && entry.offset <= bytes.size() && entry.size <= bytes.size() - entry.offset)
             entry.checksum = XXH64(bytes.data() + entry.offset, entry.size, 0);
     setHeader(bytes, header);
 }
@@ -331,9 +333,12 @@ TEST(ModelFile, RoundTripIsIdentical)
         EXPECT_EQ(std::memcmp(model.indices.data(), data->indices.data(), model.indices.size_bytes()), 0);
 
         // Sections in the documented order, 64-byte aligned, zero padding.
-        SectionType order[] = {SectionType::Clusters, SectionType::Nodes, SectionType::Vertices, SectionType::Indices};
+        SectionType order[] = {SectionType::Clusters, SectionType::Nodes, SectionType::Vertices, SectionType::Indices,
+                               SectionType::Materials};
         uint64_t previousEnd = sizeof(FileHeader);
-        for (int i = 0; i < 4; ++i) {
+        for (int i = 5; i < int(kSectionSlots); ++i)
+            EXPECT_EQ(h.sections[i].type, 0u); // no cameras or lights: unused entries
+        for (int i = 0; i < 5; ++i) {
             EXPECT_EQ(h.sections[i].type, uint32_t(order[i]));
             EXPECT_EQ(h.sections[i].offset % 64, 0u);
             EXPECT_GE(h.sections[i].offset, previousEnd);
@@ -414,13 +419,13 @@ TEST(ModelFileBad, Truncated)
     const FileHeader header = headerOf(bytes);
     EXPECT_ERROR_CONTAINS(openError("model_trunc0.penumbra", ""), "model_trunc0.penumbra: empty file");
     EXPECT_ERROR_CONTAINS(openError("model_trunc10.penumbra", bytes.substr(0, 10)),
-                          "truncated: file has 10 bytes, the header alone needs 320");
+                          "truncated: file has 10 bytes, the header alone needs 448");
     EXPECT_ERROR_CONTAINS(openError("model_trunc255.penumbra", bytes.substr(0, 255)),
-                          "truncated: file has 255 bytes, the header alone needs 320");
-    EXPECT_ERROR_CONTAINS(openError("model_trunc319.penumbra", bytes.substr(0, 319)),
-                          "truncated: file has 319 bytes, the header alone needs 320");
+                          "truncated: file has 255 bytes, the header alone needs 448");
+    EXPECT_ERROR_CONTAINS(openError("model_trunc447.penumbra", bytes.substr(0, 447)),
+                          "truncated: file has 447 bytes, the header alone needs 448");
     EXPECT_ERROR_CONTAINS(openError("model_trunc5.penumbra", bytes.substr(0, 5)),
-                          "truncated: file has 5 bytes, the header alone needs 320");
+                          "truncated: file has 5 bytes, the header alone needs 448");
     const SectionEntry& vertices = sectionOf(header, SectionType::Vertices);
     size_t mid = size_t(vertices.offset + vertices.size / 2);
     EXPECT_ERROR_CONTAINS(openError("model_truncmid.penumbra", bytes.substr(0, mid)),
@@ -475,8 +480,12 @@ TEST(ModelFileBad, HeaderFields)
                           "model_magic.penumbra: not a Penumbra model file (bad magic)");
     EXPECT_ERROR_CONTAINS(openError("model_text.penumbra", "solid cube\n"), "not a Penumbra model file (bad magic)");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 7; }),
-                          "unsupported version 7 (this build reads version 1)");
-    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.headerSize = 240; }), "header size 240 is not 320");
+                          "unsupported version 7 (this build reads version 2; run penumbra preprocess on the source model again)");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 1; }), "unsupported version 1 (this build reads version 2");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.headerSize = 320; }), "header size 320 is not 448");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.materialCount = 0; }), "header materialCount 0 is outside 1..16777216");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.cameraCount = 300; }), "header cameraCount 300 is above 256");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.lightCount = 257; }), "header lightCount 257 is above 256");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.boundsMax[0] += 1.0f; }, false), "header checksum mismatch");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.fileSize += 64; }), "truncated: header says");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.build.maxClusterVertices = 300; }),
@@ -487,7 +496,7 @@ TEST(ModelFileBad, HeaderFields)
                           "build parameter positionBits 12 is not 16");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.build.simplifyTarget = NAN; }),
                           "build parameter simplifyTarget nan is outside (0, 1]");
-    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.reserved1[5] = 5; }), "reserved header field is not zero");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.reserved1[4] = 5; }), "reserved header field is not zero");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.bvhDepth = 65; }), "header bvhDepth 65 is outside 1..64");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.boundsMin[1] = INFINITY; }), "non-finite model bounds");
 }
@@ -529,7 +538,7 @@ TEST(ModelFileBad, SectionTable)
     EXPECT_ERROR_CONTAINS(withHeader([&](FileHeader& h) { entry(h, SectionType::Indices).offset = ~uint64_t(63); }),
                           "run past the end of the file");
     EXPECT_ERROR_CONTAINS(withHeader([&](FileHeader& h) { entry(h, SectionType::Nodes).offset += 8; }),
-                          "section Nodes: offset 456 is not a multiple of 64");
+                          "section Nodes: offset 584 is not a multiple of 64");
     EXPECT_ERROR_CONTAINS(withHeader([&](FileHeader& h) { entry(h, SectionType::Clusters).offset = 256; }),
                           "section Clusters: offset 256 overlaps the header");
     EXPECT_ERROR_CONTAINS(withHeader([&](FileHeader& h) {
@@ -540,6 +549,174 @@ TEST(ModelFileBad, SectionTable)
                               entry(h, SectionType::Indices).offset = entry(h, SectionType::Vertices).offset;
                           }),
                           "overlap");
+}
+
+// Version 2: materials, and the source scene's cameras and lights.
+TEST(ModelFile, MaterialsCamerasAndLightsRoundTrip)
+{
+    auto data = cubeModel();
+    data->materials = {{{1.0f, 0.5f, 0.25f, 1.0f}}, {{0.0f, 0.2f, 0.8f, 0.5f}}};
+    data->header.materialCount = 2;
+    data->clusters[1].material = 1;
+    Camera camera;
+    camera.position = {1, 2, 3};
+    camera.target = {0, 0.5f, 0};
+    camera.projection = Projection::Orthographic;
+    camera.orthoHeight = 7.5f;
+    camera.nearPlane = 0.25f;
+    camera.farPlane = 90.0f;
+    Light sun, spot, rectangle;
+    sun.direction = {-0.4f, -1, -0.2f};
+    sun.intensity = 3.0f;
+    spot.type = LightType::Spot;
+    spot.position = {0, 10, 0};
+    spot.color = {1, 0.9f, 0.8f};
+    spot.innerConeDegrees = 15;
+    spot.outerConeDegrees = 25;
+    spot.range = 40;
+    rectangle.type = LightType::Rectangle;
+    rectangle.width = 3;
+    rectangle.height = 2;
+    CompressedModel model = withScene(view(data), {camera}, {sun, spot, rectangle});
+    const std::string path = tempPath("model_scene.penumbra");
+    writeModelFile(model, path);
+    CompressedModel read = openModelFile(path);
+    EXPECT_EQ(read.header.materialCount, 2u);
+    EXPECT_EQ(read.header.cameraCount, 1u);
+    EXPECT_EQ(read.header.lightCount, 3u);
+    ASSERT_EQ(read.materials.size(), 2u);
+    EXPECT_EQ(std::memcmp(read.materials.data(), data->materials.data(), read.materials.size_bytes()), 0);
+    EXPECT_EQ(read.clusters[1].material, 1u);
+    EXPECT_EQ(sectionOf(read.header, SectionType::Cameras).elementSize, 64u);
+    EXPECT_EQ(sectionOf(read.header, SectionType::Lights).size, 3u * 80u);
+    std::vector<Camera> cameras = modelCameras(read);
+    ASSERT_EQ(cameras.size(), 1u);
+    EXPECT_EQ(cameras[0].position, camera.position);
+    EXPECT_EQ(cameras[0].target, camera.target);
+    EXPECT_EQ(cameras[0].up, camera.up);
+    EXPECT_EQ(cameras[0].projection, Projection::Orthographic);
+    EXPECT_EQ(cameras[0].orthoHeight, 7.5f);
+    EXPECT_EQ(cameras[0].yfovDegrees, camera.yfovDegrees);
+    EXPECT_EQ(cameras[0].nearPlane, 0.25f);
+    EXPECT_EQ(cameras[0].farPlane, 90.0f);
+    std::vector<Light> lights = modelLights(read);
+    ASSERT_EQ(lights.size(), 3u);
+    const Light* originals[] = {&sun, &spot, &rectangle};
+    for (size_t i = 0; i < 3; ++i) {
+        const Light& a = lights[i];
+        const Light& b = *originals[i];
+        EXPECT_EQ(a.type, b.type);
+        EXPECT_EQ(a.position, b.position);
+        EXPECT_EQ(a.direction, b.direction);
+        EXPECT_EQ(a.up, b.up);
+        EXPECT_EQ(a.color, b.color);
+        EXPECT_EQ(a.intensity, b.intensity);
+        EXPECT_EQ(a.range, b.range);
+        EXPECT_EQ(a.innerConeDegrees, b.innerConeDegrees);
+        EXPECT_EQ(a.outerConeDegrees, b.outerConeDegrees);
+        EXPECT_EQ(a.width, b.width);
+        EXPECT_EQ(a.height, b.height);
+        EXPECT_EQ(a.radius, b.radius);
+    }
+}
+
+TEST(ModelFileBad, MaterialsCamerasAndLights)
+{
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.materials[0].baseColor[1] = 1.5f; },
+        "material 0: base colour component 1.5 is outside [0, 1]");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.materials[0].baseColor[3] = NAN; }, "material 0: base colour component nan");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.materials.push_back({{1, 1, 1, 1}}); }, "header says 1 materials but there are 2");
+    auto withCamera = [](auto&& mutate) {
+        Camera camera;
+        model::CameraRecord record = cameraRecord(camera);
+        mutate(record);
+        auto data = cubeModel();
+        data->cameras = {record};
+        data->header.cameraCount = 1;
+        return errorOf([&] { validateModel(view(data), "m"); });
+    };
+    EXPECT_EQ(withCamera([](model::CameraRecord&) {}), "");
+    EXPECT_ERROR_CONTAINS(withCamera([](model::CameraRecord& r) { r.target[0] = r.position[0], r.target[1] = r.position[1], r.target[2] = r.position[2]; }),
+                          "m: camera 0: position and target are equal");
+    EXPECT_ERROR_CONTAINS(withCamera([](model::CameraRecord& r) { r.up[0] = r.up[1] = r.up[2] = 0; }), "camera 0: up is zero or parallel");
+    EXPECT_ERROR_CONTAINS(withCamera([](model::CameraRecord& r) { r.projection = 2; }), "camera 0: unknown projection 2");
+    EXPECT_ERROR_CONTAINS(withCamera([](model::CameraRecord& r) { r.yfovDegrees = 180; }), "camera 0: field of view 180");
+    EXPECT_ERROR_CONTAINS(withCamera([](model::CameraRecord& r) { r.orthoHeight = 0; }), "camera 0: orthographic height 0");
+    EXPECT_ERROR_CONTAINS(withCamera([](model::CameraRecord& r) { r.nearPlane = 5, r.farPlane = 2; }), "camera 0: near 5 / far 2");
+    EXPECT_ERROR_CONTAINS(withCamera([](model::CameraRecord& r) { r.position[1] = INFINITY; }), "camera 0: non-finite");
+    EXPECT_ERROR_CONTAINS(withCamera([](model::CameraRecord& r) { r.reserved[1] = 3; }), "camera 0: reserved field is not zero");
+    auto withLight = [](auto&& mutate) {
+        Light light;
+        model::LightRecord record = lightRecord(light);
+        mutate(record);
+        auto data = cubeModel();
+        data->lights = {record};
+        data->header.lightCount = 1;
+        return errorOf([&] { validateModel(view(data), "m"); });
+    };
+    EXPECT_EQ(withLight([](model::LightRecord&) {}), "");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.type = 6; }), "m: light 0: unknown type 6");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.direction[0] = r.direction[1] = r.direction[2] = 0; }),
+                          "light 0: zero direction");
+    EXPECT_EQ(withLight([](model::LightRecord& r) { // a point light needs no direction, as for the renderer
+                  r.type = uint32_t(LightType::Point);
+                  r.direction[0] = r.direction[1] = r.direction[2] = 0;
+              }),
+              "");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.color[2] = INFINITY; }), "light 0: non-finite position");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.intensity = NAN; }), "light 0: non-finite intensity");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.intensity = -1; }), "light 0: intensity -1 and range 0 must be >= 0");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.type = uint32_t(LightType::Spot), r.outerConeDegrees = 95; }),
+                          "light 0: spot cone inner");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.type = uint32_t(LightType::Rectangle), r.width = 0; }),
+                          "width 0, height 1 and radius 0.5 > 0");
+    EXPECT_ERROR_CONTAINS(withLight([](model::LightRecord& r) { r.type = uint32_t(LightType::Sphere), r.radius = 0; }),
+                          "radius 0 > 0");
+
+    // withScene leaves out what the format rejects, with a warning.
+    static std::vector<std::string> warnings;
+    warnings.clear();
+    WarningSink previous = setWarningSink([](const std::string& line) { warnings.push_back(line); });
+    Camera flat;
+    flat.target = flat.position;
+    Light spot;
+    spot.type = LightType::Spot;
+    spot.outerConeDegrees = 90.0f;
+    CompressedModel kept = withScene(view(cubeModel()), {flat, Camera{}}, {spot, Light{}}, "part.glb");
+    setWarningSink(previous);
+    EXPECT_EQ(kept.cameras.size(), 1u);
+    EXPECT_EQ(kept.lights.size(), 1u);
+    ASSERT_EQ(warnings.size(), 2u);
+    EXPECT_EQ(warnings[0], "part.glb: camera 0: position and target are equal (not stored)");
+    EXPECT_NE(warnings[1].find("part.glb: light 0: spot cone inner 20 / outer 90 degrees"), std::string::npos) << warnings[1];
+
+    // The section table: optional sections exactly when counted, unused entries all zero.
+    auto data = cubeModel();
+    CompressedModel scene = withScene(view(data), {Camera{}}, {});
+    const std::string path = tempPath("model_scene_bad.penumbra");
+    writeModelFile(scene, path);
+    const std::string bytes = readFile(path);
+    auto withHeader = [&](auto&& mutate) {
+        std::string bad = bytes;
+        FileHeader header = headerOf(bytes);
+        mutate(header);
+        setHeader(bad, header);
+        return openError("model_scene_table.penumbra", bad);
+    };
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.sections[7].offset = 64; }),
+                          "section table entry 7 is unused (type 0) but not all zero");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.sections[5] = {}; }), "section Cameras is missing from the section table");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.sections[4] = {}; }), "section Materials is missing from the section table");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) {
+                              h.sections[6] = h.sections[5];
+                              h.sections[6].type = uint32_t(SectionType::Lights);
+                              h.sections[6].elementSize = 80;
+                          }),
+                          "section Lights: 64 bytes, but the header's count 0 needs");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.sections[5].type = 8; }), "section table entry 5 has unknown type 8");
 }
 
 // A hostile file whose checksums are all valid is still rejected.
@@ -608,7 +785,7 @@ TEST(ModelValidate, Clusters)
         cubeModel, [](CompressedModelData& d) { d.clusters[1].node = 1; },
         "cluster 1: node 1 is not this cluster's Cluster node");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.clusters[0].reserved = 1; }, "cluster 0: reserved field is not zero");
+        cubeModel, [](CompressedModelData& d) { d.clusters[0].material = 1; }, "cluster 0: material 1 out of range (1 materials)");
     // Strip syntax: restart at the ends, double restarts.
     expectInvalid(
         cubeModel, [](CompressedModelData& d) { d.indices[0] = kStripRestart; },
@@ -886,6 +1063,8 @@ std::shared_ptr<CompressedModelData> largeModel(uint32_t clusterBits)
     header.boundsMin[0] = header.boundsMin[1] = header.boundsMin[2] = 0.0f;
     header.boundsMax[0] = float(clusterCount);
     header.boundsMax[1] = header.boundsMax[2] = 1.0f;
+    data->materials = {{{1.0f, 1.0f, 1.0f, 1.0f}}};
+    header.materialCount = 1;
     return data;
 }
 

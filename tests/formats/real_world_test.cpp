@@ -158,6 +158,18 @@ TEST(RealWorld, GltfSparseAccessors)
     EXPECT_EQ(scene.mesh.position(6), glm::vec3(0.0f, 1.0f, 0.0f));
 }
 
+// Blender's OBJ names its material library (cube.mtl, beside it) and material.
+TEST(RealWorld, ObjMaterialFromBlendersLibrary)
+{
+    Scene scene = importCapturing(realWorldPath("blender_crlf.obj"));
+    ASSERT_EQ(scene.mesh.materials.size(), 2u); // the default before usemtl, and 'Material'
+    EXPECT_EQ(scene.mesh.materials[1].name, "Material");
+    EXPECT_EQ(scene.mesh.materials[1].baseColor, glm::vec4(0.8f, 0.3f, 0.1f, 1.0f));
+    ASSERT_EQ(scene.mesh.triangleMaterials.size(), 12u);
+    for (uint32_t m : scene.mesh.triangleMaterials)
+        EXPECT_EQ(m, 1u);
+}
+
 TEST(RealWorld, MemoryImportMatchesFile)
 {
     for (const char* name : {"banner_crlf_ascii.ply", "blender_crlf.obj", "crlf_ascii.stl", "quantized.glb"}) {

@@ -42,6 +42,14 @@ void useModel(const CompressedModel& model)
         });
         check(triangles == cluster.triangleCount);
         check(model.nodes[cluster.node].kind == uint8_t(NodeKind::Cluster));
+        check(cluster.material < model.materials.size());
+        sum += model.materials[cluster.material].baseColor[0];
+    }
+    for (const Camera& camera : modelCameras(model))
+        sum += camera.position.x + camera.yfovDegrees;
+    for (const Light& light : modelLights(model)) {
+        check(uint32_t(light.type) <= uint32_t(LightType::Sphere));
+        sum += light.intensity;
     }
     // Fixed-size traversal stack, as the runtime uses.
     struct Entry {
@@ -94,7 +102,7 @@ void fixChecksums(uint8_t* bytes, size_t size)
     FileHeader header;
     std::memcpy(&header, bytes, sizeof(header));
     for (SectionEntry& entry : header.sections)
-        if (entry.offset <= size && entry.size <= size - entry.offset)
+        if (entry.type != 0 && entry.offset <= size && entry.size <= size - entry.offset)
             entry.checksum = XXH64(bytes + entry.offset, size_t(entry.size), 0);
     header.headerChecksum = 0;
     header.headerChecksum = XXH64(&header, sizeof(header), 0);

@@ -302,6 +302,88 @@ TEST(Preprocess, ThreadCountIndependent)
     EXPECT_EQ(0, std::memcmp(a.indices.data(), b.indices.data(), a.indices.size_bytes()));
 }
 
+// Materials: clusters do not mix them, each names its own, and they survive
+// the file (write, map, decode). Interleaved materials on a city.
+TEST(Preprocess, MaterialsSurviveInClustersThatDoNotMixThem)
+{
+    Mesh mesh = generate("city", 60'000);
+    mesh.materials = {{glm::vec4(1, 0, 0, 1), "a"}, {glm::vec4(0, 1, 0, 1), "b"}, {glm::vec4(0.2f, 0.4f, 1, 0.5f), "c"}};
+    mesh.triangleMaterials.resize(mesh.triangleCount());
+    for (size_t t = 0; t < mesh.triangleCount(); ++t) // in runs of 1..3 triangles, most clusters would mix them
+        mesh.triangleMaterials[t] = uint32_t((t / (1 + t % 3)) % 3);
+    std::vector<uint32_t> source;
+    PreprocessStats stats, plainStats;
+    CompressedModel model = buildCompressedModel(mesh, {}, &stats, &source);
+    checkAll(mesh);
+    EXPECT_EQ(stats.mixedMaterialTriangles, 0u);
+    EXPECT_EQ(stats.materials, 3u);
+    ASSERT_EQ(model.materials.size(), 3u);
+    for (size_t m = 0; m < 3; ++m)
+        for (int k = 0; k < 4; ++k)
+            EXPECT_EQ(model.materials[m].baseColor[k], mesh.materials[m].baseColor[k]);
+    size_t k = 0;
+    for (const model::ClusterRecord& c : model.clusters) {
+        const uint8_t* strips = model.indices.data() + c.firstIndex;
+        forEachStripTriangle(strips, strips + c.indexBytes, [&](uint32_t, uint32_t, uint32_t) {
+            EXPECT_EQ(mesh.triangleMaterials[source[k++]], c.material);
+        });
+    }
+    // As without materials, the result does not depend on the thread count.
+    PreprocessOptions one, three;
+    one.threads = 1;
+    three.threads = 3;
+    CompressedModel a = buildCompressedModel(mesh, one), b = buildCompressedModel(mesh, three);
+    ASSERT_EQ(a.clusters.size(), b.clusters.size());
+    ASSERT_EQ(a.nodes.size(), b.nodes.size());
+    EXPECT_EQ(0, std::memcmp(a.clusters.data(), b.clusters.data(), a.clusters.size_bytes()));
+    EXPECT_EQ(0, std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size_bytes()));
+    // Through a file and back to a mesh.
+    const std::string path = std::string(PENUMBRA_TEST_TMP) + "/materials.penumbra";
+    writeModelFile(model, path);
+    CompressedModel read = openModelFile(path);
+    ASSERT_EQ(read.materials.size(), 3u);
+    EXPECT_EQ(std::memcmp(read.materials.data(), model.materials.data(), model.materials.size_bytes()), 0);
+    EXPECT_EQ(std::memcmp(read.clusters.data(), model.clusters.data(), model.clusters.size_bytes()), 0);
+    // The cost: more clusters than without materials.
+    Mesh plain = mesh;
+    plain.materials.clear();
+    plain.triangleMaterials.clear();
+    CompressedModel plainModel = buildCompressedModel(plain, {}, &plainStats);
+    EXPECT_EQ(plainModel.materials.size(), 1u);
+    EXPECT_GT(model.clusters.size(), plainModel.clusters.size());
+    std::printf("materials: %zu clusters %.3f B/tri, without: %zu clusters %.3f B/tri\n", model.clusters.size(),
+                stats.bytesPerTriangle, plainModel.clusters.size(), plainStats.bytesPerTriangle);
+}
+
+// Vertex colours: each cluster gets the mean colour of its triangles.
+TEST(Preprocess, VertexColoursBecomeAColourPerCluster)
+{
+    Mesh mesh = generate("scan", 20'000);
+    mesh.colors.resize(mesh.positions.size());
+    for (size_t v = 0; v < mesh.vertexCount(); ++v) {
+        mesh.colors[3 * v] = mesh.position(v).x > 0.0f ? 1.0f : 0.0f;
+        mesh.colors[3 * v + 1] = 0.5f;
+        mesh.colors[3 * v + 2] = 0.25f;
+    }
+    std::vector<uint32_t> source;
+    CompressedModel model = buildCompressedModel(mesh, {}, nullptr, &source);
+    validateModel(model, "coloured");
+    ASSERT_GE(model.materials.size(), 2u);
+    size_t k = 0;
+    for (const model::ClusterRecord& c : model.clusters) {
+        const uint8_t* strips = model.indices.data() + c.firstIndex;
+        double sum = 0.0;
+        uint32_t n = 0;
+        forEachStripTriangle(strips, strips + c.indexBytes, [&](uint32_t, uint32_t, uint32_t) {
+            sum += mesh.triangleColor(source[k++]).r;
+            ++n;
+        });
+        EXPECT_NEAR(model.materials[c.material].baseColor[0], sum / n, 1e-5);
+        EXPECT_EQ(model.materials[c.material].baseColor[1], 0.5f);
+        EXPECT_EQ(model.materials[c.material].baseColor[2], 0.25f);
+    }
+}
+
 // Degenerate triangles are dropped and counted; coincident but distinct vertices are kept.
 TEST(Preprocess, DegenerateTriangles)
 {
@@ -382,6 +464,28 @@ TEST(Preprocess, Errors)
     bad = {};
     bad.sahBins = 1;
     EXPECT_THROW(buildCompressedModel(ok, bad), Error);
+    // Colours: sizes, indices and values.
+    auto message = [](const Mesh& mesh) {
+        try {
+            buildCompressedModel(mesh, {});
+        } catch (const Error& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    Mesh colors = ok;
+    colors.colors = {1, 1, 1, 0, 0, 0};
+    EXPECT_EQ(message(colors), "preprocess: vertex colours do not match the vertices");
+    colors.colors = {1, 1, 1, 0, 0, 0, 0.5f, NAN, 0};
+    EXPECT_EQ(message(colors), "preprocess: vertex colour component outside [0, 1]");
+    Mesh materials = ok;
+    materials.materials = {{glm::vec4(1.5f), ""}};
+    EXPECT_EQ(message(materials), "preprocess: material base colour component outside [0, 1]");
+    materials.materials = {{glm::vec4(1.0f), ""}};
+    materials.triangleMaterials = {1};
+    EXPECT_EQ(message(materials), "preprocess: triangle material index out of range");
+    materials.triangleMaterials = {0, 0};
+    EXPECT_EQ(message(materials), "preprocess: triangle materials do not match the triangles");
 }
 
 TEST(Preprocess, ProgressIsReported)
@@ -487,5 +591,61 @@ TEST(Preprocess, DISABLED_Measure)
         std::printf("  peak RSS so far %.1f MB (%.2fx the mesh)\n", double(usage.ru_maxrss) / 1024.0,
                     double(usage.ru_maxrss) * 1024.0 / meshBytes);
         std::fflush(stdout);
+    }
+}
+
+// The cost of materials on the generated bench scenes: every connected part
+// (an object of the generator: a building, a pipe, a column) gets one of 8
+// materials, so neighbouring parts usually differ. Prints bytes per triangle
+// and clusters without and with materials.
+// PENUMBRA_MEASURE="city:250000 ..." picks the scenes (default: the four at 250 k).
+TEST(Preprocess, DISABLED_MeasureMaterials)
+{
+    const char* spec = std::getenv("PENUMBRA_MEASURE");
+    std::string list = spec ? spec : "city:250000 interior:250000 plant:250000 scan:250000";
+    size_t pos = 0;
+    while (pos < list.size()) {
+        size_t end = list.find(' ', pos);
+        if (end == std::string::npos)
+            end = list.size();
+        std::string item = list.substr(pos, end - pos);
+        pos = end + 1;
+        if (item.empty())
+            continue;
+        Mesh mesh = generate(item.substr(0, item.find(':')), std::stoull(item.substr(item.find(':') + 1)));
+        // Connected parts by union-find over the triangles' vertices.
+        std::vector<uint32_t> parent(mesh.vertexCount());
+        for (uint32_t v = 0; v < parent.size(); ++v)
+            parent[v] = v;
+        auto find = [&](uint32_t v) {
+            while (parent[v] != v)
+                v = parent[v] = parent[parent[v]];
+            return v;
+        };
+        for (size_t i = 0; i < mesh.indices.size(); i += 3)
+            for (int k = 1; k < 3; ++k)
+                parent[find(mesh.indices[i + k])] = find(mesh.indices[i]);
+        for (int m = 0; m < 8; ++m)
+            mesh.materials.push_back({glm::vec4(float(m & 1), float(m >> 1 & 1), float(m >> 2 & 1), 1.0f), ""});
+        mesh.triangleMaterials.resize(mesh.triangleCount());
+        std::vector<uint8_t> partSeen(mesh.vertexCount(), 0);
+        size_t parts = 0;
+        for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+            uint32_t root = find(mesh.indices[3 * t]);
+            parts += partSeen[root] ? 0 : 1;
+            partSeen[root] = 1;
+            mesh.triangleMaterials[t] = (root * 2654435761u) >> 29;
+        }
+        Mesh plain = mesh;
+        plain.materials.clear();
+        plain.triangleMaterials.clear();
+        PreprocessStats with, without;
+        buildCompressedModel(plain, {}, &without);
+        buildCompressedModel(mesh, {}, &with);
+        std::printf("%s: %zu parts, 8 materials | without: %llu clusters, %.3f B/tri | with: %llu clusters, %.3f B/tri "
+                    "(+%.3f), %llu mixed triangles\n",
+                    item.c_str(), parts, (unsigned long long)without.clusters, without.bytesPerTriangle,
+                    (unsigned long long)with.clusters, with.bytesPerTriangle, with.bytesPerTriangle - without.bytesPerTriangle,
+                    (unsigned long long)with.mixedMaterialTriangles);
     }
 }

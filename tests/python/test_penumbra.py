@@ -136,6 +136,10 @@ class Preprocess(unittest.TestCase):
         np.testing.assert_array_equal(preprocessed, source)
         with self.assertRaisesRegex(penumbra.Error, "the output must end in .penumbra"):
             penumbra.preprocess(CITY, os.path.join(TMP, "city.bin"))
+        # Without camera and lights: the glTF's own, which the file keeps.
+        np.testing.assert_array_equal(penumbra.render(output, size=SIZE), penumbra.render(CITY, size=SIZE))
+        # And colors=False renders the same here (the generated city has no colours).
+        np.testing.assert_array_equal(penumbra.render(output, size=SIZE, colors=False), penumbra.render(CITY, size=SIZE))
 
     def test_ground_exposure_tone_curve_and_exr_layers(self):
         frames = {}

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "passes/classify.h"
+#include "passes/gbuffer.h"
 #include "passes/penumbra_mask.h"
 #include "passes/thin_triangles.h"
 #include "passes/trace.h"
@@ -20,7 +21,8 @@ TEST(FrameStructure, PushConstantsAreReadFromTheShaders)
     EXPECT_EQ(vk::shaderPushConstantBytes("thin_triangles.comp"), sizeof(passes::ThinTrianglesPush));
     EXPECT_EQ(vk::shaderPushConstantBytes("trace.comp"), sizeof(passes::TracePush));
     EXPECT_EQ(vk::shaderPushConstantBytes("shadow_map.vert"), 64u);
-    EXPECT_EQ(vk::shaderPushConstantBytes("gbuffer.vert"), 80u);
+    EXPECT_EQ(vk::shaderPushConstantBytes("gbuffer.vert"), sizeof(passes::GBufferPush));
+    EXPECT_EQ(vk::shaderPushConstantBytes("gbuffer.frag"), sizeof(passes::GBufferPush));
     EXPECT_NO_THROW(vk::checkPushConstants("classify.comp", 8));
     try {
         vk::checkPushConstants("classify.comp", 12);

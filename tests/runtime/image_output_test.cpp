@@ -187,15 +187,15 @@ TEST(ImageOutput, DefaultSunShowsTheCastShadowOnTheGround)
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 
-// --exposure 1 --tonemap none --ground off with an explicit light: the CLI's
-// PNG holds exactly the old encoding of the renderer's linear frame.
+// --exposure 1 --tonemap none --ground off --colors off with an explicit light:
+// the CLI's PNG holds exactly the old encoding of the renderer's linear frame.
 TEST(ImageOutput, PlainPathIsBitIdentical)
 {
     std::string model = tmp("scan.ply"), image = tmp("plain.png");
     ASSERT_EQ(runCli("generate scan --triangles 20000 -o " + model), 0);
     const std::string light = "directional direction=-0.45,-1,-0.3 intensity=2.5";
     std::string output;
-    ASSERT_EQ(runCli("render " + model + " -o " + image + " --size 96x80 --shadows srt --exposure 1 --tonemap none --ground off " +
+    ASSERT_EQ(runCli("render " + model + " -o " + image + " --size 96x80 --shadows srt --exposure 1 --tonemap none --ground off --colors off " +
                          "--camera-position 3,2,4 --camera-target 0,0.5,0 --light '" + light + "'",
                      &output),
               0)

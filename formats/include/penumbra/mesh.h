@@ -8,14 +8,27 @@
 #include <vector>
 
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 
 namespace penumbra {
 
+// A surface's material: its base colour (glTF baseColorFactor, OBJ mtl Kd,
+// a PLY face colour). Textures are not read.
+struct Material {
+    glm::vec4 baseColor{1.0f}; // linear RGBA, each in [0, 1]
+    std::string name;
+};
+
 // Indexed triangle list. positions holds xyz triples; indices holds three
-// vertex indices per triangle, each < vertexCount().
+// vertex indices per triangle, each < vertexCount(). Colours are optional:
+// a triangle's albedo is its material's baseColor (white without materials)
+// times the mean of its three vertex colours (1 without vertex colours).
 struct Mesh {
     std::vector<float> positions;   // 3 floats per vertex, model units
     std::vector<uint32_t> indices;  // 3 per triangle, counter-clockwise front faces
+    std::vector<float> colors;      // empty, or 3 floats per vertex: linear RGB in [0, 1]
+    std::vector<Material> materials;          // empty, or the materials triangleMaterials names
+    std::vector<uint32_t> triangleMaterials;  // empty (every triangle material 0), or one per triangle
 
     size_t vertexCount() const { return positions.size() / 3; }
     size_t triangleCount() const { return indices.size() / 3; }
@@ -23,6 +36,9 @@ struct Mesh {
     {
         return {positions[vertex * 3 + 0], positions[vertex * 3 + 1], positions[vertex * 3 + 2]};
     }
+    bool hasColors() const { return !colors.empty() || !materials.empty(); }
+    // Linear RGB albedo of a triangle (see above).
+    glm::vec3 triangleColor(size_t triangle) const;
 };
 
 struct Bounds {

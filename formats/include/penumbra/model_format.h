@@ -14,12 +14,14 @@
 
 #include <glm/vec3.hpp>
 
+#include "penumbra/mesh.h"
+
 namespace penumbra {
 
 namespace model {
 
 inline constexpr char kMagic[8] = {'P', 'E', 'N', 'U', 'M', 'B', 'R', 'A'};
-inline constexpr uint32_t kVersion = 1;
+inline constexpr uint32_t kVersion = 2;
 inline constexpr uint32_t kSectionAlignment = 64;      // bytes; offsets and the file size are multiples
 inline constexpr uint8_t kStripRestart = 0xFF;         // primitive-restart value of the 8-bit strip indices
 inline constexpr uint32_t kMaxClusterVertices = 255;   // local indices 0..254; 255 is the restart
@@ -28,14 +30,21 @@ inline constexpr uint32_t kMaxLeafIndexBytes = 65535;  // a leaf's strip range f
 inline constexpr uint32_t kPositionBits = 16;          // quantized coordinate width
 inline constexpr uint32_t kNodeBoundsBits = 8;         // node bounds within the parent's box
 inline constexpr uint32_t kMaxBvhDepth = 64;           // readers may use fixed traversal stacks
+inline constexpr uint32_t kMaxMaterials = 1u << 24;    // MaterialRecord elements
+inline constexpr uint32_t kMaxCameras = 256;           // CameraRecord elements
+inline constexpr uint32_t kMaxLights = 256;            // LightRecord elements
 
 enum class SectionType : uint32_t {
     Clusters = 1, // ClusterRecord[clusterCount]
     Nodes = 2,    // Node[nodeCount]; node 0 is the root
     Vertices = 3, // QuantizedVertex[vertexCount]
     Indices = 4,  // uint8_t[indexBytes]: per cluster, strips of local indices separated by kStripRestart
+    Materials = 5,// MaterialRecord[materialCount]; required, >= 1 entry
+    Cameras = 6,  // CameraRecord[cameraCount]; present exactly when cameraCount > 0
+    Lights = 7,   // LightRecord[lightCount]; present exactly when lightCount > 0
 };
-inline constexpr uint32_t kSectionCount = 4;
+inline constexpr uint32_t kSectionTypes = 7;   // types 1..7
+inline constexpr uint32_t kSectionSlots = 8;   // entries of the section table; unused ones are all zero
 
 // One entry of the section table.
 struct SectionEntry {
@@ -72,17 +81,19 @@ struct FileHeader {
     uint32_t clusterCount;         // ClusterRecord elements (>= 1)
     uint32_t nodeCount;            // Node elements (>= 1)
     uint32_t bvhDepth;             // levels from the root (1 = root only); <= kMaxBvhDepth
-    uint32_t reserved0;            // 0
+    uint32_t materialCount;        // MaterialRecord elements, 1..kMaxMaterials
     float boundsMin[3];            // root node box, model units
     float boundsMax[3];
     float maxPositionError;        // largest |decoded - input| coordinate over all vertices, model units
     float simplifyError;           // meshoptimizer's relative error of the simplification (0 if none)
     BuildParameters build;
-    SectionEntry sections[kSectionCount]; // one per SectionType, in any order
-    uint64_t reserved1[6];         // 0
+    SectionEntry sections[kSectionSlots]; // one per present SectionType, in any order; unused entries all zero
+    uint32_t cameraCount;          // CameraRecord elements, 0..kMaxCameras
+    uint32_t lightCount;           // LightRecord elements, 0..kMaxLights
+    uint64_t reserved1[5];         // 0
     uint64_t headerChecksum;       // XXH64 of this struct with headerChecksum = 0
 };
-static_assert(sizeof(FileHeader) == 320);
+static_assert(sizeof(FileHeader) == 448);
 
 // A cluster: up to 255 vertices and its triangles as 8-bit strips.
 // Decoded position = boxMin + float(q) * step, evaluated without fused multiply-add.
@@ -95,9 +106,45 @@ struct ClusterRecord {
     uint16_t vertexCount;  // 3..maxClusterVertices
     uint16_t triangleCount;// 1..maxClusterTriangles
     uint32_t node;         // index of this cluster's Node (kind Cluster)
-    uint32_t reserved;     // 0
+    uint32_t material;     // index into Materials: every triangle of the cluster has this material
 };
 static_assert(sizeof(ClusterRecord) == 48);
+
+// A material: the linear base colour of the clusters that name it.
+struct MaterialRecord {
+    float baseColor[4];    // linear RGBA, each in [0, 1]
+};
+static_assert(sizeof(MaterialRecord) == 16);
+
+// A camera of the source scene (penumbra::Camera).
+struct CameraRecord {
+    float position[3];
+    float target[3];       // != position
+    float up[3];           // nonzero, not parallel to target - position
+    uint32_t projection;   // 0 perspective, 1 orthographic
+    float yfovDegrees;     // (0, 180)
+    float orthoHeight;     // > 0
+    float nearPlane;       // >= 0 (0: derived from the bounds)
+    float farPlane;        // 0 (derived) or > nearPlane
+    uint32_t reserved[2];  // 0
+};
+static_assert(sizeof(CameraRecord) == 64);
+
+// A light of the source scene (penumbra::Light).
+struct LightRecord {
+    uint32_t type;             // LightType: 0 point, 1 spot, 2 directional, 3 rectangle, 4 disk, 5 sphere
+    float position[3];
+    float direction[3];        // nonzero
+    float up[3];
+    float color[3];            // >= 0
+    float intensity;           // >= 0
+    float range;               // >= 0 (0: infinite)
+    float innerConeDegrees;    // spot: 0 <= inner <= outer
+    float outerConeDegrees;    // spot: (0, 90)
+    float width, height;       // rectangle: > 0
+    float radius;              // disk, sphere: > 0
+};
+static_assert(sizeof(LightRecord) == 80);
 
 struct QuantizedVertex {
     uint16_t x, y, z; // position in the cluster box, 0..65535
@@ -136,6 +183,9 @@ struct CompressedModel {
     std::span<const model::Node> nodes;
     std::span<const model::QuantizedVertex> vertices;
     std::span<const uint8_t> indices;
+    std::span<const model::MaterialRecord> materials;
+    std::span<const model::CameraRecord> cameras; // may be empty
+    std::span<const model::LightRecord> lights;   // may be empty
     std::shared_ptr<const void> storage; // keeps the vectors or the mapping alive
 
     uint64_t triangleCount() const { return header.triangleCount; }
@@ -149,8 +199,28 @@ struct CompressedModelData {
     std::vector<model::Node> nodes;
     std::vector<model::QuantizedVertex> vertices;
     std::vector<uint8_t> indices;
+    std::vector<model::MaterialRecord> materials;
+    std::vector<model::CameraRecord> cameras;
+    std::vector<model::LightRecord> lights;
 };
 CompressedModel makeCompressedModel(std::shared_ptr<CompressedModelData> data);
+
+// The cameras and lights stored with a model (and their records), and a copy
+// of a model that stores the given ones instead (the rest shared, not copied).
+model::CameraRecord cameraRecord(const Camera& camera);
+model::LightRecord lightRecord(const Light& light);
+Camera cameraFromRecord(const model::CameraRecord& record);
+Light lightFromRecord(const model::LightRecord& record);
+std::vector<Camera> modelCameras(const CompressedModel& model);
+std::vector<Light> modelLights(const CompressedModel& model);
+// Cameras and lights that the format would reject (a degenerate node transform,
+// a spot cone of 90 degrees) are left out, with one warning each naming subject.
+CompressedModel withScene(const CompressedModel& model, const std::vector<Camera>& cameras, const std::vector<Light>& lights,
+                          const std::string& subject = "scene");
+// The checks of one camera or light record (validateModel applies them to
+// every record). Throw Error("<subject>: <problem>").
+void validateCameraRecord(const model::CameraRecord& record, const std::string& subject);
+void validateLightRecord(const model::LightRecord& record, const std::string& subject);
 
 // Decoded position of a cluster's local vertex (exactly the GPU's arithmetic).
 glm::vec3 decodePosition(const model::ClusterRecord& cluster, const model::QuantizedVertex& vertex);

@@ -45,7 +45,9 @@ struct PreprocessStats {
     uint64_t widenedBounds = 0;       // node coordinates widened by one step after the containment check
     uint32_t bvhDepth = 0;
     float maxPositionError = 0;       // model units
-    double bytesPerTriangle = 0;      // (clusters + nodes + vertices + indices) / triangles
+    uint32_t materials = 0;           // entries of the material table
+    uint64_t mixedMaterialTriangles = 0; // triangles whose cluster has another material (depth budget; normally 0)
+    double bytesPerTriangle = 0;      // (clusters + nodes + vertices + indices + materials) / triangles
 };
 
 // Builds the compressed model. Throws Error("preprocess: <problem>") for bad
@@ -53,7 +55,12 @@ struct PreprocessStats {
 // triangles, or a mesh with no non-degenerate triangle. Triangles with a
 // repeated vertex index are dropped (counted in stats); triangles whose
 // distinct vertices coincide in space are kept. The result does not depend on
-// the thread count. The header's magic, version, fileSize, sections and
+// the thread count. Colours (Mesh::materials, triangleMaterials, colors):
+// with at most 4096 materials and no vertex colours, clusters do not mix
+// materials and each names its own in the material table (a copy of
+// mesh.materials); otherwise each cluster gets the mean albedo of its
+// triangles (mesh.triangleColor) as its own table entry, equal ones shared.
+// Without colours the table is one white material. The header's magic, version, fileSize, sections and
 // checksums are left for writeModelFile.
 // decodedTriangleSource (tests): if not null, receives for every stored
 // triangle, in decode order (clusters in order, forEachStripTriangle over each

@@ -82,6 +82,7 @@ struct RenderSettings {
     float depthBiasSlope = 1.5f;        // vkCmdSetDepthBias slope factor
     float ambient = 0.15f;              // ambient term, fraction of albedo
     float albedo = 0.8f;                // grey surface reflectance
+    bool colors = true;                 // times the model's material colours (off: every surface grey, as before them)
     float background[3] = {0.06f, 0.07f, 0.09f};
     bool readbackGBuffer = false;       // also return world positions and light-0 visibility
     bool readbackLightLayers = false;   // also return every light's visibility and the traced pixels (Frame::lightVisibility, pip)
@@ -176,7 +177,8 @@ struct Frame {
     Image color;
     // With RenderSettings::readbackGBuffer: per pixel world position (xyz, w = 1
     // when covered, 0 for background), the face normal turned toward the
-    // camera (xyz, w = 0) and visibility of light 0 (1 lit, 0 shadowed,
+    // camera (xyz; w = the surface's material colour, linear 8-bit r | g << 8 |
+    // b << 16, 16777215 for white) and visibility of light 0 (1 lit, 0 shadowed,
     // -1 background).
     std::vector<float> positions;
     std::vector<float> normals;

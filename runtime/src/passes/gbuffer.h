@@ -1,5 +1,6 @@
 // Camera pass (shaders/gbuffer.vert.glsl, gbuffer.frag.glsl): the G-buffer,
-// world position and a normal turned toward the camera per pixel, drawn from
+// world position and a normal turned toward the camera per pixel (its w the
+// cluster's packed albedo), drawn from
 // the compressed clusters (or the uncompressed reference) through the
 // camera's culled view.
 #pragma once
@@ -12,11 +13,14 @@
 
 namespace penumbra::passes {
 
+// shaders/gbuffer_push.glsli
 struct GBufferPush {
     glm::mat4 viewProj;
     glm::vec4 cameraPosition;
+    uint64_t albedoAddress = 0; // GpuGeometry::albedo, 0: none (white)
+    uint64_t pad = 0;
 };
-static_assert(sizeof(GBufferPush) == 80);
+static_assert(sizeof(GBufferPush) == 96);
 
 // Writes position and normal (left in GENERAL for the compute passes and
 // copies) and depth (kept for the culling's second phase).
