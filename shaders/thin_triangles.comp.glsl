@@ -258,9 +258,9 @@ void main()
             if (inside && i2 != 0xFFu && position >= 2u) {
                 uint i0 = uint(strips.bytes[k - 2u]), i1 = uint(strips.bytes[k - 1u]);
                 if (i0 != i1 && i1 != i2 && i0 != i2) {
-                    vec3 p0 = decodeVertex(leafStrips.vertices.vertices[i0], cluster.boxMin, cluster.step);
-                    vec3 p1 = decodeVertex(leafStrips.vertices.vertices[i1], cluster.boxMin, cluster.step);
-                    vec3 p2 = decodeVertex(leafStrips.vertices.vertices[i2], cluster.boxMin, cluster.step);
+                    vec3 p0 = decodeVertex(loadVertex(leafStrips.vertices, i0), cluster.boxMin, cluster.step);
+                    vec3 p1 = decodeVertex(loadVertex(leafStrips.vertices, i1), cluster.boxMin, cluster.step);
+                    vec3 p2 = decodeVertex(loadVertex(leafStrips.vertices, i2), cluster.boxMin, cluster.step);
                     bool odd = ((position - 2u) & 1u) != 0u;
                     emitIfThin(odd ? p1 : p0, odd ? p0 : p1, p2);
                 }
