@@ -85,7 +85,7 @@ void writeModelFile(const CompressedModel& model, const std::string& path)
         written = header.sections[i].offset + header.sections[i].size;
     }
     writeZeros(out, header.fileSize - written);
-    out.commit();
+    out.commit(detail::AtomicFileWriter::Durability::Synced);
 }
 
 CompressedModel openModelFile(const std::string& path)
