@@ -138,7 +138,7 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
             passes::clearThinMap(cmd, thinMap);
             vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                               VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
-        });
+        }, "the shadow map's and thin map's first transitions");
         shadowSize = mapSize;
         shadowLayers = mapLayers;
     }

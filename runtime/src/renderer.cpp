@@ -28,6 +28,20 @@ struct PassTimer {
     VkQueryPool pool = VK_NULL_HANDLE;
     std::vector<PassId> ended; // pass of the interval ending at each timestamp (the first: PassId::Count)
 
+    // The passes marked since the last call, for errors: "shadow_map, classify, shade".
+    std::string passesSinceLastSubmit()
+    {
+        std::string names;
+        for (size_t i = std::max<size_t>(submitted, 1); i < ended.size(); ++i) {
+            const std::string name = passName(ended[i]);
+            if (names.find(name) == std::string::npos)
+                names += (names.empty() ? "" : ", ") + name;
+        }
+        submitted = ended.size();
+        return names.empty() ? "the frame" : names;
+    }
+    size_t submitted = 0;
+
     void mark(VkCommandBuffer cmd, PassId pass)
     {
         if (ended.size() >= kMaxTimestamps)
@@ -186,7 +200,7 @@ struct Renderer::Impl::FrameScript {
             gridLayers[i] = layers(i);
         r.viewFit.record(cmd, r.device, r.targets.viewBounds, r.targets.receiverGrids, viewFitMask, receiverGridMask, gridLayers, width(),
                          height());
-        r.submitAndWait(cmd);
+        r.submitAndWait(cmd, timer.passesSinceLastSubmit() + ", view_fit");
 
         for (uint32_t i = 0; i < lights.size(); ++i) {
             const glm::mat4 gridViewProj = data.lights[i].viewProj[0]; // a directional light's model-fitted map
@@ -407,8 +421,8 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
 
     // Timings and counters.
     std::vector<uint64_t> ticks(timer.ended.size());
-    VK_CHECK(vkGetQueryPoolResults(r.device.device, r.queryPool, 0, uint32_t(ticks.size()), ticks.size() * sizeof(uint64_t), ticks.data(),
-                                   sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+    vk::readQueryResults(r.device, r.queryPool, 0, uint32_t(ticks.size()), ticks.size() * sizeof(uint64_t), ticks.data(), sizeof(uint64_t),
+                         VK_QUERY_RESULT_64_BIT, "the frame's timestamps");
     const double period = r.device.properties.limits.timestampPeriod * 1e-6; // ms per tick
     double passMs[size_t(PassId::Count)] = {};
     bool ran[size_t(PassId::Count)] = {};
@@ -450,6 +464,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
 
 Frame Renderer::Impl::render(const RenderSettings& settings)
 {
+    vk::checkUsable(device);
     validate(settings);
     const auto cpuStart = std::chrono::steady_clock::now();
     FrameScript frame(*this, settings);
@@ -471,7 +486,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     for (uint32_t step = 0; step < frame.lights.size(); ++step)
         frame.recordLight(uint32_t(frame.lights.size()) - 1 - step);
     frame.recordReadback();
-    submitAndWait(commandBuffer);
+    submitAndWait(commandBuffer, frame.timer.passesSinceLastSubmit());
     return frame.finish(cpuStart);
 }
 

@@ -251,4 +251,33 @@ TEST(Cli, StatsAndImageAreRenamedIntoPlaceLeavingNothingElse)
     EXPECT_EQ(text.substr(text.size() - 2), "}\n");
 }
 
+// Injected device faults (PENUMBRA_FAULT, runtime/src/device.h) end the run with one error line,
+// exit status 1, and no output file; ctest's PENUMBRA_VALIDATION=1 would add a line for any leaked object.
+TEST(Cli, DeviceFaultsGiveOneLineAndNoOutput)
+{
+    const std::string model = tmp("fault_scan.ply");
+    ASSERT_EQ(run("generate scan --triangles 5000 -o " + model).status, 0);
+    const std::string folder = freshFolder("faults");
+    const std::string outputs = " -o " + folder + "/image.png --stats " + folder + "/stats.json --size 64 --shadows srt";
+    expectError(run("render " + model + outputs, "PENUMBRA_FAULT=allocate:30"), {"out of device memory (VK_ERROR_OUT_OF_DEVICE_MEMORY)"});
+    expectError(run("render " + model + outputs, "PENUMBRA_FAULT=submit:2"), {"device lost (VK_ERROR_DEVICE_LOST)"});
+    expectError(run("render " + model + outputs, "PENUMBRA_FAULT=wait:3"), {"device did not finish", "shade"});
+    EXPECT_EQ(filesIn(folder), std::vector<std::string>{});
+}
+
+// A validation message fails the run before anything is written.
+TEST(Cli, AValidationMessageWritesNoImage)
+{
+    const std::string model = tmp("validation_scan.ply");
+    ASSERT_EQ(run("generate scan --triangles 5000 -o " + model).status, 0);
+    const std::string folder = freshFolder("validation");
+    Result result = run("render " + model + " --validation -o " + folder + "/image.png --stats " + folder + "/stats.json --compare " +
+                            folder + "/strip.png --size 64",
+                        "PENUMBRA_FAULT=validation:2");
+    EXPECT_EQ(result.status, 1) << result.output;
+    EXPECT_NE(result.output.find("penumbra: validation error: injected by PENUMBRA_FAULT"), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find("penumbra: error: validation: 1 Vulkan validation message(s)"), std::string::npos) << result.output;
+    EXPECT_EQ(filesIn(folder), std::vector<std::string>{});
+}
+
 } // namespace
