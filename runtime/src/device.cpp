@@ -208,6 +208,15 @@ bool validationRequested(const RendererOptions& options)
     return options.validation || (env && std::strcmp(env, "0") != 0 && env[0] != '\0');
 }
 
+// An environment switch: unset or empty gives fallback, "0" off, anything else on.
+bool envFlag(const char* name, bool fallback)
+{
+    const char* env = std::getenv(name);
+    if (!env || !*env)
+        return fallback;
+    return std::strcmp(env, "0") != 0;
+}
+
 bool hasLayer(const char* name)
 {
     uint32_t count = 0;
@@ -243,7 +252,19 @@ VkInstance createInstance(bool validation, const VkDebugUtilsMessengerCreateInfo
     app.apiVersion = VK_API_VERSION_1_3;
 
     const char* layer = "VK_LAYER_KHRONOS_validation";
-    const char* extension = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
+    const char* extensions[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME, VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME};
+    // Synchronization validation (hazards between passes: missing or too weak barriers) is on
+    // with the layer; PENUMBRA_VALIDATION_SYNC=0 turns it off. Best practices are opt-in
+    // (PENUMBRA_VALIDATION_BEST_PRACTICES=1): on lavapipe they only report performance advice.
+    std::vector<VkValidationFeatureEnableEXT> enables;
+    if (envFlag("PENUMBRA_VALIDATION_SYNC", true))
+        enables.push_back(VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT);
+    if (envFlag("PENUMBRA_VALIDATION_BEST_PRACTICES", false))
+        enables.push_back(VK_VALIDATION_FEATURE_ENABLE_BEST_PRACTICES_EXT);
+    VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+    features.enabledValidationFeatureCount = uint32_t(enables.size());
+    features.pEnabledValidationFeatures = enables.data();
+    features.pNext = messengerInfo;
     VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
     info.pApplicationInfo = &app;
     if (validation) {
@@ -251,9 +272,9 @@ VkInstance createInstance(bool validation, const VkDebugUtilsMessengerCreateInfo
             fail("vulkan", "validation requested but VK_LAYER_KHRONOS_validation is not installed (apt-get install vulkan-validationlayers)");
         info.enabledLayerCount = 1;
         info.ppEnabledLayerNames = &layer;
-        info.enabledExtensionCount = 1;
-        info.ppEnabledExtensionNames = &extension;
-        info.pNext = messengerInfo;
+        info.enabledExtensionCount = 2;
+        info.ppEnabledExtensionNames = extensions;
+        info.pNext = &features;
     }
     VkInstance instance = VK_NULL_HANDLE;
     VkResult result = vkCreateInstance(&info, nullptr, &instance);
