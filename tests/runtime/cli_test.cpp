@@ -2,6 +2,7 @@
 // error line with a non-zero exit for every kind of bad input.
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -249,6 +250,26 @@ TEST(Cli, StatsAndImageAreRenamedIntoPlaceLeavingNothingElse)
     std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
     EXPECT_EQ(text.front(), '{');
     EXPECT_EQ(text.substr(text.size() - 2), "}\n");
+}
+
+// The .penumbra file's data reaches the disk before the rename makes it visible, and the rename
+// itself after (the folder). strace shows the calls; skipped where strace is not installed.
+TEST(Cli, PreprocessSyncsTheModelAroundTheRename)
+{
+    if (std::system("command -v strace > /dev/null 2>&1") != 0)
+        GTEST_SKIP() << "strace is not installed";
+    const std::string input = tmp("sync.ply"), model = tmp("sync.penumbra"), trace = tmp("sync.strace");
+    ASSERT_EQ(run("generate scan --triangles 2000 -o " + input).status, 0);
+    Result result = run("preprocess " + input + " -o " + model + " --quiet",
+                        "strace -f -e trace=fsync,rename,renameat,renameat2 -o " + trace);
+    ASSERT_EQ(result.status, 0) << result.output;
+    std::ifstream log(trace);
+    std::vector<std::string> calls;
+    for (std::string line; std::getline(log, line);)
+        for (const char* call : {"fsync(", "rename"})
+            if (line.find(call) != std::string::npos && line.find("exited") == std::string::npos)
+                calls.push_back(call);
+    EXPECT_EQ(calls, (std::vector<std::string>{"fsync(", "rename", "fsync("}));
 }
 
 // Injected device faults (PENUMBRA_FAULT, runtime/src/device.h) end the run with one error line,
