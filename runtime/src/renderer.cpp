@@ -33,6 +33,8 @@ struct PassTimer {
     {
         std::string names;
         for (size_t i = std::max<size_t>(submitted, 1); i < ended.size(); ++i) {
+            if (ended[i] == PassId::ViewFit)
+                continue; // its interval's work was in the submission before (the mid-frame read-back)
             const std::string name = passName(ended[i]);
             if (names.find(name) == std::string::npos)
                 names += (names.empty() ? "" : ", ") + name;

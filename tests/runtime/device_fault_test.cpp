@@ -118,6 +118,9 @@ TEST(DeviceFaults, FenceWaitTimesOutAtEverySubmission)
     sweep("wait", 2, "device did not finish ", fired, messages);
     EXPECT_GE(fired, 4) << messages;
     EXPECT_NE(messages.find("device did not finish camera, view_fit in 300 s"), std::string::npos) << messages;
+    EXPECT_NE(messages.find("device did not finish shadow_map, thin_triangles, classify, compact, trace, shade, readback in 300 s"),
+              std::string::npos)
+        << messages;
     EXPECT_NE(messages.find("afsm_casters"), std::string::npos) << messages;
 }
 
