@@ -18,6 +18,7 @@ packages=(
   libgtest-dev clang libclang-rt-14-dev
   pybind11-dev python3-dev python3-numpy
   gnuplot-nox
+  strace
 )
 
 missing=()

@@ -115,9 +115,11 @@ void AtomicFileWriter::write(const void* data, size_t size)
     }
 }
 
-void AtomicFileWriter::commit()
+void AtomicFileWriter::commit(Durability durability)
 {
     flush();
+    if (durability == Durability::Synced && ::fsync(fd_) != 0)
+        fail(path_, std::string("fsync failed: ") + std::strerror(errno));
     int fd = fd_;
     fd_ = -1;
     if (::close(fd) != 0)
@@ -125,6 +127,16 @@ void AtomicFileWriter::commit()
     if (std::rename(tempPath_.c_str(), path_.c_str()) != 0)
         fail(path_, std::string("cannot rename temporary file: ") + std::strerror(errno));
     committed_ = true;
+    if (durability == Durability::Synced) {
+        // The rename itself is durable once the folder's entry is.
+        size_t slash = path_.find_last_of('/');
+        std::string folder = slash == std::string::npos ? "." : slash == 0 ? "/" : path_.substr(0, slash);
+        int dir = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+        if (dir >= 0) {
+            ::fsync(dir);
+            ::close(dir);
+        }
+    }
 }
 
 namespace {

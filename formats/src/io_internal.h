@@ -58,7 +58,10 @@ class AtomicFileWriter {
         return buffer_.data() + used_;
     }
     void advance(size_t size) { used_ += size; }
-    void commit();
+    // Durability::Synced also fsyncs the file before the rename and its folder
+    // after it, so a crash never leaves a renamed file whose data is not on disk.
+    enum class Durability { Buffered, Synced };
+    void commit(Durability durability = Durability::Buffered);
     const std::string& path() const { return path_; }
 
     static constexpr size_t kBufferSize = size_t(4) << 20;

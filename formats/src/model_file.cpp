@@ -99,7 +99,7 @@ void writeModelFile(const CompressedModel& model, const std::string& path)
         written = header.sections[i].offset + header.sections[i].size;
     }
     writeZeros(out, header.fileSize - written);
-    out.commit();
+    out.commit(detail::AtomicFileWriter::Durability::Synced);
 }
 
 CompressedModel withScene(const CompressedModel& model, const std::vector<Camera>& cameras, const std::vector<Light>& lights,

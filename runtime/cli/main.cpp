@@ -1,11 +1,12 @@
 // penumbra: command-line front end over the public API.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <new>
-#include <cmath>
-#include <unistd.h>
 #include <optional>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 
@@ -104,17 +105,42 @@ void parseSize(const std::string& text, RenderSettings& settings)
     settings.height = h;
 }
 
+// Fails unless a file can be created at path: its folder exists and can be
+// written, and the path itself is not a folder. Outputs are written to a
+// temporary name in that folder and renamed, so this is all they need.
+void checkWritable(const std::string& path)
+{
+    namespace fs = std::filesystem;
+    std::error_code error;
+    if (path.empty())
+        fail("output", "empty path");
+    if (fs::is_directory(path, error))
+        fail(path, "is a folder, not a file");
+    fs::path folder = fs::path(path).parent_path();
+    if (folder.empty())
+        folder = ".";
+    if (!fs::is_directory(folder, error))
+        fail(path, "folder '" + folder.string() + "' does not exist");
+    if (::access(folder.c_str(), W_OK) != 0)
+        fail(path, "folder '" + folder.string() + "' is not writable");
+}
+
+// Written to a temporary name beside it, then renamed: a failed write leaves no file.
 void writeTextFile(const std::string& path, const std::string& text)
 {
-    std::string temporary = path + ".tmp";
+    std::string temporary = path + ".tmp-" + std::to_string(::getpid());
     {
         std::ofstream out(temporary, std::ios::binary);
         out << text << "\n";
-        if (!out.flush())
+        if (!out.flush()) {
+            std::remove(temporary.c_str());
             fail(path, "cannot write");
+        }
     }
-    if (std::rename(temporary.c_str(), path.c_str()) != 0)
+    if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+        std::remove(temporary.c_str());
         fail(path, "cannot rename the finished file into place");
+    }
 }
 
 // --exposure: "auto" (nullopt) or a positive number.
@@ -160,9 +186,15 @@ int runRender(const RenderArgs& args)
     settings.depthBiasSlope = args.biasSlope;
     settings.debugPip = args.debugImage == "pip";
     settings.colors = args.colors == "on";
+    // Outputs first: a bad path fails before the model is loaded or the device created.
     checkImagePath(args.output);
-    if (!args.compare.empty())
+    checkWritable(args.output);
+    if (!args.compare.empty()) {
         checkImagePath(args.compare);
+        checkWritable(args.compare);
+    }
+    if (!args.statsPath.empty())
+        checkWritable(args.statsPath);
     ImageOptions imageOptions;
     imageOptions.tonemap = parseToneMap(args.tonemap);
     std::optional<float> exposure = parseExposure(args.exposure);
@@ -191,7 +223,7 @@ int runRender(const RenderArgs& args)
     RendererOptions options;
     options.device = args.device;
     options.validation = args.validation;
-    Renderer renderer(options);
+    std::optional<Renderer> renderer(std::in_place, options);
 
     auto loadStart = std::chrono::steady_clock::now();
     Scene scene;
@@ -218,9 +250,9 @@ int runRender(const RenderArgs& args)
     }
     applyGround(ground, bounds, scene.mesh, compressed);
     if (!compressed.clusters.empty())
-        renderer.loadModel(compressed);
+        renderer->loadModel(compressed);
     else
-        renderer.loadModel(scene.mesh);
+        renderer->loadModel(scene.mesh);
     double loadMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - loadStart).count();
 
     // Camera: command line over scene file over the model's own over the default.
@@ -254,41 +286,49 @@ int runRender(const RenderArgs& args)
     if (!commandLineLights.empty())
         lights = commandLineLights;
 
-    renderer.setCamera(camera);
-    renderer.setLights(lights);
+    renderer->setCamera(camera);
+    renderer->setLights(lights);
     Frame frame;
     for (uint32_t i = 0; i < std::max(args.frames, 1u); ++i)
-        frame = renderer.render(settings);
+        frame = renderer->render(settings);
+    // --compare: sm | srt | srt with the traced pixels red, one renderer, one exposure (the srt panel's).
+    Image strip;
+    Frame srt;
+    if (!args.compare.empty()) {
+        RenderSettings panel = settings;
+        panel.readbackGBuffer = false;
+        panel.readbackLightLayers = false;
+        panel.debugPip = false;
+        panel.shadows = ShadowMethod::ShadowMap;
+        Image sm = renderer->render(panel).color;
+        panel.shadows = ShadowMethod::Selective;
+        // The main frame is the srt panel when it is one.
+        srt = settings.shadows == ShadowMethod::Selective && !settings.debugPip ? frame : renderer->render(panel);
+        panel.debugPip = true;
+        Image pip = renderer->render(panel).color;
+        strip = concatenate({&sm, &srt.color, &pip});
+    }
+    // The device is gone before anything is written: a validation message, including an object
+    // the layer finds leaked when the device is destroyed, fails the run with no output file.
+    renderer.reset();
+    if (const uint32_t messages = validationMessagesInProcess())
+        fail("validation", std::to_string(messages) + " Vulkan validation message(s) (printed above); no output written");
+
     imageOptions.exposure = exposure ? *exposure : autoExposure(frame.color, imageOptions.tonemap, settings.background);
     if (args.exrLayers)
         imageOptions.layers = frameLayers(frame, camera);
     writeImage(frame.color, args.output, imageOptions);
     std::printf("%s | load %.0f ms | -> %s\n", summaryLine(frame.stats).c_str(), loadMs, args.output.c_str());
     if (!args.compare.empty()) {
-        // sm | srt | srt with the traced pixels red, one renderer, one exposure (the srt panel's).
-        RenderSettings panel = settings;
-        panel.readbackGBuffer = false;
-        panel.debugPip = false;
-        panel.shadows = ShadowMethod::ShadowMap;
-        Image sm = renderer.render(panel).color;
-        panel.shadows = ShadowMethod::Selective;
-        // The main frame is the srt panel when it is one.
-        Frame srt = settings.shadows == ShadowMethod::Selective && !settings.debugPip ? frame : renderer.render(panel);
-        panel.debugPip = true;
-        Image pip = renderer.render(panel).color;
         ImageOptions compareOptions;
         compareOptions.tonemap = imageOptions.tonemap;
         compareOptions.exposure = exposure ? *exposure : autoExposure(srt.color, imageOptions.tonemap, settings.background);
-        writeImage(concatenate({&sm, &srt.color, &pip}), args.compare, compareOptions);
+        writeImage(strip, args.compare, compareOptions);
         std::printf("compare: sm | srt | pip (%.2f%% of covered pixels traced) -> %s\n", srt.stats.pipFraction * 100.0,
                     args.compare.c_str());
     }
     if (!args.statsPath.empty())
         writeTextFile(args.statsPath, statsJson(frame.stats));
-    if (renderer.validationMessageCount() > 0) {
-        std::fprintf(stderr, "penumbra: error: %u validation message(s)\n", renderer.validationMessageCount());
-        return 1;
-    }
     return 0;
 }
 
@@ -331,6 +371,7 @@ int runPreprocess(const PreprocessArgs& args)
     std::string extension = args.output.size() >= 9 ? args.output.substr(args.output.size() - 9) : "";
     if (extension != ".penumbra")
         fail(args.output, "the output must end in .penumbra");
+    checkWritable(args.output);
     PreprocessOptions options;
     options.maxClusterVertices = args.clusterVertices;
     options.maxClusterTriangles = args.clusterTriangles;
@@ -419,7 +460,8 @@ int runGenerate(const GenerateArgs& args)
     options.triangles = args.triangles;
     options.seed = args.seed;
     auto start = std::chrono::steady_clock::now();
-    formatFromPath(args.output); // reject an unknown extension before the work
+    formatFromPath(args.output); // reject an unknown extension or folder before the work
+    checkWritable(args.output);
     Scene scene = generateScene(args.name, options);
     double generateMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     ExportOptions exportOptions;
@@ -569,7 +611,15 @@ int main(int argc, char** argv)
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        if (e.get_exit_code() == 0) // --help, --version
+            return app.exit(e);
+        // Every other parse error (unknown option, value out of range, missing argument) is one error line.
+        std::string message = e.what();
+        for (char& c : message)
+            if (c == '\n' || c == '\r')
+                c = ' ';
+        std::fprintf(stderr, "penumbra: error: %s\n", message.c_str());
+        return 1;
     }
     try {
         if (renderCommand->parsed())

@@ -606,12 +606,11 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
     std::vector<uint32_t> results(queryCount);
     std::vector<uint64_t> ticks(2 * plans.size());
     if (!ticks.empty())
-        VK_CHECK(vkGetQueryPoolResults(device.device, timestampPool, 0, uint32_t(ticks.size()),
-                                       ticks.size() * sizeof(uint64_t), ticks.data(), sizeof(uint64_t),
-                                       VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+        vk::readQueryResults(device, timestampPool, 0, uint32_t(ticks.size()), ticks.size() * sizeof(uint64_t), ticks.data(),
+                             sizeof(uint64_t), VK_QUERY_RESULT_64_BIT, "the culled views' timestamps");
     if (queryCount)
-        VK_CHECK(vkGetQueryPoolResults(device.device, queryPool, 0, queryCount, results.size() * sizeof(uint32_t),
-                                       results.data(), sizeof(uint32_t), VK_QUERY_RESULT_WAIT_BIT));
+        vk::readQueryResults(device, queryPool, 0, queryCount, results.size() * sizeof(uint32_t), results.data(), sizeof(uint32_t), 0,
+                             "the occlusion queries");
     for (const ViewPlan& plan : plans) {
         ViewCullStats stats;
         stats.name = plan.view.name;

@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <thread>
 
 namespace penumbra::vk {
 
@@ -30,6 +33,8 @@ void vulkanFailure(const char* call, VkResult result, const char* file, int line
     std::string where = std::string(base ? base + 1 : file) + ":" + std::to_string(line);
     if (result == VK_ERROR_OUT_OF_DEVICE_MEMORY || result == VK_ERROR_OUT_OF_HOST_MEMORY)
         fail("vulkan", std::string("out of memory (") + resultName(result) + ") in " + call + " at " + where);
+    if (result == VK_ERROR_DEVICE_LOST)
+        fail("vulkan", std::string("device lost (VK_ERROR_DEVICE_LOST) in ") + call + " at " + where);
     fail("vulkan", std::string(call) + " failed with " + resultName(result) + " at " + where);
 }
 
@@ -37,7 +42,149 @@ namespace {
 
 std::atomic<uint32_t> processValidationMessages{0};
 
+FaultInjection faultFromEnvironment()
+{
+    FaultInjection fault;
+    const char* env = std::getenv("PENUMBRA_FAULT");
+    if (!env || !*env)
+        return fault;
+    std::string text = env;
+    size_t colon = text.find(':');
+    std::string kind = text.substr(0, colon);
+    char* end = nullptr;
+    unsigned long n = colon == std::string::npos ? 0 : std::strtoul(text.c_str() + colon + 1, &end, 10);
+    if (colon == std::string::npos || *end != '\0' || n == 0)
+        fail("PENUMBRA_FAULT=" + text, "expected <kind>:<n> with n >= 1");
+    if (kind == "allocate") fault.kind = FaultInjection::Kind::Allocate;
+    else if (kind == "submit") fault.kind = FaultInjection::Kind::Submit;
+    else if (kind == "wait") fault.kind = FaultInjection::Kind::Wait;
+    else if (kind == "validation") fault.kind = FaultInjection::Kind::Validation;
+    else fail("PENUMBRA_FAULT=" + text, "kind must be allocate, submit, wait or validation");
+    fault.n = uint32_t(n);
+    return fault;
+}
+
+double timeoutFromEnvironment(double seconds)
+{
+    const char* env = std::getenv("PENUMBRA_DEVICE_TIMEOUT");
+    if (!env || !*env)
+        return seconds;
+    char* end = nullptr;
+    double value = std::strtod(env, &end);
+    if (*end != '\0' || !(value > 0.0) || !std::isfinite(value))
+        fail(std::string("PENUMBRA_DEVICE_TIMEOUT=") + env, "expected a positive number of seconds");
+    return value;
+}
+
+std::string secondsText(double seconds)
+{
+    char text[32];
+    std::snprintf(text, sizeof(text), "%g", seconds);
+    return text;
+}
+
+uint64_t nanoseconds(double seconds) { return seconds >= 1.8e10 ? UINT64_MAX : uint64_t(seconds * 1e9); }
+
+[[noreturn]] void deviceLost(Device& device, const std::string& what)
+{
+    device.failed = "device lost (VK_ERROR_DEVICE_LOST) in " + what;
+    fail("vulkan", device.failed + ": the driver reset the GPU or the GPU failed");
+}
+
 } // namespace
+
+VkDeviceMemory allocateMemory(Device& device, const VkMemoryAllocateInfo& info)
+{
+    const bool inject = device.fault.kind == FaultInjection::Kind::Allocate && ++device.allocations == device.fault.n;
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+    VkResult result = inject ? VK_ERROR_OUT_OF_DEVICE_MEMORY : vkAllocateMemory(device.device, &info, nullptr, &memory);
+    if (result == VK_ERROR_OUT_OF_DEVICE_MEMORY || result == VK_ERROR_OUT_OF_HOST_MEMORY) {
+        char size[32];
+        std::snprintf(size, sizeof(size), "%.1f MiB", double(info.allocationSize) / double(1 << 20));
+        fail("vulkan", std::string(result == VK_ERROR_OUT_OF_DEVICE_MEMORY ? "out of device memory" : "out of host memory") + " (" +
+                           resultName(result) + ") allocating " + size + " on " + device.info.name);
+    }
+    if (result == VK_ERROR_DEVICE_LOST)
+        deviceLost(device, "vkAllocateMemory");
+    VK_CHECK(result);
+    return memory;
+}
+
+void checkUsable(const Device& device)
+{
+    if (!device.failed.empty())
+        fail("vulkan", "the device failed earlier (" + device.failed + "); create a new renderer");
+}
+
+void submit(Device& device, VkCommandBuffer cmd, VkFence fence, const std::string& what)
+{
+    checkUsable(device);
+    ++device.submissions;
+    if (device.fault.kind == FaultInjection::Kind::Validation && device.submissions == device.fault.n && device.messenger) {
+        auto message = reinterpret_cast<PFN_vkSubmitDebugUtilsMessageEXT>(vkGetInstanceProcAddr(device.instance, "vkSubmitDebugUtilsMessageEXT"));
+        VkDebugUtilsMessengerCallbackDataEXT data{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CALLBACK_DATA_EXT};
+        data.pMessageIdName = "PENUMBRA_FAULT";
+        data.pMessage = "injected by PENUMBRA_FAULT=validation (test)";
+        message(device.instance, VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT, VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT, &data);
+    }
+    VkSubmitInfo info{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    info.commandBufferCount = 1;
+    info.pCommandBuffers = &cmd;
+    const bool inject = device.fault.kind == FaultInjection::Kind::Submit && device.submissions == device.fault.n;
+    VkResult result = inject ? VK_ERROR_DEVICE_LOST : vkQueueSubmit(device.queue, 1, &info, fence);
+    if (result == VK_ERROR_DEVICE_LOST)
+        deviceLost(device, what);
+    if (result != VK_SUCCESS)
+        device.failed = "vkQueueSubmit failed with " + std::string(resultName(result)) + " in " + what;
+    VK_CHECK(result);
+}
+
+void waitForFence(Device& device, VkFence fence, const std::string& what)
+{
+    ++device.waits;
+    const bool inject = device.fault.kind == FaultInjection::Kind::Wait && device.waits == device.fault.n;
+    VkResult result = inject ? VK_TIMEOUT : vkWaitForFences(device.device, 1, &fence, VK_TRUE, nanoseconds(device.timeoutSeconds));
+    if (result == VK_SUCCESS)
+        return;
+    if (result == VK_TIMEOUT) {
+        device.failed = "device did not finish " + what + " in " + secondsText(device.timeoutSeconds) + " s";
+        fail("vulkan", device.failed);
+    }
+    if (result == VK_ERROR_DEVICE_LOST)
+        deviceLost(device, what);
+    device.failed = "waiting for " + what + " failed with " + resultName(result);
+    VK_CHECK(result);
+}
+
+bool drainFence(Device& device, VkFence fence)
+{
+    if (device.hung)
+        return false;
+    VkResult result = vkWaitForFences(device.device, 1, &fence, VK_TRUE, nanoseconds(std::max(device.timeoutSeconds, 10.0)));
+    if (result == VK_TIMEOUT)
+        device.hung = true;
+    return !device.hung; // a lost device's work is over
+}
+
+void readQueryResults(Device& device, VkQueryPool pool, uint32_t first, uint32_t count, size_t bytes, void* data, VkDeviceSize stride,
+                      VkQueryResultFlags flags, const std::string& what)
+{
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(device.timeoutSeconds);
+    for (;;) {
+        VkResult result = vkGetQueryPoolResults(device.device, pool, first, count, bytes, data, stride, flags & ~VK_QUERY_RESULT_WAIT_BIT);
+        if (result == VK_SUCCESS)
+            return;
+        if (result == VK_ERROR_DEVICE_LOST)
+            deviceLost(device, what + " (query results)");
+        if (result != VK_NOT_READY)
+            VK_CHECK(result);
+        if (std::chrono::steady_clock::now() > deadline) {
+            device.failed = "device did not finish " + what + " (query results) in " + secondsText(device.timeoutSeconds) + " s";
+            fail("vulkan", device.failed);
+        }
+        std::this_thread::sleep_for(std::chrono::microseconds(100));
+    }
+}
 
 uint32_t totalValidationMessages() { return processValidationMessages.load(); }
 
@@ -59,6 +206,15 @@ bool validationRequested(const RendererOptions& options)
 {
     const char* env = std::getenv("PENUMBRA_VALIDATION");
     return options.validation || (env && std::strcmp(env, "0") != 0 && env[0] != '\0');
+}
+
+// An environment switch: unset or empty gives fallback, "0" off, anything else on.
+bool envFlag(const char* name, bool fallback)
+{
+    const char* env = std::getenv(name);
+    if (!env || !*env)
+        return fallback;
+    return std::strcmp(env, "0") != 0;
 }
 
 bool hasLayer(const char* name)
@@ -96,7 +252,19 @@ VkInstance createInstance(bool validation, const VkDebugUtilsMessengerCreateInfo
     app.apiVersion = VK_API_VERSION_1_3;
 
     const char* layer = "VK_LAYER_KHRONOS_validation";
-    const char* extension = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
+    const char* extensions[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME, VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME};
+    // Synchronization validation (hazards between passes: missing or too weak barriers) is on
+    // with the layer; PENUMBRA_VALIDATION_SYNC=0 turns it off. Best practices are opt-in
+    // (PENUMBRA_VALIDATION_BEST_PRACTICES=1): on lavapipe they only report performance advice.
+    std::vector<VkValidationFeatureEnableEXT> enables;
+    if (envFlag("PENUMBRA_VALIDATION_SYNC", true))
+        enables.push_back(VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT);
+    if (envFlag("PENUMBRA_VALIDATION_BEST_PRACTICES", false))
+        enables.push_back(VK_VALIDATION_FEATURE_ENABLE_BEST_PRACTICES_EXT);
+    VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+    features.enabledValidationFeatureCount = uint32_t(enables.size());
+    features.pEnabledValidationFeatures = enables.data();
+    features.pNext = messengerInfo;
     VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
     info.pApplicationInfo = &app;
     if (validation) {
@@ -104,9 +272,9 @@ VkInstance createInstance(bool validation, const VkDebugUtilsMessengerCreateInfo
             fail("vulkan", "validation requested but VK_LAYER_KHRONOS_validation is not installed (apt-get install vulkan-validationlayers)");
         info.enabledLayerCount = 1;
         info.ppEnabledLayerNames = &layer;
-        info.enabledExtensionCount = 1;
-        info.ppEnabledExtensionNames = &extension;
-        info.pNext = messengerInfo;
+        info.enabledExtensionCount = 2;
+        info.ppEnabledExtensionNames = extensions;
+        info.pNext = &features;
     }
     VkInstance instance = VK_NULL_HANDLE;
     VkResult result = vkCreateInstance(&info, nullptr, &instance);
@@ -264,6 +432,10 @@ std::vector<DeviceInfo> enumerateDevices()
 void createDevice(Device& device, const RendererOptions& options)
 {
     bool validation = validationRequested(options);
+    device.fault = faultFromEnvironment();
+    device.timeoutSeconds = timeoutFromEnvironment(options.deviceTimeoutSeconds);
+    if (!(device.timeoutSeconds > 0.0))
+        fail("renderer", "deviceTimeoutSeconds must be positive");
     VkDebugUtilsMessengerCreateInfoEXT messengerInfo{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
     messengerInfo.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
     messengerInfo.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
@@ -357,6 +529,14 @@ void createDevice(Device& device, const RendererOptions& options)
 
 void destroyDevice(Device& device)
 {
+    if (device.hung) {
+        // Work that never finished may still use the device's memory: leave it to the process's end.
+        std::fprintf(stderr, "penumbra: warning: the device never finished its work; it is left undestroyed\n");
+        device.device = VK_NULL_HANDLE;
+        device.messenger = VK_NULL_HANDLE;
+        device.instance = VK_NULL_HANDLE;
+        return;
+    }
     if (device.device) {
         vkDeviceWaitIdle(device.device);
         vkDestroyCommandPool(device.device, device.commandPool, nullptr);

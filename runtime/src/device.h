@@ -22,6 +22,18 @@ const char* resultName(VkResult result);
             ::penumbra::vk::vulkanFailure(#call, vkCheckResult_, __FILE__, __LINE__);      \
     } while (0)
 
+// Test-only failure injection, from the environment variable
+// PENUMBRA_FAULT=<kind>:<n> when the device is created: the n-th call (from 1)
+// of that kind on this device fails as a real device would.
+//   allocate    vkAllocateMemory returns VK_ERROR_OUT_OF_DEVICE_MEMORY
+//   submit      vkQueueSubmit returns VK_ERROR_DEVICE_LOST (the work is not submitted)
+//   wait        a fence wait returns VK_TIMEOUT at once (the work still runs)
+//   validation  the n-th submission also sends one validation error to the debug messenger
+struct FaultInjection {
+    enum class Kind { None, Allocate, Submit, Wait, Validation } kind = Kind::None;
+    uint32_t n = 0;
+};
+
 struct Device {
     VkInstance instance = VK_NULL_HANDLE;
     VkDebugUtilsMessengerEXT messenger = VK_NULL_HANDLE;
@@ -38,7 +50,32 @@ struct Device {
     bool aliasFree = false;                      // geometryShader and fragmentStoresAndAtomics (afsm casters)
     VkDeviceSize maxModelBufferBytes = 0;        // RendererOptions::maxModelBufferBytes
     std::atomic<uint32_t> validationMessages{0};
+    double timeoutSeconds = 300.0;               // RendererOptions::deviceTimeoutSeconds
+    FaultInjection fault;
+    uint32_t allocations = 0, submissions = 0, waits = 0; // calls so far (fault injection counts them)
+    // Set when a submission was lost or timed out: the device takes no more work.
+    std::string failed;
+    // A timed-out submission never finished: destroying the device would free memory it may still use.
+    bool hung = false;
 };
+
+// vkAllocateMemory through the fault injection; throws Error (out of memory) on failure.
+VkDeviceMemory allocateMemory(Device& device, const VkMemoryAllocateInfo& info);
+// Submits one command buffer signalling fence; what names its passes for errors.
+// Throws Error on failure (device lost: one clear line) and marks the device failed.
+void submit(Device& device, VkCommandBuffer cmd, VkFence fence, const std::string& what);
+// Waits at most the device's timeout for fence. Throws "device did not finish <what> in N s",
+// or device lost, and marks the device failed.
+void waitForFence(Device& device, VkFence fence, const std::string& what);
+// After a failed wait: waits for fence once more (at most max(timeout, 10 s)) so the
+// objects its work uses can be freed; false, and the device marked hung, when it never signals.
+bool drainFence(Device& device, VkFence fence);
+// Host read of query results the device has finished (after the fence), polled
+// without VK_QUERY_RESULT_WAIT_BIT so a lost or hung device cannot block it.
+void readQueryResults(Device& device, VkQueryPool pool, uint32_t first, uint32_t count, size_t bytes, void* data, VkDeviceSize stride,
+                      VkQueryResultFlags flags, const std::string& what);
+// Throws when an earlier submission failed: nothing more is recorded on this device.
+void checkUsable(const Device& device);
 
 // Creates instance (+ validation when asked) and a logical device with one
 // graphics+compute queue. Throws Error when no device matches.

@@ -41,15 +41,31 @@ struct PassTimer {
     std::vector<PassId> ended;              // pass of the interval ending at each timestamp (the first: PassId::Count)
     std::vector<std::chrono::steady_clock::time_point> hostEnds; // host-timed frames: when each interval ended
 
+    // The passes marked since the last call, for errors: "shadow_map, classify, shade".
+    std::string passesSinceLastSubmit()
+    {
+        std::string names;
+        for (size_t i = std::max<size_t>(submitted, 1); i < ended.size(); ++i) {
+            if (ended[i] == PassId::ViewFitReadback)
+                continue; // its interval's work was in the submission before (the mid-frame read-back)
+            const std::string name = passName(ended[i]);
+            if (names.find(name) == std::string::npos)
+                names += (names.empty() ? "" : ", ") + name;
+        }
+        submitted = ended.size();
+        return names.empty() ? "the frame" : names;
+    }
+    size_t submitted = 0;
+
     void mark(VkCommandBuffer& cmd, PassId pass)
     {
         if (ended.size() >= kMaxTimestamps)
             fail("render", "too many timestamps");
+        ended.push_back(pass);
         if (submitAndRestart) {
-            submitAndRestart();
+            submitAndRestart(); // names the passes up to this one if the device fails
             hostEnds.push_back(std::chrono::steady_clock::now());
         }
-        ended.push_back(pass);
         vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool, uint32_t(ended.size() - 1));
     }
 };
@@ -156,7 +172,7 @@ struct Renderer::Impl::FrameScript {
         timer.pool = r.queryPool;
         if (s.measureFloors)
             timer.submitAndRestart = [this] {
-                r.submitAndWait(cmd);
+                r.submitAndWait(cmd, timer.passesSinceLastSubmit());
                 beginCommands();
             };
     }
@@ -230,7 +246,7 @@ struct Renderer::Impl::FrameScript {
         r.viewFit.record(cmd, r.device, r.targets.viewBounds, r.targets.receiverGrids, viewFitMask, receiverGridMask, gridLayers, width(),
                          height());
         timer.mark(cmd, PassId::ViewFit);
-        r.submitAndWait(cmd);
+        r.submitAndWait(cmd, timer.passesSinceLastSubmit());
 
         for (uint32_t i = 0; i < lights.size(); ++i) {
             const glm::mat4 gridViewProj = data.lights[i].viewProj[0]; // a directional light's model-fitted map
@@ -469,8 +485,8 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
 
     // Timings and counters.
     std::vector<uint64_t> ticks(timer.ended.size());
-    VK_CHECK(vkGetQueryPoolResults(r.device.device, r.queryPool, 0, uint32_t(ticks.size()), ticks.size() * sizeof(uint64_t), ticks.data(),
-                                   sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+    vk::readQueryResults(r.device, r.queryPool, 0, uint32_t(ticks.size()), ticks.size() * sizeof(uint64_t), ticks.data(), sizeof(uint64_t),
+                         VK_QUERY_RESULT_64_BIT, "the frame's timestamps");
     const double period = r.device.properties.limits.timestampPeriod * 1e-6; // ms per tick
     double passMs[size_t(PassId::Count)] = {};
     bool ran[size_t(PassId::Count)] = {};
@@ -514,6 +530,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
 
 Frame Renderer::Impl::render(const RenderSettings& settings)
 {
+    vk::checkUsable(device);
     validate(settings);
     const auto cpuStart = std::chrono::steady_clock::now();
     FrameScript frame(*this, settings);
@@ -535,7 +552,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     for (uint32_t step = 0; step < frame.lights.size(); ++step)
         frame.recordLight(uint32_t(frame.lights.size()) - 1 - step);
     frame.recordReadback();
-    submitAndWait(commandBuffer);
+    submitAndWait(commandBuffer, frame.timer.passesSinceLastSubmit());
     return frame.finish(cpuStart);
 }
 

@@ -40,7 +40,11 @@ void Renderer::Impl::create()
 
 void Renderer::Impl::destroy()
 {
-    if (device.device) {
+    // After a failed submission, the device may still be running the frame: wait for it (bounded);
+    // if it never finishes, nothing it may use is freed.
+    if (device.device && framePending)
+        vk::drainFence(device, fence);
+    if (device.device && !device.hung) {
         vkDeviceWaitIdle(device.device);
         targets.destroy(device);
         destroyGeometry(device, geometry);
@@ -109,6 +113,10 @@ void Renderer::Impl::ensureFloors()
 
 void Renderer::Impl::setGeometry(GpuGeometry uploaded)
 {
+    if (!device.failed.empty()) {
+        destroyGeometry(device, uploaded);
+        vk::checkUsable(device);
+    }
     vkDeviceWaitIdle(device.device);
     destroyGeometry(device, geometry);
     destroyGeometry(device, floorGeometry);
@@ -117,15 +125,14 @@ void Renderer::Impl::setGeometry(GpuGeometry uploaded)
         trace.bindModel(device, geometry);
 }
 
-void Renderer::Impl::submitAndWait(VkCommandBuffer cmd)
+void Renderer::Impl::submitAndWait(VkCommandBuffer cmd, const std::string& passes)
 {
     VK_CHECK(vkEndCommandBuffer(cmd));
-    VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-    submit.commandBufferCount = 1;
-    submit.pCommandBuffers = &cmd;
     VK_CHECK(vkResetFences(device.device, 1, &fence));
-    VK_CHECK(vkQueueSubmit(device.queue, 1, &submit, fence));
-    VK_CHECK(vkWaitForFences(device.device, 1, &fence, VK_TRUE, UINT64_MAX));
+    vk::submit(device, cmd, fence, passes);
+    framePending = true;
+    vk::waitForFence(device, fence, passes);
+    framePending = false;
 }
 
 Renderer::Renderer(const RendererOptions& options) : impl(std::make_unique<Impl>(options)) {}
@@ -135,6 +142,7 @@ const DeviceInfo& Renderer::device() const { return impl->device.info; }
 
 void Renderer::loadModel(const CompressedModel& model)
 {
+    vk::checkUsable(impl->device);
     impl->setGeometry(uploadCompressed(impl->device, model));
     impl->model = model;
     auto cullModel = std::make_shared<const CullModel>(model, impl->geometry);
@@ -151,6 +159,7 @@ void Renderer::loadModel(const Mesh& mesh)
 
 void Renderer::loadUncompressedReference(const Mesh& mesh)
 {
+    vk::checkUsable(impl->device);
     impl->setGeometry(uploadReference(impl->device, mesh));
     impl->model.reset();
     impl->culling.clearModel();

@@ -52,6 +52,7 @@ struct Renderer::Impl {
     VkQueryPool queryPool = VK_NULL_HANDLE;
     VkCommandBuffer commandBuffer = VK_NULL_HANDLE;
     VkFence fence = VK_NULL_HANDLE;
+    bool framePending = false; // submitted, and its fence wait failed
 
     explicit Impl(const RendererOptions& options)
     {
@@ -76,8 +77,9 @@ struct Renderer::Impl {
     // The floors' null pipelines, uncompressed model and depth targets (RenderSettings::measureFloors).
     void ensureFloors();
     void setGeometry(GpuGeometry uploaded);
-    // Ends and submits the frame's command buffer and waits for it (the frame's fence).
-    void submitAndWait(VkCommandBuffer cmd);
+    // Ends and submits the frame's command buffer and waits for it (the frame's fence, at most the
+    // device's timeout); passes names what it holds in errors ("device did not finish <passes> in N s").
+    void submitAndWait(VkCommandBuffer cmd, const std::string& passes);
 
     void validate(const RenderSettings& settings) const;
     struct FrameScript;

@@ -27,9 +27,7 @@ VkDeviceMemory allocate(Device& device, VkMemoryRequirements requirements, VkMem
         info.pNext = &flags;
     info.allocationSize = requirements.size;
     info.memoryTypeIndex = findMemoryType(device, requirements.memoryTypeBits, required, preferred);
-    VkDeviceMemory memory = VK_NULL_HANDLE;
-    VK_CHECK(vkAllocateMemory(device.device, &info, nullptr, &memory));
-    return memory;
+    return allocateMemory(device, info);
 }
 
 bool deviceLocalIsHostVisible(const Device& device)
@@ -74,13 +72,13 @@ Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage,
     }
     try {
         buffer.memory = allocate(device, requirements, required, preferred, addressable);
+        VK_CHECK(vkBindBufferMemory(device.device, buffer.buffer, buffer.memory, 0));
+        if (required & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT)
+            VK_CHECK(vkMapMemory(device.device, buffer.memory, 0, VK_WHOLE_SIZE, 0, &buffer.mapped));
     } catch (...) {
-        vkDestroyBuffer(device.device, buffer.buffer, nullptr);
+        destroyBuffer(device, buffer);
         throw;
     }
-    VK_CHECK(vkBindBufferMemory(device.device, buffer.buffer, buffer.memory, 0));
-    if (required & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT)
-        VK_CHECK(vkMapMemory(device.device, buffer.memory, 0, VK_WHOLE_SIZE, 0, &buffer.mapped));
     return buffer;
 }
 
@@ -102,14 +100,23 @@ Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size,
     }
     Buffer buffer = createBuffer(device, size, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUse::DeviceLocal, addressable);
     const VkDeviceSize chunk = 64ull << 20;
-    Buffer staging = createBuffer(device, std::min(size, chunk), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUse::Upload);
-    for (VkDeviceSize offset = 0; offset < size; offset += chunk) {
-        VkDeviceSize bytes = std::min(chunk, size - offset);
-        std::memcpy(staging.mapped, static_cast<const char*>(data) + offset, bytes);
-        immediateSubmit(device, [&](VkCommandBuffer cmd) {
-            VkBufferCopy region{0, offset, bytes};
-            vkCmdCopyBuffer(cmd, staging.buffer, buffer.buffer, 1, &region);
-        });
+    Buffer staging;
+    try {
+        staging = createBuffer(device, std::min(size, chunk), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUse::Upload);
+        for (VkDeviceSize offset = 0; offset < size; offset += chunk) {
+            VkDeviceSize bytes = std::min(chunk, size - offset);
+            std::memcpy(staging.mapped, static_cast<const char*>(data) + offset, bytes);
+            immediateSubmit(device, [&](VkCommandBuffer cmd) {
+                VkBufferCopy region{0, offset, bytes};
+                vkCmdCopyBuffer(cmd, staging.buffer, buffer.buffer, 1, &region);
+            });
+        }
+    } catch (...) {
+        if (!device.hung) {
+            destroyBuffer(device, staging);
+            destroyBuffer(device, buffer);
+        }
+        throw;
     }
     destroyBuffer(device, staging);
     return buffer;
@@ -141,10 +148,15 @@ Image createImage(Device& device, uint32_t width, uint32_t height, uint32_t laye
     info.usage = usage;
     info.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
     VK_CHECK(vkCreateImage(device.device, &info, nullptr, &image.image));
-    VkMemoryRequirements requirements;
-    vkGetImageMemoryRequirements(device.device, image.image, &requirements);
-    image.memory = allocate(device, requirements, 0, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
-    VK_CHECK(vkBindImageMemory(device.device, image.image, image.memory, 0));
+    try {
+        VkMemoryRequirements requirements;
+        vkGetImageMemoryRequirements(device.device, image.image, &requirements);
+        image.memory = allocate(device, requirements, 0, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+        VK_CHECK(vkBindImageMemory(device.device, image.image, image.memory, 0));
+    } catch (...) {
+        destroyImage(device, image);
+        throw;
+    }
 
     bool depth = format == VK_FORMAT_D32_SFLOAT;
     VkImageViewCreateInfo viewInfo{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
@@ -193,6 +205,7 @@ VkShaderModule createShaderModule(Device& device, const char* name)
 
 VkCommandBuffer beginOneTime(Device& device)
 {
+    checkUsable(device);
     VkCommandBufferAllocateInfo info{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
     info.commandPool = device.commandPool;
     info.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
@@ -201,24 +214,35 @@ VkCommandBuffer beginOneTime(Device& device)
     VK_CHECK(vkAllocateCommandBuffers(device.device, &info, &cmd));
     VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
+    VkResult result = vkBeginCommandBuffer(cmd, &begin);
+    if (result != VK_SUCCESS)
+        vkFreeCommandBuffers(device.device, device.commandPool, 1, &cmd);
+    VK_CHECK(result);
     return cmd;
 }
 
-void endOneTime(Device& device, VkCommandBuffer cmd)
+void endOneTime(Device& device, VkCommandBuffer cmd, const char* what)
 {
-    VK_CHECK(vkEndCommandBuffer(cmd));
-    VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-    submit.commandBufferCount = 1;
-    submit.pCommandBuffers = &cmd;
-    VkFenceCreateInfo fenceInfo{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    VkFence fence;
-    VK_CHECK(vkCreateFence(device.device, &fenceInfo, nullptr, &fence));
-    VK_CHECK(vkQueueSubmit(device.queue, 1, &submit, fence));
-    VkResult wait = vkWaitForFences(device.device, 1, &fence, VK_TRUE, UINT64_MAX);
+    VkFence fence = VK_NULL_HANDLE;
+    bool submitted = false;
+    try {
+        VK_CHECK(vkEndCommandBuffer(cmd));
+        VkFenceCreateInfo fenceInfo{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+        VK_CHECK(vkCreateFence(device.device, &fenceInfo, nullptr, &fence));
+        submit(device, cmd, fence, what);
+        submitted = true;
+        waitForFence(device, fence, what);
+    } catch (...) {
+        // Free the fence and the command buffer once the device is done with them; a hung device keeps them.
+        if (!submitted || drainFence(device, fence)) {
+            if (fence)
+                vkDestroyFence(device.device, fence, nullptr);
+            vkFreeCommandBuffers(device.device, device.commandPool, 1, &cmd);
+        }
+        throw;
+    }
     vkDestroyFence(device.device, fence, nullptr);
     vkFreeCommandBuffers(device.device, device.commandPool, 1, &cmd);
-    VK_CHECK(wait);
 }
 
 void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 srcStage, VkAccessFlags2 srcAccess, VkPipelineStageFlags2 dstStage,

@@ -53,19 +53,26 @@ void destroyImage(Device& device, Image& image);
 // Shader module of an embedded SPIR-V shader by registry name ("shade.comp").
 VkShaderModule createShaderModule(Device& device, const char* name);
 
-// One-time command buffer: begin, record in fn, submit and wait.
+// One-time command buffer: begin, record in fn, submit and wait (bounded: the
+// device's timeout). what names the work in errors ("device did not finish <what> ...").
 template <typename Fn>
-void immediateSubmit(Device& device, Fn&& fn);
+void immediateSubmit(Device& device, Fn&& fn, const char* what = "an upload");
 
 VkCommandBuffer beginOneTime(Device& device);
-void endOneTime(Device& device, VkCommandBuffer cmd);
+// Submits, waits and frees cmd (also when it fails, unless the device hung).
+void endOneTime(Device& device, VkCommandBuffer cmd, const char* what = "an upload");
 
 template <typename Fn>
-void immediateSubmit(Device& device, Fn&& fn)
+void immediateSubmit(Device& device, Fn&& fn, const char* what)
 {
     VkCommandBuffer cmd = beginOneTime(device);
-    fn(cmd);
-    endOneTime(device, cmd);
+    try {
+        fn(cmd);
+    } catch (...) {
+        vkFreeCommandBuffers(device.device, device.commandPool, 1, &cmd);
+        throw;
+    }
+    endOneTime(device, cmd, what);
 }
 
 // Global memory barrier (sync2).

@@ -71,6 +71,11 @@ struct RendererOptions {
     // Largest model buffer in bytes (0: min(1 GiB, maxMemoryAllocationSize)).
     // Larger models are split into chunks; tests set it small to exercise that.
     uint64_t maxModelBufferBytes = 0;
+    // Longest wait for the device to finish one submission (a frame's passes
+    // up to a read-back, an upload). A longer one fails with one line,
+    // "device did not finish <passes> in N s", and the renderer refuses further
+    // work. The environment variable PENUMBRA_DEVICE_TIMEOUT (seconds) overrides it.
+    double deviceTimeoutSeconds = 300.0;
 };
 
 struct RenderSettings {

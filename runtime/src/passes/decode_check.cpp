@@ -84,7 +84,7 @@ std::vector<float> decodeVerticesOnGpu(vk::Device& device, const GpuGeometry& ge
             vkCmdEndRendering(cmd);
             vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                               VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
-        });
+        }, "decode_check");
         const float* decoded = static_cast<const float*>(output.mapped);
         std::vector<float> result(decoded, decoded + geometry.vertexCount * 3);
         cleanup();

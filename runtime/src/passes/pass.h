@@ -19,7 +19,11 @@ constexpr VkPipelineStageFlags2 kColorOut = VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT
 constexpr VkPipelineStageFlags2 kDepthTests = VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
 constexpr VkPipelineStageFlags2 kCompute = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
 constexpr VkPipelineStageFlags2 kCopy = VK_PIPELINE_STAGE_2_COPY_BIT;
-constexpr VkPipelineStageFlags2 kClear = VK_PIPELINE_STAGE_2_CLEAR_BIT;
+// vkCmdFillBuffer and vkCmdClearColorImage. The specification puts fills in the clear stage, but
+// Debian 12's validation layers (1.3.239) track them as copies (Vulkan-ValidationLayers issue
+// 7406, fixed in 2024): with the clear bit alone, synchronization validation reports every
+// access after a fill. All transfer stages cover both readings.
+constexpr VkPipelineStageFlags2 kClear = VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT;
 constexpr VkPipelineStageFlags2 kIndirect = VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT;
 constexpr VkPipelineStageFlags2 kHost = VK_PIPELINE_STAGE_2_HOST_BIT;
 constexpr VkAccessFlags2 kStorageRead = VK_ACCESS_2_SHADER_STORAGE_READ_BIT;
