@@ -72,17 +72,15 @@ uvec2 classifyPixel()
 #include "floor.glsli"
 void main()
 {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 size = imageSize(visibilityImage);
-    if (any(greaterThanEqual(pixel, size)))
+    ivec2 size = imageSize(visibilityImage), pixel;
+    float sum;
+    if (!floorPixel(size, pixel, sum))
         return;
-    vec4 position = imageLoad(gPosition, pixel);
-    vec4 normal = imageLoad(gNormal, pixel);
     ivec2 texel = pixel * textureSize(shadowMap, 0).xy / size;
     float depth = texelFetch(shadowMap, ivec3(texel, 0), 0).r;
     float thin = push.mode == PENUMBRA_CLASSIFY_PIP ? uintBitsToFloat(imageLoad(thinMap, ivec3(texel, 0)).r) : 0.0;
-    float sum = position.x + position.w + normal.x + depth + thin + frame.lights[push.lightIndex].positionType.x;
-    imageStore(visibilityImage, pixel, vec4(floorNever(sum) ? 0.5 : position.w));
+    sum += depth + thin + frame.lights[push.lightIndex].positionType.x;
+    imageStore(visibilityImage, pixel, vec4(floorNever(sum) ? 0.5 : 1.0));
     marks[uint(pixel.y * size.x + pixel.x)] = floorNever(sum) ? 1u : 0u;
 }
 #else

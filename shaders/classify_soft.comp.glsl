@@ -162,17 +162,15 @@ uvec2 classifyPixel()
 #include "floor.glsli"
 void main()
 {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 size = imageSize(visibilityImage);
-    if (any(greaterThanEqual(pixel, size)))
+    ivec2 size = imageSize(visibilityImage), pixel;
+    float sum;
+    if (!floorPixel(size, pixel, sum))
         return;
     uint index = uint(pixel.y * size.x + pixel.x);
-    vec4 position = imageLoad(gPosition, pixel);
-    vec4 normal = imageLoad(gNormal, pixel);
     ivec2 texel = pixel * textureSize(shadowMap, 0).xy / size;
     float depth = texelFetch(shadowMap, ivec3(texel, 0), 0).r;
     uint maskWord = push.mode == PENUMBRA_SOFT_AVERAGE ? 0u : mask[(uint(texel.y) * push.mapSize + uint(texel.x)) >> 5u];
-    float sum = position.x + position.w + normal.x + depth + uintBitsToFloat(maskWord) + frame.lights[push.lightIndex].positionType.x;
+    sum += depth + uintBitsToFloat(maskWord) + frame.lights[push.lightIndex].positionType.x;
     // The averaged visibility and the marks are read back by later maps: written unchanged.
     vec4 visibility = imageLoad(visibilityImage, pixel);
     imageStore(visibilityImage, pixel, floorNever(sum) ? vec4(0.5) : visibility);

@@ -26,14 +26,11 @@ layout(push_constant) uniform ShadePush {
 #include "floor.glsli"
 void main()
 {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 size = imageSize(outColor);
-    if (any(greaterThanEqual(pixel, size)))
+    ivec2 size = imageSize(outColor), pixel;
+    float sum;
+    if (!floorPixel(size, pixel, sum))
         return;
-    vec4 position = imageLoad(gPosition, pixel);
-    vec4 normal = imageLoad(gNormal, pixel);
-    float visibility = imageLoad(visibilityImage, pixel).r;
-    float sum = position.x + position.w + normal.x + visibility + frame.lights[push.lightIndex].colorIntensity.x;
+    sum += imageLoad(visibilityImage, pixel).r + frame.lights[push.lightIndex].colorIntensity.x;
     // Later lights add to the colour: written unchanged.
     vec4 color = imageLoad(outColor, pixel);
     imageStore(outColor, pixel, floorNever(sum) ? vec4(0.5) : color);

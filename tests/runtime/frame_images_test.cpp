@@ -182,10 +182,9 @@ TEST(FrameImages, PointLightAndSeveralLights)
     checkFrame("interior_spot_sun_srt", render(renderer, ShadowMethod::Selective));
 }
 
-TEST(FrameImages, SoftShadowsAndPipImage)
+// The recorded soft-shadow cases' light: a small rectangle above the scene, facing its centre.
+Light rectangleOver(const Bounds& bounds)
 {
-    Scene scene = generated("city");
-    const Bounds bounds = computeBounds(scene.mesh);
     const float diagonal = glm::length(bounds.max - bounds.min);
     Light rectangle;
     rectangle.type = LightType::Rectangle;
@@ -194,6 +193,13 @@ TEST(FrameImages, SoftShadowsAndPipImage)
     rectangle.width = 0.03f * diagonal;
     rectangle.height = 0.015f * diagonal;
     rectangle.intensity = 0.5f * diagonal * diagonal;
+    return rectangle;
+}
+
+TEST(FrameImages, SoftShadowsAndPipImage)
+{
+    Scene scene = generated("city");
+    const Light rectangle = rectangleOver(computeBounds(scene.mesh));
     Renderer renderer;
     renderer.loadModel(scene.mesh);
     renderer.setCamera(scene.cameras[0]);
@@ -215,15 +221,7 @@ TEST(FrameImages, SoftShadowsAndPipImage)
 TEST(FrameImages, FloorsLeaveTheFrameUnchanged)
 {
     Scene scene = generated("city");
-    const Bounds bounds = computeBounds(scene.mesh);
-    const float diagonal = glm::length(bounds.max - bounds.min);
-    Light rectangle;
-    rectangle.type = LightType::Rectangle;
-    rectangle.position = bounds.center() + glm::vec3(0.2f, 0.6f, 0.3f) * diagonal;
-    rectangle.direction = glm::normalize(bounds.center() - rectangle.position);
-    rectangle.width = 0.03f * diagonal;
-    rectangle.height = 0.015f * diagonal;
-    rectangle.intensity = 0.5f * diagonal * diagonal;
+    const Light rectangle = rectangleOver(computeBounds(scene.mesh));
     Renderer renderer;
     renderer.loadModel(scene.mesh);
     renderer.setCamera(scene.cameras[0]);
