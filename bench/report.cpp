@@ -384,10 +384,10 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
                  << number(f.ratio(), "%.3f", "?") << '\n';
         writeFile(dir / "floors.dat", data.str());
         writeFile(dir / "floors.gp",
-                  header + "set output 'floors.png'\nset title 'Each stage against its floor (time / floor, 1 = at the floor), " +
+                  header + "set terminal pngcairo size 1800,700 noenhanced font ',9'\nset output 'floors.png'\nset title 'Each stage against its floor (time / floor, 1 = at the floor), " +
                       title +
-                      "'\nset style data histogram\nset style fill solid 0.8 border -1\nset boxwidth 0.7\n"
-                      "set xtics rotate by -60\nset logscale y\nset ylabel 'time / floor'\n"
+                      "'\nset style data histogram\nset style fill solid 0.8 border -1\n"
+                      "set xtics rotate by -70 font ',7'\nset logscale y\nset ylabel 'time / floor'\nset boxwidth 0.8\n"
                       "plot 'floors.dat' using 2:xtic(1) notitle\n");
         pngs.push_back({"floors.gp", "floors.png"});
     }
