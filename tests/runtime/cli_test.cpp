@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "cli_run.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -21,16 +23,8 @@ struct Result {
 // environment: "NAME=value ..." for this run only.
 Result run(const std::string& arguments, const std::string& environment = "")
 {
-    std::string command = environment + " " + std::string(PENUMBRA_CLI) + " " + arguments + " 2>&1";
     Result result;
-    FILE* pipe = popen(command.c_str(), "r");
-    if (!pipe)
-        return result;
-    char buffer[4096];
-    while (size_t n = fread(buffer, 1, sizeof(buffer), pipe))
-        result.output.append(buffer, n);
-    int status = pclose(pipe);
-    result.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.status = penumbra::test::runCli(arguments, &result.output, environment);
     return result;
 }
 

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "penumbra/io.h"
+#include "cli_run.h"
 #include "penumbra/penumbra.h"
 #include "penumbra/preprocess.h"
 
@@ -23,25 +24,10 @@ namespace fs = std::filesystem;
 
 std::string tmp(const std::string& name)
 {
-    fs::create_directories(PENUMBRA_TEST_TMP);
-    return std::string(PENUMBRA_TEST_TMP) + "/colors_" + name;
+    return test::scratchPath("colors_", name);
 }
 
-int runCli(const std::string& arguments, std::string* output = nullptr)
-{
-    std::string command = std::string(PENUMBRA_CLI) + " " + arguments + " 2>&1";
-    FILE* pipe = popen(command.c_str(), "r");
-    if (!pipe)
-        return -1;
-    char buffer[4096];
-    std::string text;
-    while (size_t n = fread(buffer, 1, sizeof(buffer), pipe))
-        text.append(buffer, n);
-    if (output)
-        *output = text;
-    int status = pclose(pipe);
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+using test::runCli;
 
 std::string base64(const std::string& bytes)
 {
