@@ -21,6 +21,11 @@
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
 #define PENUMBRA_AFSM_SCAN_GROUP 256     // afsm_scan.comp: invocations per workgroup (16 counts each)
 #define PENUMBRA_AFSM_MAX_GRID 4096      // afsm: most grid cells per side (one level of block totals in the scan)
+#define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: pairs or nodes per workgroup
+#define PENUMBRA_RH_MAX_LEVELS 16        // rh: most levels of a cone hierarchy (4^15 leaves: far more than any image's rays)
+#define PENUMBRA_RH_SORT_ORDER 10u      // rh sorted: direction keys on a 2^10 x 2^10 Hilbert grid per layer
+#define PENUMBRA_RH_SORT_CELLS 1024u     // 2^PENUMBRA_RH_SORT_ORDER
+#define PENUMBRA_RH_MIN_ANGLE 1.0e-4     // rh: smallest cone half-angle (radians); the apex moves back by offset / sin(angle)
 #define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range
 #define PENUMBRA_CULL_GROUP_SIZE 64     // cull_predicates.comp: draw commands per workgroup
 #define PENUMBRA_CULL_GROUP_CLUSTERS 64 // occlusion culling: largest BVH subtree (clusters) without history queried with one box
@@ -61,6 +66,18 @@
 #define PENUMBRA_AFSM_COUNT 0u           // count the samples per grid cell
 #define PENUMBRA_AFSM_LIST 1u            // list them per cell (after the prefix sum)
 #define PENUMBRA_AFSM_RESOLVE 2u         // the light's visibility from the samples' shadow flags
+// rh_rays.comp.glsl modes.
+#define PENUMBRA_RH_RAYS_COUNT 0u        // each tile's padded ray count at its Morton index
+#define PENUMBRA_RH_RAYS_LIST 1u         // after the scan: the rays at their tile's offset
+#define PENUMBRA_RH_RAYS_SORT_COUNT 2u   // sorted (section 3.5): rays per direction key
+#define PENUMBRA_RH_RAYS_SORT_LIST 3u    // after the scan: each ray at its key's next slot
+// rh_build.comp.glsl modes.
+#define PENUMBRA_RH_BUILD_INIT 0u        // the hierarchy's levels from the ray count (one invocation)
+#define PENUMBRA_RH_BUILD_LEAVES 1u      // leaves: cones of 4 consecutive rays
+#define PENUMBRA_RH_BUILD_LEVEL 2u       // a level from the 4 children of each node
+// rh_traverse.comp.glsl: the cone/triangle test (RenderSettings::rhTest).
+#define PENUMBRA_RH_TEST_PRECISE 0u      // Olsson and Assarsson 2011, section 3.2: edge planes, tangent planes, the plane's range
+#define PENUMBRA_RH_TEST_SPHERES 1u      // the triangle's bounding sphere against the cone (Roger et al. 2007)
 // compact.comp.glsl phases.
 #define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list
 #define PENUMBRA_COMPACT_DISPATCH 1u     // the tracer's indirect dispatch size from the list's count

@@ -390,6 +390,12 @@ std::string summaryLine(const FrameStats& stats)
                       (unsigned long long)stats.rays, (unsigned long long)stats.nodesVisited);
         line += buffer;
     }
+    if (stats.shadows == ShadowMethod::RayHierarchy) {
+        std::snprintf(buffer, sizeof(buffer), " | casters %llu | ray tests %llu | batches %u | rounds %u | peak pairs %.1f MiB",
+                      (unsigned long long)stats.rhCasters, (unsigned long long)stats.triangleTests, stats.rhBatches, stats.rhRounds,
+                      double(stats.rhPeakPairBytes) / double(1 << 20));
+        line += buffer;
+    }
     if (stats.lightSamples) {
         std::snprintf(buffer, sizeof(buffer), " | samples %u | penumbra %.2f%%", stats.lightSamples, stats.penumbraFraction * 100.0);
         line += buffer;
@@ -430,6 +436,9 @@ std::string statsJson(const FrameStats& stats)
     json["penumbra_pixels"] = stats.penumbraPixels;
     json["penumbra_fraction"] = stats.penumbraFraction;
     json["ray_offset"] = stats.rayOffset;
+    if (stats.shadows == ShadowMethod::RayHierarchy)
+        json["rh"] = {{"casters", stats.rhCasters}, {"cone_tests", stats.nodesVisited}, {"ray_tests", stats.triangleTests},
+                      {"batches", stats.rhBatches}, {"rounds", stats.rhRounds}, {"peak_pair_bytes", stats.rhPeakPairBytes}};
     nlohmann::ordered_json passes = nlohmann::ordered_json::object();
     for (const PassTiming& pass : stats.passes)
         passes[pass.name + "_ms"] = pass.gpuMs;

@@ -491,6 +491,50 @@ void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_
     }
 }
 
+std::vector<uint32_t> Culling::viewClusters(uint32_t view) const
+{
+    std::vector<uint32_t> clusters;
+    if (!model)
+        return clusters;
+    if (mode == CullMode::None || view >= plans.size()) {
+        clusters.resize(model->commands.size());
+        for (size_t i = 0; i < clusters.size(); ++i)
+            clusters[i] = uint32_t(i);
+        return clusters;
+    }
+    const ViewPlan& plan = plans[view];
+    clusters = plan.firstPhase;
+    for (const Entry& entry : plan.finalPhase)
+        clusters.push_back(entry.cluster);
+    std::sort(clusters.begin(), clusters.end());
+    return clusters;
+}
+
+void Culling::markView(VkCommandBuffer cmd, uint32_t view, bool end) const
+{
+    if (view < plans.size())
+        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * view + (end ? 1 : 0));
+}
+
+void drawClusters(VkCommandBuffer cmd, const GpuGeometry& geometry, const CullModel& model, const uint32_t* clusters, size_t count)
+{
+    size_t begin = 0;
+    while (begin < count) {
+        const uint32_t chunkIndex = model.clusterChunk[clusters[begin]];
+        size_t end = begin + 1;
+        while (end < count && clusters[end] == clusters[end - 1] + 1 && model.clusterChunk[clusters[end]] == chunkIndex)
+            ++end;
+        const GpuGeometry::Chunk& chunk = geometry.chunks[chunkIndex];
+        VkBuffer buffers[2] = {chunk.vertices.buffer, geometry.clusters.buffer};
+        VkDeviceSize offsets[2] = {0, 0};
+        vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
+        vkCmdBindIndexBuffer(cmd, chunk.indices.buffer, 0, VK_INDEX_TYPE_UINT8_EXT);
+        vkCmdDrawIndexedIndirect(cmd, geometry.indirect.buffer, VkDeviceSize(clusters[begin]) * kCommandBytes, uint32_t(end - begin),
+                                 uint32_t(kCommandBytes));
+        begin = end;
+    }
+}
+
 void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry,
                          const BeginRendering& begin, const EndRendering& end)
 {

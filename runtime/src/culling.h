@@ -134,6 +134,15 @@ struct Culling {
     // texel only.
     void markClustersNearReceivers(const ReceiverMask& mask, uint32_t* bits) const;
 
+    // The clusters view `view` draws, ascending, for a view planned without
+    // occlusion queries (its frustum and receiver mask only); every cluster
+    // with CullMode::None. Needs the compressed model.
+    std::vector<uint32_t> viewClusters(uint32_t view) const;
+    // A view whose clusters a pass draws itself (viewClusters): the view's
+    // timestamp before (end = false) or after its draws, so its stats are
+    // complete. Every planned view gets both, through recordView or this.
+    void markView(VkCommandBuffer cmd, uint32_t view, bool end) const;
+
     struct Entry {
         uint32_t cluster;
         uint32_t query; // kNoQuery: drawn unconditionally
@@ -192,5 +201,11 @@ struct Culling {
     void drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
                   const std::vector<uint32_t>& clusters);
 };
+
+// Draws clusters[0 .. count) (ascending) of the compressed model with its own
+// per-cluster draw commands (GpuGeometry::indirect): one multi-draw per run of
+// consecutive clusters in one chunk. The caller has begun the rendering and
+// bound a pipeline of the model's vertex input.
+void drawClusters(VkCommandBuffer cmd, const GpuGeometry& geometry, const CullModel& model, const uint32_t* clusters, size_t count);
 
 } // namespace penumbra

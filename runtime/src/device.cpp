@@ -504,7 +504,9 @@ void createDevice(Device& device, const RendererOptions& options)
     enable.features.vertexPipelineStoresAndAtomics = supported.features.vertexPipelineStoresAndAtomics;
     // Alias-free shadow maps draw their casters with a geometry shader whose fragments write the samples' flags.
     device.aliasFree = supported.features.geometryShader && supported.features.fragmentStoresAndAtomics;
-    enable.features.geometryShader = device.aliasFree;
+    // Cone ray hierarchies gather their casters with a geometry shader that stores them.
+    device.rayHierarchy = supported.features.geometryShader && supported.features.vertexPipelineStoresAndAtomics;
+    enable.features.geometryShader = device.aliasFree || device.rayHierarchy;
     enable.features.fragmentStoresAndAtomics = device.aliasFree;
     const char* extensions[] = {VK_EXT_INDEX_TYPE_UINT8_EXTENSION_NAME};
 

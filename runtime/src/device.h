@@ -48,6 +48,7 @@ struct Device {
     VkDeviceSize maxAllocationSize = 1ull << 30; // VkPhysicalDeviceMaintenance3Properties
     bool vertexStores = false;                   // vertexPipelineStoresAndAtomics (decode check)
     bool aliasFree = false;                      // geometryShader and fragmentStoresAndAtomics (afsm casters)
+    bool rayHierarchy = false;                   // geometryShader and vertexPipelineStoresAndAtomics (rh casters)
     VkDeviceSize maxModelBufferBytes = 0;        // RendererOptions::maxModelBufferBytes
     std::atomic<uint32_t> validationMessages{0};
     double timeoutSeconds = 300.0;               // RendererOptions::deviceTimeoutSeconds

@@ -109,6 +109,15 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
         fail("render", std::string(spec.name) + " does not do soft shadows (area lights) yet: use sm, srt or frt for them");
     if (settings.shadows == ShadowMethod::AliasFree && !device.aliasFree)
         fail("render", "afsm needs geometry shaders and fragment-shader stores, which " + device.info.name + " lacks");
+    if (settings.shadows == ShadowMethod::RayHierarchy) {
+        if (!device.rayHierarchy)
+            fail("render", "rh needs geometry shaders and vertex-stage stores, which " + device.info.name + " lacks");
+        for (const Light& light : lights)
+            if (light.type == LightType::Directional)
+                fail("render", "rh does point and spot lights (rays from one point); a directional light needs sm, srt, frt or afsm");
+        if (geometry.encoding != GeometryEncoding::Compressed)
+            fail("render", "rh needs the compressed model (the uncompressed reference is for raster benchmarks)");
+    }
     if (spec.traces() && geometry.encoding != GeometryEncoding::Compressed)
         fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
 }
@@ -130,6 +139,7 @@ struct Renderer::Impl::FrameScript {
     std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks; // layer k of light i at 6 i + k
     std::vector<VkDeviceAddress> thinClusterMask;                   // the same layers; 0: every cluster
     uint32_t viewFitMask = 0, receiverGridMask = 0;
+    bool rhFrame = false; // the rh pass's counters were cleared this frame
 
     FrameScript(Impl& renderer, const RenderSettings& s)
         : r(renderer), settings(s), spec(shadowMethodSpec(s.shadows)), bounds(r.geometry.bounds),
@@ -151,6 +161,10 @@ struct Renderer::Impl::FrameScript {
             r.bindTargets();
         if (s.shadows == ShadowMethod::AliasFree)
             r.ensureAfsmTargets();
+        if (s.shadows == ShadowMethod::RayHierarchy) {
+            r.ensureRhTargets();
+            rhFrame = true;
+        }
         if (s.readbackLightLayers)
             r.targets.ensureLightLayers(r.device);
         if (s.measureFloors)
@@ -372,6 +386,28 @@ struct Renderer::Impl::FrameScript {
                 timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
+        case Step::RayHierarchy:
+            r.afsm.clear(cmd);
+            if (rhFrame) {
+                r.rh.beginFrame(cmd);
+                rhFrame = false;
+            }
+            for (uint32_t layer = 0; layer < layers(light); ++layer) {
+                const uint32_t view = lightFirstView[light] + layer;
+                const std::vector<uint32_t> clusters = r.shadowCulling.viewClusters(view);
+                r.shadowCulling.markView(cmd, view, false);
+                r.rh.recordLayer(cmd, light, layer, rayOffset, settings.coneTest == ConeTest::Spheres ? PENUMBRA_RH_TEST_SPHERES
+                                                                                                      : PENUMBRA_RH_TEST_PRECISE,
+                                 settings.rhSort,
+                                 r.geometry, *r.shadowCulling.model, clusters, [this] { timer.mark(cmd, PassId::RhBuild); },
+                                 [this] {
+                                     r.submitAndWait(cmd, "rh_traverse");
+                                     beginCommands();
+                                 });
+                r.shadowCulling.markView(cmd, view, true);
+                timer.mark(cmd, PassId::RhTraverse);
+            }
+            return;
         case Step::AfsmResolve:
             r.afsm.recordResolve(cmd, light, rayOffset);
             timer.mark(cmd, PassId::AfsmSamples);
@@ -514,7 +550,18 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     const auto areaLights = uint32_t(std::count_if(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); }));
     out.penumbraFraction = out.coveredPixels && areaLights ? double(out.penumbraPixels) / (double(out.coveredPixels) * areaLights) : 0.0;
     out.lightSamples = areaLights && spec.traces() ? settings.lightSamples : areaLights ? settings.softShadowMaps : 0;
-    out.rayOffset = spec.traces() || settings.shadows == ShadowMethod::AliasFree ? rayOffset : 0.0f;
+    out.rayOffset = spec.traces() || settings.shadows == ShadowMethod::AliasFree || settings.shadows == ShadowMethod::RayHierarchy ? rayOffset
+                                                                                                                                : 0.0f;
+    if (settings.shadows == ShadowMethod::RayHierarchy) {
+        const passes::RhFrameStats rh = r.rh.frameStats();
+        out.rays = rh.rays;
+        out.nodesVisited = rh.pairsTested;
+        out.triangleTests = rh.rayTests;
+        out.rhCasters = rh.casters;
+        out.rhBatches = rh.batches;
+        out.rhRounds = rh.rounds;
+        out.rhPeakPairBytes = rh.peakPairBytes;
+    }
     out.device = r.device.info;
     for (uint32_t pass = 0; pass < uint32_t(PassId::Count); ++pass)
         if (ran[pass])

@@ -17,6 +17,7 @@ void Renderer::Impl::create()
     thinTriangles.create(device);
     penumbraMask.create(device);
     afsm.create(device);
+    rh.create(device);
     classify.create(device);
     compact.create(device);
     trace.create(device);
@@ -55,6 +56,7 @@ void Renderer::Impl::destroy()
         thinTriangles.destroy(device);
         penumbraMask.destroy(device);
         afsm.destroy(device);
+        rh.destroy(device);
         classify.destroy(device);
         compact.destroy(device);
         trace.destroy(device);
@@ -96,6 +98,15 @@ void Renderer::Impl::ensureAfsmTargets()
     const PixelTargets pixels = pixelTargets();
     afsm.bind(device, {pixels, &t.afsmCellFirst, &t.afsmCellCount, &t.afsmBlockSums, &t.afsmSamples, &t.afsmShadowed, t.width, t.height,
                        t.afsmGrid});
+}
+
+void Renderer::Impl::ensureRhTargets()
+{
+    ensureAfsmTargets();
+    FrameTargets& t = targets;
+    const RhTargets rhTargets{t.position.view, t.normal.view, t.frameUniforms.buffer, &t.afsmShadowed, t.width, t.height};
+    if (!rh.bound(rhTargets))
+        rh.bind(device, rhTargets);
 }
 
 void Renderer::Impl::ensureFloors()

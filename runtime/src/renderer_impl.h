@@ -12,6 +12,7 @@
 #include "frame_targets.h"
 #include "model_geometry.h"
 #include "passes/afsm.h"
+#include "passes/rh.h"
 #include "passes/classify.h"
 #include "passes/compact.h"
 #include "passes/gbuffer.h"
@@ -41,6 +42,7 @@ struct Renderer::Impl {
     passes::ThinTrianglesPass thinTriangles;
     passes::PenumbraMaskPass penumbraMask;
     passes::AfsmPass afsm;
+    passes::RhPass rh;
     passes::ClassifyPass classify;
     passes::CompactPass compact;
     passes::TracePass trace;
@@ -74,6 +76,8 @@ struct Renderer::Impl {
     passes::PixelTargets pixelTargets() const;
     // The afsm pass's targets, made on the first afsm frame of a size.
     void ensureAfsmTargets();
+    // The rh pass's targets (afsm's shadow flags and its own buffers), made on the first rh frame of a size.
+    void ensureRhTargets();
     // The floors' null pipelines, uncompressed model and depth targets (RenderSettings::measureFloors).
     void ensureFloors();
     void setGeometry(GpuGeometry uploaded);

@@ -10,7 +10,7 @@ namespace penumbra {
 const char* passName(PassId pass)
 {
     static const char* const names[] = {"camera",         "view_fit",       "view_fit_readback", "shadow_map",  "thin_triangles",
-                                        "penumbra_mask",  "afsm_samples",   "afsm_casters",      "classify",    "compact",
+                                        "penumbra_mask",  "afsm_samples",   "afsm_casters",      "rh_build",    "rh_traverse", "classify",    "compact",
                                         "trace",          "shade",          "readback",          "camera_floor", "view_fit_floor",
                                         "shadow_map_floor", "classify_floor", "compact_floor",   "shade_floor"};
     static_assert(sizeof(names) / sizeof(names[0]) == size_t(PassId::Count));
@@ -75,6 +75,16 @@ const std::vector<ShadowMethodSpec>& shadowMethods()
          AreaMapEyes::Centre,
          false,
          false},
+        {ShadowMethod::RayHierarchy,
+         "rh",
+         "cone ray hierarchy",
+         {{Step::RayHierarchy}, {Step::AfsmResolve}, {Step::Shade}},
+         {},
+         {},
+         {},
+         AreaMapEyes::Centre,
+         false,
+         false},
     };
     return methods;
 }
@@ -111,6 +121,17 @@ std::string shadowMethodsHelp()
     for (const ShadowMethodSpec& spec : shadowMethods())
         help += (help.empty() ? "" : ", ") + std::string(spec.name) + " (" + spec.description + ")";
     return help;
+}
+
+const char* coneTestName(ConeTest test) { return test == ConeTest::Spheres ? "spheres" : "precise"; }
+
+ConeTest parseConeTest(const std::string& name)
+{
+    if (name == "precise")
+        return ConeTest::Precise;
+    if (name == "spheres")
+        return ConeTest::Spheres;
+    fail("--cone-test " + name, "unknown cone test (expected precise or spheres)");
 }
 
 ShadowMethod parseShadowMethod(const std::string& name)

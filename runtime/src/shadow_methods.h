@@ -15,7 +15,8 @@ namespace penumbra {
 
 // The frame's passes, in the order stats report them.
 enum class PassId : uint32_t {
-    Camera, ViewFit, ViewFitReadback, ShadowMap, ThinTriangles, PenumbraMask, AfsmSamples, AfsmCasters, Classify, Compact, Trace, Shade,
+    Camera, ViewFit, ViewFitReadback, ShadowMap, ThinTriangles, PenumbraMask, AfsmSamples, AfsmCasters, RhBuild, RhTraverse, Classify,
+    Compact, Trace, Shade,
     Readback,
     // RenderSettings::measureFloors: the null twins of the per-pixel passes and the raster passes' uncompressed depth-only draws.
     CameraFloor, ViewFitFloor, ShadowMapFloor, ClassifyFloor, CompactFloor, ShadeFloor,
@@ -37,6 +38,7 @@ enum class Step : uint32_t {
     Shade,         // the light's contribution added to the colour
     AliasFree,     // per layer: the view samples binned into the light's grid, then the casters tested against them
     AfsmResolve,   // the light's visibility from the samples' shadow flags
+    RayHierarchy,  // per layer: the rays listed, their cone hierarchy built, the casters traversing it (sets afsm's shadow flags)
 };
 
 struct MethodStep {

@@ -33,7 +33,19 @@ namespace penumbra {
 // afsm: alias-free shadow maps (Sintorn et al. 2008, section 3): the camera's
 // samples binned in the light's view, every caster rasterized conservatively
 // over them and tested exactly per sample; hard shadows only for now.
-enum class ShadowMethod { ShadowMap, Selective, FullRayTrace, AliasFree };
+// rh: cone ray hierarchies (Olsson and Assarsson 2011): the shadow rays of
+// point and spot lights bounded by a 4-way tree of cones from the light, which
+// the casters traverse breadth-first down to exact ray/triangle tests; no
+// map, no projection plane (a point light's cube faces only split the rays).
+enum class ShadowMethod { ShadowMap, Selective, FullRayTrace, AliasFree, RayHierarchy };
+
+// rh: how a triangle is tested against a cone of rays.
+enum class ConeTest {
+    Precise, // Olsson and Assarsson 2011, section 3.2: edge and tangent planes through the apex, the supporting plane's range
+    Spheres, // the triangle's bounding sphere (Roger et al. 2007), for comparison
+};
+const char* coneTestName(ConeTest test);
+ConeTest parseConeTest(const std::string& name); // throws Error
 
 const char* shadowMethodName(ShadowMethod method);
 ShadowMethod parseShadowMethod(const std::string& name); // throws Error
@@ -100,6 +112,8 @@ struct RenderSettings {
     uint32_t penumbraMaps = 1;          // srt: shadow maps whose masks mark the penumbra: 1 (centre) or 5 (centre and corners)
     uint32_t softShadowMaps = 4;        // sm: point-light shadow maps averaged over the light, 1..6
     CullMode cull = CullMode::All;      // culling of the camera and shadow-map raster passes
+    ConeTest coneTest = ConeTest::Precise; // rh: the cone/triangle test
+    bool rhSort = true;                    // rh: rays ordered by direction (section 3.5) before the hierarchy, else by pixel
     // Fit the shadow maps of directional and area lights to what the camera
     // sees (the G-buffer's bounds in each map, read back before the shadow
     // pass) instead of the whole model: finer texels, and frustum culling
@@ -166,6 +180,11 @@ struct FrameStats {
     uint64_t nodesVisited = 0;    // BVH nodes tested by the tracer
     uint64_t leavesVisited = 0;   // strip-range leaves tested
     uint64_t triangleTests = 0;   // ray/triangle tests
+    // rh: casters sent through the hierarchies, batches of them, submissions
+    // of traversal steps, and the most (triangle, node) pair memory in use at once.
+    uint64_t rhCasters = 0;
+    uint32_t rhBatches = 0, rhRounds = 0;
+    uint64_t rhPeakPairBytes = 0;
     uint64_t penumbraPixels = 0;  // pixels whose visibility of an area light is strictly between 0 and 1 (summed over lights)
     double penumbraFraction = 0;  // penumbraPixels / (coveredPixels * area lights)
     uint32_t lightSamples = 0;    // samples per pixel of area lights (0: no area light)

@@ -1,0 +1,84 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_atomic_int64 : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+// Cone ray hierarchies, one step of the bounded breadth-first traversal
+// (rh.glsli; Olsson and Assarsson 2011, section 4.2), one invocation: drop
+// the deepest segments whose pairs are all tested, pick a chunk of the
+// deepest one left (depth 0: the batch's triangles against the root), open
+// the segment its output goes to, and write rh_traverse's indirect dispatch.
+// A chunk is at most an eighth of the free room of the arena: each pair
+// makes at most 4, so the output fits and room is left for the depths below.
+// When nothing is left the batch is done and the dispatch is empty.
+
+#include "config.h"
+#include "shadow_ray.glsli"
+#include "rh.glsli"
+
+layout(local_size_x = 1) in;
+
+#define RH_STATE_BINDING 0
+RH_STATE_DECLARE();
+
+layout(push_constant) uniform RhStepPush {
+    uint pairCapacity;     // pairs the arena holds
+    uint triangleCapacity; // triangles the batch's list holds
+    uint pad0, pad1;
+} push;
+
+void finish()
+{
+    state.done = 1u;
+    state.stepCount = 0u;
+    state.dispatchX = 0u;
+    state.dispatchY = 1u;
+    state.dispatchZ = 1u;
+}
+
+void main()
+{
+    uint triangles = min(state.triangleCount, push.triangleCapacity);
+    if (state.levels == 0u || state.done != 0u) {
+        finish();
+        return;
+    }
+    uint depth = state.deepest;
+    while (depth > 0u && state.cursor[depth] >= state.segEnd[depth])
+        --depth;
+    state.deepest = depth;
+    uint remaining = depth == 0u ? triangles - state.rootCursor : state.segEnd[depth] - state.cursor[depth];
+    if (remaining == 0u) {
+        finish();
+        return;
+    }
+    uint top = depth > 0u ? state.segEnd[depth] : 0u; // first free pair
+    state.peakPairs = max(state.peakPairs, top);
+    uint level = state.levels - 1u - depth;
+    uint chunk = min(remaining, 65535u * PENUMBRA_RH_GROUP_SIZE);
+    if (level > 0u) {
+        chunk = min(chunk, (push.pairCapacity - top) / 8u);
+        if (chunk == 0u) {
+            state.overflow |= 1u;
+            finish();
+            return;
+        }
+        state.segBegin[depth + 1u] = top;
+        state.segEnd[depth + 1u] = top;
+        state.cursor[depth + 1u] = top;
+        state.deepest = depth + 1u;
+    }
+    state.stepDepth = depth;
+    if (depth == 0u) {
+        state.stepBegin = state.rootCursor;
+        state.rootCursor += chunk;
+    } else {
+        state.stepBegin = state.cursor[depth];
+        state.cursor[depth] += chunk;
+    }
+    state.stepCount = chunk;
+    state.pairsTested += uint64_t(chunk);
+    state.steps += 1u;
+    state.dispatchX = (chunk + PENUMBRA_RH_GROUP_SIZE - 1u) / PENUMBRA_RH_GROUP_SIZE;
+    state.dispatchY = 1u;
+    state.dispatchZ = 1u;
+}
