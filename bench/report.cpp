@@ -196,6 +196,8 @@ std::string recordsJson(const SuiteResults& results)
         j["penumbra_fraction"] = jsonNumber(r.penumbraFraction);
         j["rays"] = r.rays;
         j["nodes_visited"] = r.nodesVisited;
+        if (r.rhPeakPairBytes)
+            j["rh_peak_pair_bytes"] = r.rhPeakPairBytes;
         j["error"] = jsonNumber(r.error);
         j["bytes_per_triangle"] = jsonNumber(r.bytesPerTriangle);
         j["simplify_error"] = jsonNumber(r.simplifyError);
@@ -575,6 +577,43 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
            << number(values[4] / values[1], "%.2fx", "–") << " |\n";
     }
 
+    if (!scenesOf(records, "point").empty()) {
+        md << "\n## Omni-directional light: a point light among the geometry (rh)\n\n"
+              "Hard shadows of a point light a quarter of the height above each scene's centre: sm and srt draw a cube map, "
+              "frt traces every light-facing pixel, rh (Olsson and Assarsson 2011) bounds the rays with a cone hierarchy per cube "
+              "face, no map. afsm is left out here (its casters near the light cover whole cube faces: minutes per frame on "
+              "lavapipe). Median ms per frame; error as in the methods table.\n\n"
+              "| scene | sm | srt | frt | rh | oracle | rh / frt | rh / srt | rh error | frt error |\n|---|---|---|---|---|---|---|---|---|---|\n";
+        for (const std::string& scene : scenesOf(records, "point")) {
+            const char* names[] = {"sm", "srt", "frt", "rh", "oracle"};
+            double values[5];
+            md << "| " << scene;
+            for (int m = 0; m < 5; ++m) {
+                const Record* r = findRecord(records, "point", scene, names[m], ShadowKind::Hard);
+                values[m] = r ? r->medianMs : kNoValue;
+                md << " | " << ms(values[m]);
+            }
+            const Record* rh = findRecord(records, "point", scene, "rh", ShadowKind::Hard);
+            const Record* frt = findRecord(records, "point", scene, "frt", ShadowKind::Hard);
+            md << " | " << number(values[3] / values[2], "%.2fx", "–") << " | " << number(values[3] / values[1], "%.2fx", "–") << " | "
+               << percent(rh ? rh->error : kNoValue) << " | " << percent(frt ? frt->error : kNoValue) << " |\n";
+        }
+    }
+    if (!scenesOf(records, "rh_variants").empty()) {
+        md << "\n### Cone ray hierarchy variants (the paper's Table 2)\n\n"
+              "rh under the point light with each cone/triangle test (precise: section 3.2; spheres: bounding spheres) and the rays "
+              "sorted by direction (section 3.5) or not (screen-space 2x2 blocks). Cone tests are the paper's nodes visited; peak "
+              "pairs is the most traversal memory in use at once (the arena is 32 MiB, bounded).\n\n"
+              "| scene | variant | median ms | cone tests | cone tests / ray | peak pairs MiB | note |\n|---|---|---|---|---|---|---|\n";
+        for (const Record& r : records) {
+            if (r.section != "rh_variants")
+                continue;
+            md << "| " << r.scene << " | " << r.method << " | " << ms(r.medianMs) << " | " << shortCount(r.nodesVisited) << " | "
+               << number(r.rays ? double(r.nodesVisited) / double(r.rays) : kNoValue, "%.1f", "–") << " | "
+               << number(double(r.rhPeakPairBytes) / 1048576.0, "%.1f") << " | " << r.note << " |\n";
+        }
+    }
+
     md << "\n## Time per stage (Figure 9)\n\n"
           "Median GPU ms per stage: raster = camera + shadow_map, PIP = thin_triangles + penumbra_mask (soft) + "
           "classify, compaction = compact, trace, shading = shade, transfers = readback to the CPU. On lavapipe the "
@@ -740,6 +779,8 @@ std::string writeReport(SuiteResults& results)
     writeFile(dir / "methods.csv", recordsCsv(records, "methods"));
     writeFile(dir / "scalability.csv", recordsCsv(records, "scalability"));
     writeFile(dir / "light_size.csv", recordsCsv(records, "light_size"));
+    writeFile(dir / "point.csv", recordsCsv(records, "point"));
+    writeFile(dir / "rh_variants.csv", recordsCsv(records, "rh_variants"));
     writeFile(dir / "stages.csv", stagesCsv(records));
     writeFile(dir / "floors.csv", floorsCsv(records));
     writeFile(dir / "methods.json", recordsJson(results));

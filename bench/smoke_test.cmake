@@ -11,7 +11,7 @@ if(NOT status EQUAL 0)
   message(FATAL_ERROR "penumbra bench ${SUITE} failed (${status}):\n${output}\n${errors}")
 endif()
 
-foreach(name summary.md methods.csv methods.json scalability.csv light_size.csv stages.csv floors.csv methods.gp stages.gp scalability.gp
+foreach(name summary.md methods.csv methods.json scalability.csv light_size.csv point.csv rh_variants.csv stages.csv floors.csv methods.gp stages.gp scalability.gp
              light_size.gp images/city-hard-shadows.png images/city-hard-diff.png images/city-hard-color.png
              images/city-soft-shadows.png images/city-soft-diff.png images/city-soft-color.png)
   if(NOT EXISTS "${OUT}/${name}")

@@ -33,7 +33,7 @@ namespace {
 
 // The methods measured side by side (frt also gives the oracle its G-buffer); soft cases skip those without area lights.
 constexpr ShadowMethod kGpuMethods[] = {ShadowMethod::ShadowMap, ShadowMethod::Selective, ShadowMethod::FullRayTrace,
-                                       ShadowMethod::AliasFree};
+                                       ShadowMethod::AliasFree, ShadowMethod::RayHierarchy};
 constexpr size_t kReferenceMethod = 2; // frt
 constexpr const char* kOracleName = "oracle";
 
@@ -87,6 +87,31 @@ Light hardLightFor(const Light& light)
     if (light.type == LightType::Rectangle || light.type == LightType::Disk || light.type == LightType::Sphere)
         hard.type = LightType::Point;
     return hard;
+}
+
+// The "point" section's light: a point light among the geometry, a quarter
+// of the height above the centre (the plant's pipes, the city's street, the
+// interior's nave), lit as brightly as the generators' lights.
+Light pointLightAmong(const Bounds& bounds)
+{
+    Light point;
+    point.type = LightType::Point;
+    point.position = bounds.center() + glm::vec3(0.0f, 0.25f * (bounds.max.y - bounds.min.y), 0.0f);
+    point.intensity = 4.0f * glm::dot(bounds.extent(), bounds.extent());
+    return point;
+}
+
+// Whether a method runs in a section with this light: rh takes point and spot
+// lights only; afsm is left out of the point section (a point light among the
+// geometry costs it minutes per frame on lavapipe: its casters near the light
+// cover the whole grid of a cube face).
+bool methodTakes(ShadowMethod method, const std::string& section, const Light& light)
+{
+    if (method == ShadowMethod::RayHierarchy)
+        return light.type == LightType::Point || light.type == LightType::Spot;
+    if (method == ShadowMethod::AliasFree)
+        return section != "point";
+    return true;
 }
 
 // A scene generated, preprocessed and uploaded.
@@ -213,7 +238,7 @@ class SuiteRunner {
         soft.penumbraMaps = options.penumbraMaps;
         soft.softShadowMaps = options.softShadowMaps;
         // Steps for the progress bar: 4 per scene and kind, 4 per level, 4 per light radius.
-        totalSteps = options.scenes.size() * 2 * 4 + options.levels.size() * 4 + options.lightRadii.size() * 4;
+        totalSteps = options.scenes.size() * (2 * 4 + 9) + options.levels.size() * 4 + options.lightRadii.size() * 4;
     }
 
     SuiteResults run()
@@ -333,7 +358,7 @@ class SuiteRunner {
         std::string label = section + " " + loaded.name;
         std::vector<ShadowMethod> methods;
         for (ShadowMethod method : kGpuMethods)
-            if (kind == ShadowKind::Hard || shadowMethodDoesAreaLights(method))
+            if ((kind == ShadowKind::Hard || shadowMethodDoesAreaLights(method)) && methodTakes(method, section, light))
                 methods.push_back(method);
         std::vector<Measurement> measured(methods.size());
         for (size_t i = 0; i < methods.size(); ++i) {
@@ -414,6 +439,41 @@ class SuiteRunner {
         renderer->setLights({area});
         measureAllMethods("methods", loaded, ShadowKind::Soft, area, options.softLightRadius, 1.0, kNoValue,
                           prefix + "-soft");
+        // Omni-directional hard shadows: a point light among the geometry, with rh.
+        const Light point = pointLightAmong(loaded.bounds);
+        renderer->setLights({point});
+        measureAllMethods("point", loaded, ShadowKind::Hard, point, 0.0, 1.0, kNoValue, prefix + "-point");
+        measureRhVariants(loaded);
+    }
+
+    // The paper's Table 2 on our scenes: rh with each cone test, rays sorted
+    // or not: time, cone tests (nodes visited) and the traversal's peak pair
+    // memory, under the point section's light (already set).
+    void measureRhVariants(const LoadedScene& loaded)
+    {
+        for (bool sorted : {true, false})
+            for (ConeTest test : {ConeTest::Precise, ConeTest::Spheres}) {
+                const std::string name = std::string("rh ") + coneTestName(test) + (sorted ? " sorted" : " unsorted");
+                step("rh variants " + loaded.name + " " + name);
+                RenderSettings settings = baseSettings(ShadowMethod::RayHierarchy);
+                settings.coneTest = test;
+                settings.rhSort = sorted;
+                std::vector<double> gpu;
+                FrameStats last;
+                for (uint32_t i = 0; i < std::max(options.frames, 1u) + 1; ++i) {
+                    last = renderer->render(settings).stats;
+                    if (i > 0)
+                        gpu.push_back(last.gpuMs);
+                }
+                Record r = baseRecord("rh_variants", loaded, name, ShadowKind::Hard);
+                r.medianMs = median(gpu);
+                r.bestMs = best(gpu);
+                r.rays = last.rays;
+                r.nodesVisited = last.nodesVisited;
+                r.rhPeakPairBytes = last.rhPeakPairBytes;
+                r.note = std::to_string(last.triangleTests) + " ray tests, " + std::to_string(last.rhCasters) + " casters";
+                add(r);
+            }
     }
 
     // Figure 7 (left): one scan model, simplified level by level (each level
@@ -593,7 +653,8 @@ size_t stageGroupOf(const std::string& passName)
     static const std::map<std::string, size_t> groups = {{"camera", 0},        {"view_fit", 0},   {"view_fit_readback", 5},   {"shadow_map", 0},     {"thin_triangles", 1},
                                                          {"penumbra_mask", 1}, {"classify", 1},   {"compact", 2},
                                                          {"trace", 3},         {"shade", 4},      {"readback", 5},
-                                                         {"afsm_casters", 0},  {"afsm_samples", 1}};
+                                                         {"afsm_casters", 0},  {"afsm_samples", 1},
+                                                         {"rh_build", 1},      {"rh_traverse", 3}};
     auto it = groups.find(passName);
     return it == groups.end() ? kStageGroupCount - 1 : it->second;
 }

@@ -30,7 +30,7 @@ struct FloorSummary {
 
 // One measured case (or one that could not run in this build).
 struct Record {
-    std::string section;      // "methods", "scalability" or "light_size"
+    std::string section;      // "methods", "point" (a point light among the geometry), "rh_variants", "scalability" or "light_size"
     std::string scene;        // generator name
     uint64_t triangles = 0;   // triangles stored in the model
     double level = 1.0;       // scalability: triangle ratio of the simplification level
@@ -49,7 +49,8 @@ struct Record {
     double pipFraction = kNoValue;      // pixels given rays / covered pixels
     double penumbraFraction = kNoValue; // soft: covered pixels in the penumbra
     uint64_t rays = 0;
-    uint64_t nodesVisited = 0;
+    uint64_t nodesVisited = 0;        // rh: cone tests
+    uint64_t rhPeakPairBytes = 0;     // rh: the traversal's peak pair memory
     double error = kNoValue;            // mean |visibility - oracle| over light-facing pixels (hard: mismatch share)
     double bytesPerTriangle = kNoValue; // geometry + BVH of the compressed model
     double simplifyError = kNoValue;    // scalability: meshoptimizer's relative error of the level
