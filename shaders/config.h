@@ -75,6 +75,11 @@
 #define PENUMBRA_RH_BUILD_INIT 0u        // the hierarchy's levels from the ray count (one invocation)
 #define PENUMBRA_RH_BUILD_LEAVES 1u      // leaves: cones of 4 consecutive rays
 #define PENUMBRA_RH_BUILD_LEVEL 2u       // a level from the 4 children of each node
+// rh_casters.geom.glsl: which casters a batch gathers.
+#define PENUMBRA_RH_CASTERS_ALL 0u       // every caster
+#define PENUMBRA_RH_CASTERS_LARGE 1u     // two-pass traversal, first pass: the large ones (good occluders)
+#define PENUMBRA_RH_CASTERS_SMALL 2u     // second pass: the others
+#define PENUMBRA_RH_LARGE_ANGLE 0.02     // two-pass: "large" is a bounding sphere wider than this (radius / distance from the light)
 // rh_traverse.comp.glsl: the cone/triangle test (RenderSettings::rhTest).
 #define PENUMBRA_RH_TEST_PRECISE 0u      // Olsson and Assarsson 2011, section 3.2: edge planes, tangent planes, the plane's range
 #define PENUMBRA_RH_TEST_SPHERES 1u      // the triangle's bounding sphere against the cone (Roger et al. 2007)

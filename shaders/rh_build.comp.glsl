@@ -8,7 +8,9 @@
 //    from the ray count;
 //  PENUMBRA_RH_BUILD_LEAVES: node i of level 0 bounds rays 4i .. 4i + 3: the
 //    cone from the light around the directions to their points p, and the
-//    longest distance from the light;
+//    longest distance from the light (push.skipShadowed: leaving out the rays
+//    already shadowed, for the second pass of the two-pass traversal, whose
+//    rebuilt cones are tighter and whose finished nodes are empty);
 //  PENUMBRA_RH_BUILD_LEVEL: node i of level k bounds the cones of nodes
 //    4i .. 4i + 3 of level k - 1.
 // A node stores vec4(axis, half-angle) and vec4(longest, cos, sin, 0) of
@@ -28,6 +30,7 @@ layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
 layout(set = 0, binding = 1, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 2, std430) readonly buffer Rays { uint rayPixels[]; };
 layout(set = 0, binding = 3, std430) buffer Nodes { vec4 nodes[]; };
+layout(set = 0, binding = 5, std430) readonly buffer Shadowed { uint shadowed[]; };
 #include "rh.glsli"
 #define RH_STATE_BINDING 4
 RH_STATE_DECLARE();
@@ -36,7 +39,7 @@ layout(push_constant) uniform RhBuildPush {
     uint lightIndex;
     uint mode;  // PENUMBRA_RH_BUILD_*
     uint level; // PENUMBRA_RH_BUILD_LEVEL: the level built (>= 1)
-    uint pad;
+    uint skipShadowed; // PENUMBRA_RH_BUILD_LEAVES: 1 leaves out the rays already shadowed
 } push;
 
 void storeNode(uint index, vec3 axis, float angle, float longest)
@@ -89,7 +92,7 @@ void main()
         for (uint k = 0u; k < 4u; ++k) {
             uint r = 4u * node + k;
             uint pixelIndex = r < state.rayCount ? rayPixels[r] : RH_NO_RAY;
-            valid[k] = pixelIndex != RH_NO_RAY;
+            valid[k] = pixelIndex != RH_NO_RAY && (push.skipShadowed == 0u || shadowed[pixelIndex] == 0u);
             directions[k] = vec3(0.0, 0.0, 1.0);
             if (valid[k]) {
                 ivec2 pixel = ivec2(int(pixelIndex % uint(width)), int(pixelIndex / uint(width)));

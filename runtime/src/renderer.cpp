@@ -396,9 +396,9 @@ struct Renderer::Impl::FrameScript {
                 const uint32_t view = lightFirstView[light] + layer;
                 const std::vector<uint32_t> clusters = r.shadowCulling.viewClusters(view);
                 r.shadowCulling.markView(cmd, view, false);
-                r.rh.recordLayer(cmd, light, layer, rayOffset, settings.coneTest == ConeTest::Spheres ? PENUMBRA_RH_TEST_SPHERES
+                r.rh.recordLayer(cmd, light, lights[light].position, layer, rayOffset, settings.coneTest == ConeTest::Spheres ? PENUMBRA_RH_TEST_SPHERES
                                                                                                       : PENUMBRA_RH_TEST_PRECISE,
-                                 settings.rhSort,
+                                 settings.rhSort, settings.rhTwoPass,
                                  r.geometry, *r.shadowCulling.model, clusters, [this] { timer.mark(cmd, PassId::RhBuild); },
                                  [this] {
                                      r.submitAndWait(cmd, "rh_traverse");

@@ -27,7 +27,7 @@ struct Result {
 // rh (with `test`) and frt against the oracle on rh's G-buffer; only the
 // pixels whose point `compared` accepts (all when empty).
 Result compareWithOracle(const Mesh& mesh, const Camera& camera, const Light& light, uint32_t size, ConeTest test = ConeTest::Precise,
-                         const std::function<bool(glm::vec3)>& compared = {}, bool sorted = true)
+                         const std::function<bool(glm::vec3)>& compared = {}, bool sorted = true, bool twoPass = false)
 {
     Renderer renderer;
     renderer.loadModel(mesh);
@@ -39,6 +39,7 @@ Result compareWithOracle(const Mesh& mesh, const Camera& camera, const Light& li
     settings.shadows = ShadowMethod::RayHierarchy;
     settings.coneTest = test;
     settings.rhSort = sorted;
+    settings.rhTwoPass = twoPass;
     Frame rh = renderer.render(settings);
     settings.shadows = ShadowMethod::FullRayTrace;
     Frame frt = renderer.render(settings);
@@ -104,6 +105,10 @@ TEST(ConeRayHierarchies, UnsortedRaysMatchTheOracle)
     EXPECT_EQ(unsorted.stats.rays, sorted.stats.rays);
     // Section 3.5: where the view has depth discontinuities, sorting by direction makes a tighter hierarchy.
     EXPECT_LT(sorted.stats.nodesVisited, unsorted.stats.nodesVisited);
+    // Section 3.4: the two-pass traversal (large casters, rebuild, the rest) shadows the same pixels.
+    Result twoPass = compareWithOracle(scene.mesh, scene.cameras[0], light, 256, ConeTest::Precise, {}, true, true);
+    EXPECT_EQ(twoPass.rh.differing, sorted.rh.differing);
+    EXPECT_EQ(twoPass.stats.rhBatches, 2 * sorted.stats.rhBatches);
 }
 
 TEST(ConeRayHierarchies, SpotLightMatchesTheOracleInsideItsCone)

@@ -114,6 +114,7 @@ struct RenderSettings {
     CullMode cull = CullMode::All;      // culling of the camera and shadow-map raster passes
     ConeTest coneTest = ConeTest::Precise; // rh: the cone/triangle test
     bool rhSort = true;                    // rh: rays ordered by direction (section 3.5) before the hierarchy, else by pixel
+    bool rhTwoPass = false;                // rh: large casters first, then the hierarchy rebuilt without the rays they shadowed (3.4)
     // Fit the shadow maps of directional and area lights to what the camera
     // sees (the G-buffer's bounds in each map, read back before the shadow
     // pass) instead of the whole model: finer texels, and frustum culling

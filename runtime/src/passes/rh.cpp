@@ -28,7 +28,7 @@ void RhPass::create(vk::Device& device)
                 sizeof(RhRaysPush));
     scanTiles.create(device, "afsm_scan.comp", {kStorage, kStorage}, sizeof(RhScanPush));
     scanKeys.create(device, "afsm_scan.comp", {kStorage, kStorage}, sizeof(RhScanPush));
-    build.create(device, "rh_build.comp", {kStorageImage, kUniform, kStorage, kStorage, kStorage}, sizeof(RhBuildPush));
+    build.create(device, "rh_build.comp", {kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage}, sizeof(RhBuildPush));
     step.create(device, "rh_step.comp", {kStorage}, sizeof(RhStepPush));
     traverse.create(device, "rh_traverse.comp",
                     {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage},
@@ -117,7 +117,7 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
     scanTiles.write(device, {storageBuffer(tileOffsets.buffer), storageBuffer(blockSums.buffer)});
     scanKeys.write(device, {storageBuffer(keySlots.buffer), storageBuffer(blockSums.buffer)});
     build.write(device, {storageImage(t.position), uniformBuffer(t.frame), storageBuffer(rayList.buffer), storageBuffer(nodes.buffer),
-                         storageBuffer(state.buffer)});
+                         storageBuffer(state.buffer), storageBuffer(t.shadowed->buffer)});
     step.write(device, {storageBuffer(state.buffer)});
     traverse.write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
                             storageBuffer(nodes.buffer), storageBuffer(triangles.buffer), storageBuffer(pairs.buffer),
@@ -143,7 +143,8 @@ void RhPass::beginFrame(VkCommandBuffer cmd)
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
 }
 
-void RhPass::recordLayer(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, float originOffset, uint32_t test, bool sorted,
+void RhPass::recordLayer(VkCommandBuffer cmd, uint32_t lightIndex, const glm::vec3& lightPosition, uint32_t layer, float originOffset,
+                         uint32_t test, bool sorted, bool twoPass,
                          const GpuGeometry& geometry, const CullModel& model, const std::vector<uint32_t>& clusters, const Mark& built,
                          const Submit& submit)
 {
@@ -176,71 +177,86 @@ void RhPass::recordLayer(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t laye
     }
     listRays(sorted ? PENUMBRA_RH_RAYS_SORT_LIST : PENUMBRA_RH_RAYS_LIST);
     // The hierarchy, bottom-up: every level dispatched for its largest size, idle beyond the layer's.
-    build.bind(cmd);
-    build.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_INIT, 0, 0});
-    vkCmdDispatch(cmd, 1, 1, 1);
-    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     const uint32_t levels = maxLevels();
-    uint32_t count = (maxRays + 3) / 4;
-    for (uint32_t level = 0; level < levels; ++level) {
-        build.push(cmd, RhBuildPush{lightIndex, level == 0 ? PENUMBRA_RH_BUILD_LEAVES : PENUMBRA_RH_BUILD_LEVEL, level, 0});
-        const Groups2D groups = spreadGroups(groupCount(count, PENUMBRA_RH_GROUP_SIZE), 65535u);
-        vkCmdDispatch(cmd, groups.x, groups.y, 1);
+    auto buildHierarchy = [&](bool skipShadowed) {
+        build.bind(cmd);
+        build.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_INIT, 0, 0});
+        vkCmdDispatch(cmd, 1, 1, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
-        count = (count + 3) / 4;
-    }
-    built();
-    // The casters, in batches that fit the triangle list.
-    size_t begin = 0;
-    while (begin < clusters.size()) {
-        size_t end = begin;
-        uint64_t batchTriangles = 0;
-        while (end < clusters.size() && (end == begin || batchTriangles + model.clusterTriangles[clusters[end]] <= kTriangleCapacity))
-            batchTriangles += model.clusterTriangles[clusters[end++]];
-        if (batchTriangles > kTriangleCapacity)
-            fail("rh", "a cluster of " + std::to_string(batchTriangles) + " triangles exceeds the caster list");
-        // Reset the batch's words: done .. rootCursor.
-        vk::memoryBarrier(cmd, kCompute | kIndirect | kGeometry, kStorageRW | kIndirectRead, kClear, kTransferWrite);
-        vkCmdFillBuffer(cmd, state.buffer, offsetof(RhState, done), offsetof(RhState, peakPairs) - offsetof(RhState, done), 0);
-        vk::memoryBarrier(cmd, kClear, kTransferWrite, kGeometry | kCompute, kStorageRW);
-        VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
-        rendering.renderArea = {{0, 0}, {1, 1}};
-        rendering.layerCount = 1;
-        vkCmdBeginRendering(cmd, &rendering);
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters[geometry.encoding]);
-        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters.layout, 0, 1, &castersSet, 0, nullptr);
-        vk::setViewport(cmd, 1, 1);
-        const RhCastersPush castersPush{kTriangleCapacity, {}};
-        vkCmdPushConstants(cmd, casters.layout, VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(castersPush), &castersPush);
-        drawClusters(cmd, geometry, model, clusters.data() + begin, end - begin);
-        vkCmdEndRendering(cmd);
-        vk::memoryBarrier(cmd, kGeometry, kStorageWrite, kCompute, kStorageRW);
-        stats.batches++;
-        // Traversal steps until the batch is done; one wait per round.
-        for (;;) {
-            for (uint32_t s = 0; s < levels + 1; ++s) {
-                step.bind(cmd);
-                step.push(cmd, RhStepPush{kPairCapacity, kTriangleCapacity, {}});
-                vkCmdDispatch(cmd, 1, 1, 1);
-                vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead);
-                traverse.bind(cmd);
-                traverse.push(cmd, RhTraversePush{lightIndex, test, originOffset, 0});
-                vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, dispatch));
-                vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
-            }
-            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
-            submit();
-            stats.rounds++;
-            const auto* s = static_cast<const RhState*>(state.mapped);
-            if (s->overflow != 0)
-                fail("rh", std::string("the traversal ran out of room (") + (s->overflow & 1 ? "pairs" : "casters") + ")");
-            if (s->done != 0) {
-                stats.casters += std::min(s->triangleCount, kTriangleCapacity);
-                break;
-            }
+        uint32_t count = (maxRays + 3) / 4;
+        for (uint32_t level = 0; level < levels; ++level) {
+            build.push(cmd, RhBuildPush{lightIndex, level == 0 ? PENUMBRA_RH_BUILD_LEAVES : PENUMBRA_RH_BUILD_LEVEL, level,
+                                        skipShadowed ? 1u : 0u});
+            const Groups2D groups = spreadGroups(groupCount(count, PENUMBRA_RH_GROUP_SIZE), 65535u);
+            vkCmdDispatch(cmd, groups.x, groups.y, 1);
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+            count = (count + 3) / 4;
         }
-        begin = end;
+    };
+    // The casters, in batches that fit the triangle list, each traversing the hierarchy until done.
+    auto traverseCasters = [&](uint32_t select) {
+        size_t begin = 0;
+        while (begin < clusters.size()) {
+            size_t end = begin;
+            uint64_t batchTriangles = 0;
+            while (end < clusters.size() && (end == begin || batchTriangles + model.clusterTriangles[clusters[end]] <= kTriangleCapacity))
+                batchTriangles += model.clusterTriangles[clusters[end++]];
+            if (batchTriangles > kTriangleCapacity)
+                fail("rh", "a cluster of " + std::to_string(batchTriangles) + " triangles exceeds the caster list");
+            // Reset the batch's words: done .. rootCursor.
+            vk::memoryBarrier(cmd, kCompute | kIndirect | kGeometry, kStorageRW | kIndirectRead, kClear, kTransferWrite);
+            vkCmdFillBuffer(cmd, state.buffer, offsetof(RhState, done), offsetof(RhState, peakPairs) - offsetof(RhState, done), 0);
+            vk::memoryBarrier(cmd, kClear, kTransferWrite, kGeometry | kCompute, kStorageRW);
+            VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
+            rendering.renderArea = {{0, 0}, {1, 1}};
+            rendering.layerCount = 1;
+            vkCmdBeginRendering(cmd, &rendering);
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters[geometry.encoding]);
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters.layout, 0, 1, &castersSet, 0, nullptr);
+            vk::setViewport(cmd, 1, 1);
+            const RhCastersPush castersPush{glm::vec4(lightPosition, float(PENUMBRA_RH_LARGE_ANGLE)), kTriangleCapacity, select, {}};
+            vkCmdPushConstants(cmd, casters.layout, VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(castersPush), &castersPush);
+            drawClusters(cmd, geometry, model, clusters.data() + begin, end - begin);
+            vkCmdEndRendering(cmd);
+            vk::memoryBarrier(cmd, kGeometry, kStorageWrite, kCompute, kStorageRW);
+            stats.batches++;
+            // Traversal steps until the batch is done; one wait per round.
+            for (;;) {
+                for (uint32_t s = 0; s < levels + 1; ++s) {
+                    step.bind(cmd);
+                    step.push(cmd, RhStepPush{kPairCapacity, kTriangleCapacity, {}});
+                    vkCmdDispatch(cmd, 1, 1, 1);
+                    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead);
+                    traverse.bind(cmd);
+                    traverse.push(cmd, RhTraversePush{lightIndex, test, originOffset, 0});
+                    vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, dispatch));
+                    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+                }
+                vk::memoryBarrier(cmd, kCompute, kStorageWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
+                submit();
+                stats.rounds++;
+                const auto* s = static_cast<const RhState*>(state.mapped);
+                if (s->overflow != 0)
+                    fail("rh", std::string("the traversal ran out of room (") + (s->overflow & 1 ? "pairs" : "casters") + ")");
+                if (s->done != 0) {
+                    stats.casters += std::min(s->triangleCount, kTriangleCapacity);
+                    break;
+                }
+            }
+            begin = end;
+        }
+    };
+    buildHierarchy(false);
+    built();
+    if (!twoPass) {
+        traverseCasters(PENUMBRA_RH_CASTERS_ALL);
+        return;
     }
+    // Two-pass traversal (section 3.4): the large casters first, then the
+    // hierarchy rebuilt without the rays they shadowed, then the others.
+    traverseCasters(PENUMBRA_RH_CASTERS_LARGE);
+    buildHierarchy(true);
+    traverseCasters(PENUMBRA_RH_CASTERS_SMALL);
 }
 
 RhFrameStats RhPass::frameStats() const

@@ -13,6 +13,8 @@
 #include <cstddef>
 #include <functional>
 
+#include <glm/vec4.hpp>
+
 #include "config.h"
 #include "culling.h"
 #include "model_geometry.h"
@@ -23,7 +25,9 @@ namespace penumbra::passes {
 enum RhRaysBinding : uint32_t {
     kRhRaysPosition, kRhRaysNormal, kRhRaysFrame, kRhRaysList, kRhRaysState, kRhRaysTileOffsets, kRhRaysKeySlots, kRhRaysBindingCount
 };
-enum RhBuildBinding : uint32_t { kRhBuildPosition, kRhBuildFrame, kRhBuildRays, kRhBuildNodes, kRhBuildState, kRhBuildBindingCount };
+enum RhBuildBinding : uint32_t {
+    kRhBuildPosition, kRhBuildFrame, kRhBuildRays, kRhBuildNodes, kRhBuildState, kRhBuildShadowed, kRhBuildBindingCount
+};
 enum RhCastersBinding : uint32_t { kRhCastersState, kRhCastersTriangles, kRhCastersBindingCount };
 enum RhStepBinding : uint32_t { kRhStepState, kRhStepBindingCount };
 enum RhTraverseBinding : uint32_t {
@@ -40,11 +44,13 @@ struct RhScanPush { // afsm_scan.comp's
     uint32_t count, phase;
 };
 struct RhBuildPush {
-    uint32_t lightIndex, mode, level, pad;
+    uint32_t lightIndex, mode, level, skipShadowed;
 };
 struct RhCastersPush {
-    uint32_t capacity, pad[3];
+    glm::vec4 lightLarge; // xyz light, w PENUMBRA_RH_LARGE_ANGLE
+    uint32_t capacity, select, pad[2];
 };
+static_assert(sizeof(RhCastersPush) == 32);
 struct RhStepPush {
     uint32_t pairCapacity, triangleCapacity, pad[2];
 };
@@ -110,7 +116,9 @@ class RhPass {
     // `clusters` (ascending) in batches of at most kTriangleCapacity triangles
     // through it; after each batch `submit` is called until its traversal is done.
     // sorted: the rays ordered by direction (section 3.5), else by pixel (Morton order).
-    void recordLayer(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, float originOffset, uint32_t test, bool sorted,
+    // twoPass: the large casters first, the hierarchy rebuilt without the rays they shadowed, then the rest (section 3.4).
+    void recordLayer(VkCommandBuffer cmd, uint32_t lightIndex, const glm::vec3& lightPosition, uint32_t layer, float originOffset,
+                     uint32_t test, bool sorted, bool twoPass,
                      const GpuGeometry& geometry, const CullModel& model, const std::vector<uint32_t>& clusters, const Mark& built,
                      const Submit& submit);
     // After the frame's fence.
