@@ -15,8 +15,6 @@
 
 namespace penumbra::preprocess_detail {
 
-namespace {
-
 // Encodes exact into node.lo/hi relative to the parent box; returns the decoded box.
 void encodeBounds(model::Node& node, const glm::vec3& parentMin, const glm::vec3& parentMax, const Box& exact,
                   glm::vec3& decodedMin, glm::vec3& decodedMax, uint64_t& widened)
@@ -57,6 +55,8 @@ void encodeBounds(model::Node& node, const glm::vec3& parentMin, const glm::vec3
             fail("preprocess", "internal error: a node box escapes its parent's decoded box");
 }
 
+namespace {
+
 struct Item {
     uint32_t index;   // final node
     uint32_t source;  // TopNode, or local node of `cluster`
@@ -69,7 +69,7 @@ struct Item {
 } // namespace
 
 Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const std::vector<BuiltCluster>& clusters,
-                   const glm::vec3& rootMin, const glm::vec3& rootMax)
+                   const glm::vec3& rootMin, const glm::vec3& rootMax, uint32_t rootDepth, std::vector<float>* exactBoxes)
 {
     Layout layout;
     size_t total = tree.nodes.size();
@@ -80,9 +80,11 @@ Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const 
                                std::to_string(model::kMaxNodes) + " (32-bit node indices); use larger leaves (--leaf-triangles)");
     layout.nodes.reserve(total);
     layout.nodes.resize(1);
+    if (exactBoxes)
+        exactBoxes->assign(6 * total, 0.0f);
     std::vector<uint32_t> finalCluster(clusters.size(), kNone);
 
-    std::vector<Item> stack{{0, 0, kNone, false, 1, rootMin, rootMax}};
+    std::vector<Item> stack{{0, 0, kNone, false, rootDepth, rootMin, rootMax}};
     while (!stack.empty()) {
         const Item item = stack.back();
         stack.pop_back();
@@ -102,6 +104,13 @@ Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const 
             encodeBounds(node, item.parentMin, item.parentMax, exact, dmin, dmax, layout.widened);
         }
         layout.depth = std::max(layout.depth, item.level);
+        if (exactBoxes) {
+            float* out = exactBoxes->data() + 6 * size_t(item.index);
+            for (int a = 0; a < 3; ++a) {
+                out[a] = exact.min[a];
+                out[3 + a] = exact.max[a];
+            }
+        }
 
         // Children: (source, cluster, leafOnly) triples.
         Item children[2];

@@ -143,6 +143,16 @@ void checkModelLimits(uint64_t triangles, const PreprocessOptions& options, cons
 CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* statsOut,
                                      std::vector<uint32_t>* decodedTriangleSource)
 {
+    return buildModel(mesh, options, statsOut, decodedTriangleSource, {});
+}
+
+namespace preprocess_detail {
+
+CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* statsOut,
+                           std::vector<uint32_t>* decodedTriangleSource, const BuildExtras& extras)
+{
+    if (extras.rootDepth < 1 || extras.rootDepth + 2 > model::kMaxBvhDepth)
+        fail("preprocess", "internal error: root depth " + std::to_string(extras.rootDepth));
     const auto start = Clock::now();
     checkOptions(options);
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
@@ -214,7 +224,8 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     // Closed components (kClusterClosed), before the per-triangle arrays of the tree stage so that
     // its temporary memory does not add to their peak.
     const auto closedStart = Clock::now();
-    std::vector<uint8_t> closed = closedTriangles(mesh, threads);
+    std::vector<uint8_t> closed = extras.closed ? std::vector<uint8_t>(extras.closed, extras.closed + inputTriangles)
+                                                : closedTriangles(mesh, threads);
     stats.closedSeconds = secondsSince(closedStart);
     std::vector<TriangleRef> refs(triangleCount);
     std::vector<glm::dvec3> extentSums(chunks, glm::dvec3(0.0));
@@ -265,7 +276,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         }
     }
     TopTree tree = buildTopTree(mesh, refs, meanExtent, options, threads, [&](double f) { progress.report(f); },
-                                splitKeys.empty() ? nullptr : splitKeys.data());
+                                splitKeys.empty() ? nullptr : splitKeys.data(), extras.rootDepth);
     splitKeys = {};
     std::vector<uint32_t> triangles(triangleCount);
     parallelFor(threads, (triangleCount + chunkSize - 1) / chunkSize, [&](uint64_t c) {
@@ -367,7 +378,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         root.grow(c.inputBox);
         maxError = std::max(maxError, c.maxError);
     }
-    Layout layout = layoutNodes(tree, topBoxes, built, root.min, root.max);
+    Layout layout = layoutNodes(tree, topBoxes, built, root.min, root.max, extras.rootDepth, extras.exactBoxes);
     tree = TopTree();
     topBoxes = {};
     for (size_t i = 0; i < clusterCount; ++i)
@@ -420,7 +431,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     h.clusterCount = uint32_t(clusterCount);
     h.nodeCount = uint32_t(data->nodes.size());
     h.materialCount = uint32_t(data->materials.size());
-    h.bvhDepth = layout.depth;
+    h.bvhDepth = layout.depth - extras.rootDepth + 1;
     for (int a = 0; a < 3; ++a) {
         h.boundsMin[a] = root.min[a];
         h.boundsMax[a] = root.max[a];
@@ -445,7 +456,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     stats.vertices = vertexTotal;
     stats.indexBytes = byteTotal;
     stats.widenedBounds = layout.widened;
-    stats.bvhDepth = layout.depth;
+    stats.bvhDepth = h.bvhDepth;
     stats.maxPositionError = maxError;
     stats.materials = h.materialCount;
     stats.bytesPerTriangle = double(clusterCount * sizeof(model::ClusterRecord) + h.nodeCount * sizeof(model::Node) +
@@ -456,5 +467,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         *statsOut = stats;
     return makeCompressedModel(std::move(data));
 }
+
+} // namespace preprocess_detail
 
 } // namespace penumbra

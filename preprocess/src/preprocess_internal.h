@@ -98,9 +98,11 @@ struct TopTree {
 // materials (per input triangle, or null): a node that fits a cluster but
 // mixes materials is split by material until every cluster has one (unless
 // the depth budget forbids it: then the cluster takes its first triangle's).
+// rootDepth: the depth of the tree's root in the final BVH (a chunk of a streamed build
+// hangs below the chunks' top tree), so that the depth budget holds for the whole.
 TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm::vec3& meanExtent,
                      const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress,
-                     const uint32_t* materials = nullptr);
+                     const uint32_t* materials = nullptr, uint32_t rootDepth = 1);
 
 // At most this many materials are kept apart by the clusters; with more (or
 // with vertex colours) each cluster gets the mean colour of its triangles.
@@ -174,7 +176,25 @@ struct Layout {
 // Lays the tree out (children consecutively after their parent, depth first)
 // and encodes every box in 8 bits relative to its parent's decoded box,
 // verified to contain the exact box. topBoxes: exact box per TopNode.
+// rootDepth: the root's depth in the final BVH (Layout::depth counts from 1
+// there). exactBoxes (optional): receives 6 floats per node, its exact box.
 Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const std::vector<BuiltCluster>& clusters,
-                   const glm::vec3& rootMin, const glm::vec3& rootMax);
+                   const glm::vec3& rootMin, const glm::vec3& rootMax, uint32_t rootDepth = 1,
+                   std::vector<float>* exactBoxes = nullptr);
+
+// Encodes exact into node.lo/hi relative to the parent's decoded box, rounded
+// outward and widened (counted in widened) until the decoded box contains
+// exact; returns the decoded box. Fails when exact escapes the parent box.
+void encodeBounds(model::Node& node, const glm::vec3& parentMin, const glm::vec3& parentMax, const Box& exact,
+                  glm::vec3& decodedMin, glm::vec3& decodedMax, uint64_t& widened);
+
+// What a streamed build adds to buildCompressedModel (buildModel).
+struct BuildExtras {
+    uint32_t rootDepth = 1;            // depth of the model's root in the final BVH
+    const uint8_t* closed = nullptr;   // per input triangle: computed outside (streaming: with neighbours and seeds)
+    std::vector<float>* exactBoxes = nullptr; // receives 6 floats per node
+};
+CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* stats,
+                           std::vector<uint32_t>* decodedTriangleSource, const BuildExtras& extras);
 
 } // namespace penumbra::preprocess_detail

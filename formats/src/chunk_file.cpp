@@ -1,0 +1,173 @@
+// Chunk files of streamed and distributed builds (chunk_file.h): written to a
+// temporary name and renamed; read back with every field checked, so a
+// corrupt, truncated or foreign chunk gives one line naming the file.
+#include "penumbra/chunk_file.h"
+
+#include <xxhash.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "io_internal.h"
+
+namespace penumbra {
+
+namespace {
+
+using chunk::ChunkHeader;
+
+uint64_t align64(uint64_t value)
+{
+    return (value + 63) / 64 * 64;
+}
+
+uint64_t headerChecksum(ChunkHeader header)
+{
+    header.headerChecksum = 0;
+    return XXH64(&header, sizeof(header), 0);
+}
+
+void writeZeros(AtomicFileWriter& out, uint64_t count)
+{
+    static constexpr char kZeros[64] = {};
+    while (count > 0) {
+        const size_t n = size_t(std::min<uint64_t>(count, sizeof(kZeros)));
+        out.write(kZeros, n);
+        count -= n;
+    }
+}
+
+// Checks of the header alone against the file size; throws Error("<path>: ...").
+void checkHeader(const ChunkHeader& h, uint64_t fileSize, const std::string& path)
+{
+    if (std::memcmp(h.magic, chunk::kMagic, sizeof(h.magic)) != 0)
+        fail(path, "not a Penumbra chunk file (bad magic)");
+    if (h.version != chunk::kVersion)
+        fail(path, "unsupported chunk file version " + std::to_string(h.version) + " (this build reads version " +
+                       std::to_string(chunk::kVersion) + "; build the chunk again)");
+    if (h.headerSize != sizeof(ChunkHeader))
+        fail(path, "chunk header size " + std::to_string(h.headerSize) + " is not " + std::to_string(sizeof(ChunkHeader)));
+    if (headerChecksum(h) != h.headerChecksum)
+        fail(path, "chunk header checksum mismatch (corrupt file)");
+    if (h.fileSize > fileSize)
+        fail(path, "truncated: chunk header says " + std::to_string(h.fileSize) + " bytes, file has " + std::to_string(fileSize));
+    if (h.fileSize < fileSize)
+        fail(path, "trailing data: chunk header says " + std::to_string(h.fileSize) + " bytes, file has " +
+                       std::to_string(fileSize));
+    if (h.chunkCount == 0 || h.chunkIndex >= h.chunkCount)
+        fail(path, "chunk index " + std::to_string(h.chunkIndex) + " is not below the chunk count " +
+                       std::to_string(h.chunkCount));
+    if (h.rootDepth < 1 || h.rootDepth > model::kMaxBvhDepth)
+        fail(path, "chunk root depth " + std::to_string(h.rootDepth) + " is outside 1.." + std::to_string(model::kMaxBvhDepth));
+    if (h.flags & ~chunk::kFlagEmpty)
+        fail(path, "unknown chunk flag bits");
+    for (uint64_t r : h.reserved)
+        if (r != 0)
+            fail(path, "reserved chunk header field is not zero");
+    if (h.chunkTriangles > h.inputTriangles || h.droppedDegenerate > h.chunkTriangles)
+        fail(path, "chunk triangle counts are inconsistent");
+    for (int a = 0; a < 3; ++a)
+        if (std::isnan(h.cellMin[a]) || std::isnan(h.cellMax[a]) || h.cellMin[a] > h.cellMax[a])
+            fail(path, "chunk cell is not a box");
+    const bool empty = (h.flags & chunk::kFlagEmpty) != 0;
+    if (empty) {
+        if (h.modelOffset || h.modelSize || h.boxesOffset || h.boxesSize || h.boxesChecksum || h.fileSize != sizeof(h) ||
+            h.closedTriangles || h.closedClusterTriangles || h.closedClusters || h.chunkTriangles != h.droppedDegenerate)
+            fail(path, "an empty chunk with a model");
+        return;
+    }
+    if (h.modelOffset != sizeof(ChunkHeader) || h.modelSize % 64 != 0 || h.modelSize < sizeof(model::FileHeader) ||
+        h.modelSize > fileSize - h.modelOffset)
+        fail(path, "chunk model image at " + std::to_string(h.modelOffset) + "+" + std::to_string(h.modelSize) +
+                       " does not fit the file (" + std::to_string(fileSize) + " bytes)");
+    if (h.boxesOffset != h.modelOffset + h.modelSize || h.boxesSize % 24 != 0 || h.boxesSize > fileSize - h.boxesOffset ||
+        align64(h.boxesOffset + h.boxesSize) != h.fileSize)
+        fail(path, "chunk node boxes at " + std::to_string(h.boxesOffset) + "+" + std::to_string(h.boxesSize) +
+                       " do not fit the file (" + std::to_string(fileSize) + " bytes)");
+}
+
+} // namespace
+
+void writeChunkFile(const std::string& path, ChunkHeader header, const CompressedModel* model, std::span<const float> boxes)
+{
+    std::memcpy(header.magic, chunk::kMagic, sizeof(header.magic));
+    header.version = chunk::kVersion;
+    header.headerSize = sizeof(ChunkHeader);
+    AtomicFileWriter out(path);
+    out.write(&header, sizeof(header)); // rewritten at the end
+    if (!model) {
+        header.flags |= chunk::kFlagEmpty;
+        header.modelOffset = header.modelSize = header.boxesOffset = header.boxesSize = header.boxesChecksum = 0;
+        header.fileSize = sizeof(header);
+    } else {
+        if (boxes.size() != 6 * model->nodes.size())
+            fail(path, "internal error: " + std::to_string(boxes.size()) + " box floats for " +
+                           std::to_string(model->nodes.size()) + " nodes");
+        header.flags &= ~chunk::kFlagEmpty;
+        header.modelOffset = sizeof(header);
+        header.modelSize = detail::writeModelImage(*model, out, path);
+        header.boxesOffset = header.modelOffset + header.modelSize;
+        header.boxesSize = boxes.size_bytes();
+        header.boxesChecksum = XXH64(boxes.data(), boxes.size_bytes(), 0);
+        out.write(boxes.data(), boxes.size_bytes());
+        header.fileSize = align64(header.boxesOffset + header.boxesSize);
+        writeZeros(out, header.fileSize - (header.boxesOffset + header.boxesSize));
+    }
+    header.headerChecksum = headerChecksum(header);
+    checkHeader(header, header.fileSize, path + ": refusing to write an invalid chunk");
+    out.writeAt(0, &header, sizeof(header));
+    out.commit(AtomicFileWriter::Durability::Synced);
+}
+
+chunk::ChunkHeader readChunkHeader(const std::string& path)
+{
+    FileReader file(path, 4096);
+    ChunkHeader header;
+    if (file.size() < sizeof(header)) {
+        if (file.size() >= sizeof(chunk::kMagic)) {
+            char magic[8];
+            file.readAt(0, magic, 8);
+            if (std::memcmp(magic, chunk::kMagic, 8) != 0)
+                fail(path, "not a Penumbra chunk file (bad magic)");
+        }
+        fail(path, "truncated: file has " + std::to_string(file.size()) + " bytes, the chunk header alone needs " +
+                       std::to_string(sizeof(header)));
+    }
+    file.readAt(0, &header, sizeof(header));
+    checkHeader(header, file.size(), path);
+    return header;
+}
+
+ChunkFile openChunkFile(const std::string& path)
+{
+    ChunkFile result;
+    result.header = readChunkHeader(path);
+    if (result.empty())
+        return result;
+    auto file = std::make_shared<detail::MappedFile>(path);
+    if (file->size() != result.header.fileSize)
+        fail(path, "the file changed while it was read");
+    const ChunkHeader& h = result.header;
+    std::span<const uint8_t> image(file->data() + h.modelOffset, size_t(h.modelSize));
+    result.model = openModelMemory(image, file, path);
+    const uint8_t* boxes = file->data() + h.boxesOffset;
+    if (h.boxesSize != 24 * uint64_t(result.model.nodes.size()))
+        fail(path, "chunk has " + std::to_string(h.boxesSize / 24) + " node boxes for " +
+                       std::to_string(result.model.nodes.size()) + " nodes");
+    if (XXH64(boxes, size_t(h.boxesSize), 0) != h.boxesChecksum)
+        fail(path, "checksum mismatch in the chunk's node boxes");
+    for (uint64_t at = h.boxesOffset + h.boxesSize; at < h.fileSize; ++at)
+        if (file->data()[at] != 0)
+            fail(path, "nonzero padding byte at offset " + std::to_string(at));
+    result.boxes = {reinterpret_cast<const float*>(boxes), size_t(h.boxesSize / 4)};
+    for (size_t n = 0; n < result.model.nodes.size(); ++n) {
+        const float* b = &result.boxes[6 * n];
+        for (int a = 0; a < 3; ++a)
+            if (!std::isfinite(b[a]) || !std::isfinite(b[3 + a]) || b[a] > b[3 + a])
+                fail(path, "node " + std::to_string(n) + ": chunk box is not a finite box");
+    }
+    result.storage = file;
+    return result;
+}
+
+} // namespace penumbra
