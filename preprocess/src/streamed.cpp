@@ -188,7 +188,8 @@ class VertexCache {
     VertexCache(ModelStream& stream, uint64_t bytes) : stream_(stream)
     {
         const uint64_t blockBytes = kBlock * 12;
-        slots_ = size_t(std::max<uint64_t>(4, bytes / blockBytes));
+        const uint64_t blocks = (stream.vertexCount() + kBlock - 1) / kBlock; // no more than the store holds
+        slots_ = size_t(std::max<uint64_t>(1, std::min<uint64_t>(blocks, std::max<uint64_t>(4, bytes / blockBytes))));
         data_.resize(slots_ * kBlock * 3);
         slotBlock_.assign(slots_, ~uint64_t(0));
         lastUse_.assign(slots_, 0);

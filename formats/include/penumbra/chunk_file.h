@@ -10,6 +10,7 @@
 // 64-byte aligned, checksummed.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -53,6 +54,10 @@ struct ChunkHeader {
     uint64_t headerChecksum;        // XXH64 of this struct with headerChecksum = 0
 };
 static_assert(sizeof(ChunkHeader) == 256);
+static_assert(offsetof(ChunkHeader, chunkIndex) == 32 && offsetof(ChunkHeader, inputTriangles) == 48 &&
+                  offsetof(ChunkHeader, cellMin) == 96 && offsetof(ChunkHeader, modelOffset) == 120 &&
+                  offsetof(ChunkHeader, reserved) == 160 && offsetof(ChunkHeader, headerChecksum) == 248,
+              "ChunkHeader layout is documented in formats/README.md");
 
 } // namespace chunk
 
