@@ -56,15 +56,21 @@ void classifyPixel()
     bool lightFacing = covered && dot(n, L) > 0.0;
 
     ivec2 size = textureSize(shadowMap, 0).xy;
-    ShadowLookup s = projectToShadowMap(light, p, size);
+    // A point light's cube face: its matrix read from the uniform buffer at the
+    // pixel's layer (projectToShadowMap's switch over the six costs far more).
+    const uint layer = shadowLayer(light, p);
+    ShadowLookup s = kLightType == PENUMBRA_LIGHT_POINT ? projectToLayer(frame.lights[push.lightIndex].viewProj[layer], layer, p, size)
+                                                          : projectToShadowMap(light, p, size);
     float visibility = !s.inside || s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
     imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
 
     bool mark = lightFacing && kMode == PENUMBRA_CLASSIFY_ALL;
     if (kMode == PENUMBRA_CLASSIFY_PIP && lightFacing && s.inside) {
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
-        mark = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
-               (visibility == 1.0 && thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r), light, s, size, n, L));
+        float d = linearLightDepth(light, s.depth);
+        float dHat = receiverNearestDepth(light, d, size, n, L);
+        mark = depthDiscontinuityNear(shadowMap, frame.pip.x, light, s, size, d, dHat) ||
+               (visibility == 1.0 && thinOccluderNearer(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r), light, s, d, dHat));
     }
     marks[index] = mark ? 1u : 0u;
 }
