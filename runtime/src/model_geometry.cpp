@@ -132,7 +132,9 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
                                          (indexBytes + 15) & ~VkDeviceSize(15));
             for (uint32_t i = first; i < end; ++i) {
                 const model::ClusterRecord& c = model.clusters[i];
-                commands[i] = {c.indexBytes, 1, c.firstIndex - start.firstIndex, int32_t(c.firstVertex - start.firstVertex), i};
+                // Chunk-relative: below the chunk limit (<= 1 GiB), so 32 bits hold them.
+                commands[i] = {c.indexBytes, 1, uint32_t(c.firstIndex - start.firstIndex),
+                               int32_t(c.firstVertex - start.firstVertex), i};
             }
             first = end;
         }
