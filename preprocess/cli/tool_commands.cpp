@@ -121,6 +121,8 @@ int runPreprocess(const PreprocessArgs& args)
     options.maxLeafTriangles = args.leafTriangles;
     options.threads = args.threads;
     options.separateClosed = args.separateClosed;
+    if (!streamed && !args.tempDir.empty())
+        fail("--temp-dir " + args.tempDir, "only applies to streamed builds (--memory-limit or --chunk)");
     if (streamed) {
         if (ratios.size() != 1 || ratios[0] != 1.0f)
             fail("--simplify " + args.simplify, "cannot be combined with --memory-limit or --chunk (simplification needs the "

@@ -321,11 +321,14 @@ int run(const std::vector<std::string>& args, std::string* err = nullptr)
     std::string command;
     for (const std::string& a : args)
         command += "'" + a + "' ";
-    const std::string errFile = tmp("streamed_stderr.txt");
+    // One file per call: ctest runs the tests of this binary as parallel processes.
+    static int calls = 0;
+    const std::string errFile = tmp("streamed_stderr_" + std::to_string(::getpid()) + "_" + std::to_string(calls++) + ".txt");
     command += "> /dev/null 2> '" + errFile + "'";
     const int status = std::system(command.c_str());
     if (err)
         *err = readBytes(errFile);
+    std::filesystem::remove(errFile);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
