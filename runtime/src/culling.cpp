@@ -207,24 +207,26 @@ CullModel::CullModel(const CompressedModel& model, const GpuGeometry& geometry)
         }
     }
 
-    // The BVH top: from the root down to the Cluster nodes, children stored
-    // consecutively after their parent; boxes are the unions of the cluster
-    // boxes below (the nodes' 8-bit boxes contain them too, but these are tighter).
+    // The BVH top: from the root down to the clusters' root nodes, children
+    // stored consecutively after their parent; boxes are the unions of the
+    // cluster boxes below (the nodes' 8-bit boxes contain them too, but these
+    // are tighter).
     std::vector<uint32_t> modelIndex{0};
     topNodes.resize(1);
     for (size_t t = 0; t < topNodes.size(); ++t) {
         const model::Node& node = model.nodes[modelIndex[t]];
-        if (node.kind == uint8_t(model::NodeKind::Cluster)) {
-            topNodes[t].cluster = node.second;
+        if (node.cluster != model::kNoCluster) {
+            topNodes[t].cluster = node.cluster;
             continue;
         }
-        if (node.kind != uint8_t(model::NodeKind::Interior) || node.childCount == 0)
-            fail("model", "BVH node " + std::to_string(modelIndex[t]) + " above the clusters is not an interior node");
+        const uint32_t children = model::childCount(node);
+        if (children == 0)
+            fail("model", "BVH node " + std::to_string(modelIndex[t]) + " above the clusters has no children");
         topNodes[t].firstChild = uint32_t(topNodes.size());
-        topNodes[t].childCount = node.childCount;
-        for (uint32_t c = 0; c < node.childCount; ++c) {
+        topNodes[t].childCount = children;
+        for (uint32_t c = 0; c < children; ++c) {
             topNodes.push_back({});
-            modelIndex.push_back(node.first + c);
+            modelIndex.push_back(node.child[c]);
         }
     }
     for (size_t t = topNodes.size(); t-- > 0;) {

@@ -12,36 +12,39 @@ namespace penumbra {
 namespace {
 
 // Smallest altitude (twice the area over the longest edge) of each leaf's
-// decoded triangles: a triangle can be a sliver in a light's view only if it
-// is thin in model space or seen edge-on.
+// decoded triangles, at 4 x node + slot: a triangle can be a sliver in a
+// light's view only if it is thin in model space or seen edge-on. 0 for the
+// slots that are not leaves.
 std::vector<float> leafMinimumAltitudes(const CompressedModel& model)
 {
-    std::vector<float> altitudes(model.nodes.size(), 0.0f);
+    std::vector<float> altitudes(model.nodes.size() * model::kNodeChildren, 0.0f);
     auto work = [&](size_t begin, size_t end) {
         for (size_t n = begin; n < end; ++n) {
             const model::Node& node = model.nodes[n];
-            if (node.kind != uint8_t(model::NodeKind::Leaf))
-                continue;
-            const model::ClusterRecord& cluster = model.clusters[node.first];
-            const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.second & 0xFFFF);
-            const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
-            float smallest = std::numeric_limits<float>::max();
-            forEachStripTriangle(strips, strips + (node.second >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
-                glm::vec3 p0 = decodePosition(cluster, vertices[a]), p1 = decodePosition(cluster, vertices[b]),
-                          p2 = decodePosition(cluster, vertices[c]);
-                float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
-                float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
-                smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
-            });
-            altitudes[n] = smallest;
+            for (uint32_t slot = 0; slot < model::kNodeChildren; ++slot) {
+                if (model::childKind(node, slot) != model::ChildKind::Leaf)
+                    continue;
+                const model::ClusterRecord& cluster = model.clusters[node.cluster];
+                const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.child[slot] & 0xFFFF);
+                const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
+                float smallest = std::numeric_limits<float>::max();
+                forEachStripTriangle(strips, strips + (node.child[slot] >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
+                    glm::vec3 p0 = decodePosition(cluster, vertices[a]), p1 = decodePosition(cluster, vertices[b]),
+                              p2 = decodePosition(cluster, vertices[c]);
+                    float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
+                    float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
+                    smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
+                });
+                altitudes[n * model::kNodeChildren + slot] = smallest;
+            }
         }
     };
     unsigned threads = std::max(1u, std::thread::hardware_concurrency());
     std::vector<std::thread> pool;
-    size_t per = (altitudes.size() + threads - 1) / threads;
-    for (unsigned t = 1; t < threads && t * per < altitudes.size(); ++t)
-        pool.emplace_back(work, t * per, std::min(altitudes.size(), (t + 1) * per));
-    work(0, std::min(altitudes.size(), per));
+    const size_t nodes = model.nodes.size(), per = (nodes + threads - 1) / threads;
+    for (unsigned t = 1; t < threads && t * per < nodes; ++t)
+        pool.emplace_back(work, t * per, std::min(nodes, (t + 1) * per));
+    work(0, std::min(nodes, per));
     for (std::thread& thread : pool)
         thread.join();
     return altitudes;
@@ -68,11 +71,15 @@ void createTexelViews(vk::Device& device, GpuGeometry& geometry)
     GpuGeometry::TexelViews& t = geometry.texels;
     t.nodes = createTexelView(device, geometry.nodeChunks[0], VK_FORMAT_R32G32B32A32_UINT, 16);
     t.clusters = createTexelView(device, geometry.clusters, VK_FORMAT_R32G32B32A32_UINT, 16);
-    t.vertices = createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16G16B16A16_UINT, 8);
+    VkFormatProperties vertexFormat{};
+    vkGetPhysicalDeviceFormatProperties(device.physical, VK_FORMAT_R16G16B16_UINT, &vertexFormat);
+    geometry.vertexTexelsSplit = !(vertexFormat.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT);
+    t.vertices = geometry.vertexTexelsSplit ? createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16_UINT, 2)
+                                            : createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16G16B16_UINT, 6);
     t.strips = createTexelView(device, geometry.chunks[0].indices, VK_FORMAT_R32G32B32A32_UINT, 16);
     geometry.texelsComplete = geometry.nodeChunks.size() == 1 && geometry.chunks.size() == 1 &&
                               geometry.nodeChunks[0].size / 16 <= maxTexels && geometry.clusters.size / 16 <= maxTexels &&
-                              geometry.chunks[0].vertices.size / 8 <= maxTexels && geometry.chunks[0].indices.size / 16 <= maxTexels;
+                              geometry.chunks[0].vertices.size / (geometry.vertexTexelsSplit ? 2 : 6) <= maxTexels && geometry.chunks[0].indices.size / 16 <= maxTexels;
 }
 
 VkDeviceSize chunkLimit(const vk::Device& device)
@@ -165,7 +172,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         }
         geometry.albedo = vk::createBufferWithData(device, albedo.data(), albedo.size() * sizeof(uint32_t),
                                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
-        if (model.nodes.size() * sizeof(float) <= limit) {
+        if (model.nodes.size() * model::kNodeChildren * sizeof(float) <= limit) {
             std::vector<float> altitudes = leafMinimumAltitudes(model);
             geometry.leafAltitudes = vk::createBufferWithData(device, altitudes.data(), altitudes.size() * sizeof(float),
                                                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
@@ -239,11 +246,13 @@ GeometryInputState geometryInputState(GeometryEncoding encoding)
     }
     state.bindings[0] = {0, sizeof(model::QuantizedVertex), VK_VERTEX_INPUT_RATE_VERTEX};
     state.bindings[1] = {1, sizeof(model::ClusterRecord), VK_VERTEX_INPUT_RATE_INSTANCE};
-    state.attributes[0] = {0, 0, VK_FORMAT_R16G16B16A16_UINT, 0};
+    // A 6-byte QuantizedVertex as R16G16_UINT (x, y) + R16_UINT (z): formats every device fetches.
+    state.attributes[0] = {0, 0, VK_FORMAT_R16G16_UINT, 0};
     state.attributes[1] = {1, 1, VK_FORMAT_R32G32B32_SFLOAT, offsetof(model::ClusterRecord, boxMin)};
     state.attributes[2] = {2, 1, VK_FORMAT_R32G32B32_SFLOAT, offsetof(model::ClusterRecord, step)};
+    state.attributes[3] = {3, 0, VK_FORMAT_R16_UINT, offsetof(model::QuantizedVertex, z)};
     state.bindingCount = 2;
-    state.attributeCount = 3;
+    state.attributeCount = 4;
     return state;
 }
 

@@ -39,17 +39,20 @@ struct GpuGeometry {
     // The BVH (model::Node[]) for the ray tracer, in chunks of 2^nodeChunkShift
     // nodes (node i is in nodeChunks[i >> nodeChunkShift]); compressed only.
     std::vector<vk::Buffer> nodeChunks;
-    // float per node: a Leaf's smallest triangle altitude (model units), 0 for
-    // other nodes. The thin-triangle pass skips leaves with no sliver. Empty
-    // when the array would not fit one buffer (then no leaf is skipped).
+    // float per child slot (4 x node + slot): a leaf's smallest triangle
+    // altitude (model units), 0 for other slots. The thin-triangle pass skips
+    // leaves with no sliver. Empty when the array would not fit one buffer
+    // (then no leaf is skipped).
     vk::Buffer leafAltitudes;
     uint32_t nodeChunkShift = 0;
     uint32_t nodeCount = 0;
     // The ray tracer's view of the model through uniform texel buffers: on
     // lavapipe a texel fetch is a branch-free gather, every other buffer load
     // not provably uniform a loop over the lanes (2.5-4x slower, measured).
-    // nodes and clusters: RGBA32UI (a Node is one texel, a ClusterRecord
-    // four); vertices: R16G16B16A16_UINT (one QuantizedVertex a texel);
+    // nodes and clusters: RGBA32UI (a Node and a ClusterRecord are four
+    // texels each); vertices: R16G16B16_UINT (one QuantizedVertex a texel)
+    // where the device takes that format in a texel buffer, else R16_UINT
+    // (three texels a vertex, vertexTexelsSplit);
     // strips: RGBA32UI (16 strip bytes a texel, the buffer padded to 16).
     // Made when the nodes, the vertices and the strips each lie in one buffer
     // within the device's texel-buffer limit (texelsComplete); the views
@@ -58,6 +61,7 @@ struct GpuGeometry {
         VkBufferView nodes = VK_NULL_HANDLE, clusters = VK_NULL_HANDLE, vertices = VK_NULL_HANDLE, strips = VK_NULL_HANDLE;
     } texels;
     bool texelsComplete = false;
+    bool vertexTexelsSplit = false; // vertices as R16_UINT texels (3 a vertex)
     float maxPositionError = 0;   // header.maxPositionError, model units
     uint64_t triangles = 0;
     uint64_t vertexCount = 0;
@@ -72,7 +76,7 @@ void destroyGeometry(vk::Device& device, GpuGeometry& geometry);
 // Pipeline state of the encoding (vertex bindings/attributes, topology, restart).
 struct GeometryInputState {
     VkVertexInputBindingDescription bindings[2];
-    VkVertexInputAttributeDescription attributes[3];
+    VkVertexInputAttributeDescription attributes[4];
     uint32_t bindingCount = 0, attributeCount = 0;
     VkPrimitiveTopology topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_STRIP;
     VkBool32 primitiveRestart = VK_TRUE;
