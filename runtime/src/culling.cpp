@@ -195,16 +195,12 @@ CullModel::CullModel(const CompressedModel& model, const GpuGeometry& geometry)
         clusterTriangles[i] = c.triangleCount;
         totalTriangles += c.triangleCount;
     }
-    commands.resize(clusterCount);
+    commands = geometry.commands;
     clusterChunk.resize(clusterCount);
     for (size_t k = 0; k < geometry.chunks.size(); ++k) {
         const GpuGeometry::Chunk& chunk = geometry.chunks[k];
-        for (uint32_t i = chunk.firstCluster; i < chunk.firstCluster + chunk.clusterCount; ++i) {
-            const model::ClusterRecord& c = model.clusters[i];
-            commands[i] = {c.indexBytes, 1, uint32_t(c.firstIndex - chunk.indexBase),
-                           int32_t(c.firstVertex - chunk.vertexBase), i};
+        for (uint32_t i = chunk.firstCluster; i < chunk.firstCluster + chunk.clusterCount; ++i)
             clusterChunk[i] = uint32_t(k);
-        }
     }
 
     // The BVH top: from the root down to the Cluster nodes, children stored
@@ -480,11 +476,7 @@ void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_
         size_t end = begin + 1;
         while (end < clusters.size() && model->clusterChunk[clusters[end]] == chunkIndex)
             ++end;
-        const GpuGeometry::Chunk& chunk = geometry.chunks[chunkIndex];
-        VkBuffer buffers[2] = {chunk.vertices.buffer, geometry.clusters.buffer};
-        VkDeviceSize offsets[2] = {0, 0};
-        vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
-        vkCmdBindIndexBuffer(cmd, chunk.indices.buffer, 0, VK_INDEX_TYPE_UINT8_EXT);
+        bindChunk(cmd, geometry, geometry.chunks[chunkIndex]);
         vkCmdDrawIndexedIndirect(cmd, drawCommands.buffer, (firstCommand + begin) * kCommandBytes,
                                  uint32_t(end - begin), uint32_t(kCommandBytes));
         begin = end;
@@ -524,11 +516,7 @@ void drawClusters(VkCommandBuffer cmd, const GpuGeometry& geometry, const CullMo
         size_t end = begin + 1;
         while (end < count && clusters[end] == clusters[end - 1] + 1 && model.clusterChunk[clusters[end]] == chunkIndex)
             ++end;
-        const GpuGeometry::Chunk& chunk = geometry.chunks[chunkIndex];
-        VkBuffer buffers[2] = {chunk.vertices.buffer, geometry.clusters.buffer};
-        VkDeviceSize offsets[2] = {0, 0};
-        vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
-        vkCmdBindIndexBuffer(cmd, chunk.indices.buffer, 0, VK_INDEX_TYPE_UINT8_EXT);
+        bindChunk(cmd, geometry, geometry.chunks[chunkIndex]);
         vkCmdDrawIndexedIndirect(cmd, geometry.indirect.buffer, VkDeviceSize(clusters[begin]) * kCommandBytes, uint32_t(end - begin),
                                  uint32_t(kCommandBytes));
         begin = end;
