@@ -349,7 +349,7 @@ void Culling::planView(ViewPlan& plan)
               [](const Entry& x, const Entry& y) { return x.cluster < y.cluster; });
     if (occlusion)
         ++state.frame;
-    plan.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    plan.cpuMs += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
 void Culling::markClustersNearReceivers(const ReceiverMask& mask, uint32_t* bits) const
@@ -391,8 +391,29 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
             --state.frustumOnlyFrames;
         plan.firstQuery = queryCount;
         plan.firstCommand = commandCount;
-        if (mode != CullMode::None)
-            planView(plan);
+        if (mode != CullMode::None) {
+            bool planned = false;
+            if (plan.view.occlusion && adaptive) {
+                // A view with few triangles in its frustum draws them faster
+                // than it tests boxes: a query rasterizes its box's footprint
+                // (on lavapipe, a sun's 2048^2 map of a 2,000-triangle model
+                // took 21 ms of CPU with one query, 13 ms without).
+                ViewPlan frustumOnly = plan;
+                frustumOnly.view.occlusion = false;
+                planView(frustumOnly);
+                uint64_t triangles = 0;
+                for (const Entry& entry : frustumOnly.finalPhase)
+                    triangles += model->clusterTriangles[entry.cluster];
+                if (triangles < PENUMBRA_CULL_MIN_TRIANGLES) {
+                    plan = std::move(frustumOnly);
+                    planned = true;
+                } else {
+                    plan.cpuMs = frustumOnly.cpuMs;
+                }
+            }
+            if (!planned)
+                planView(plan);
+        }
         for (Entry& entry : plan.finalPhase)
             if (entry.query != kNoQuery)
                 entry.query += plan.firstQuery;

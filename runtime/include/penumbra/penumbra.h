@@ -148,7 +148,9 @@ struct RenderSettings {
     // the fit: one host round trip per frame). Same image either way.
     bool cullBesideReceivers = true;
     // CullMode::All: a view whose occlusion queries cull little goes frustum-only
-    // for a few frames. false (tests): queries in every view, every frame.
+    // for a few frames, and a view whose frustum holds fewer than
+    // PENUMBRA_CULL_MIN_TRIANGLES (65536) triangles is culled by its frustum
+    // only. false (tests): queries in every view, every frame.
     bool adaptiveOcclusion = true;
     // Benchmarks (penumbra bench's floor table): also time each pass's floor
     // in the frame, recorded just before the pass as "<pass>_floor": for
