@@ -46,7 +46,9 @@ void writeSet(Device& device, VkDescriptorSet set, const std::vector<Binding>& b
         write.dstBinding = i;
         write.descriptorCount = 1;
         write.descriptorType = b.type;
-        if (b.buffer) {
+        if (b.type == kTexels) {
+            write.pTexelBufferView = &b.texels;
+        } else if (b.buffer) {
             buffers[i] = {b.buffer, 0, b.range};
             write.pBufferInfo = &buffers[i];
         } else {

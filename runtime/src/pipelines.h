@@ -19,6 +19,7 @@ constexpr VkDescriptorType kStorageImage = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
 constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
 constexpr VkDescriptorType kUniform = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
 constexpr VkDescriptorType kStorage = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+constexpr VkDescriptorType kTexels = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 
 // Pipeline layout with at most one set and one push-constant range of pushBytes.
 VkPipelineLayout createPipelineLayout(Device& device, VkDescriptorSetLayout setLayout, uint32_t pushBytes, VkShaderStageFlags stages);
@@ -34,11 +35,13 @@ struct Binding {
     VkBuffer buffer = VK_NULL_HANDLE;
     VkImageLayout layout = VK_IMAGE_LAYOUT_GENERAL;
     VkDeviceSize range = VK_WHOLE_SIZE;
+    VkBufferView texels = VK_NULL_HANDLE; // kTexels
 };
 inline Binding storageImage(VkImageView view) { return {kStorageImage, view}; }
 inline Binding sampledImage(VkImageView view, VkSampler sampler, VkImageLayout layout) { return {kSampled, view, sampler, {}, layout}; }
 inline Binding uniformBuffer(VkBuffer buffer) { return {kUniform, {}, {}, buffer}; }
 inline Binding storageBuffer(VkBuffer buffer, VkDeviceSize range = VK_WHOLE_SIZE) { return {kStorage, {}, {}, buffer, {}, range}; }
+inline Binding texelBuffer(VkBufferView view) { return {kTexels, {}, {}, {}, {}, VK_WHOLE_SIZE, view}; }
 
 // Writes bindings[i] to binding i of set.
 void writeSet(Device& device, VkDescriptorSet set, const std::vector<Binding>& bindings);
