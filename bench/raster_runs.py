@@ -13,7 +13,10 @@ times on a shared machine.
   e.g. bench/raster_runs.py big.penumbra --config all='-- --cull all' --config none='-- --cull none'
 
 A configuration is environment assignments, then `--`, then render options
-(either part may be empty). Default configurations: --cull all and --cull none.
+(either part may be empty); BIN=path among the assignments runs another
+penumbra binary (A/B of two builds). Default configurations: --cull all and
+--cull none. With PENUMBRA_FLOOR_CLOCK=cpu and --floors, pass times are the
+process's CPU time, steady on a shared machine.
 """
 import argparse
 import json
@@ -33,6 +36,8 @@ def parse_config(text):
 
 
 def run_once(penumbra, model, size, frames, shadows, env, options, tmp):
+    env = dict(env)
+    penumbra = env.pop('BIN', penumbra)
     stats = os.path.join(tmp, 'stats.json')
     timing = os.path.join(tmp, 'time.txt')
     cmd = ['/usr/bin/time', '-o', timing, '-f', '%R %U %S %M', penumbra, 'render', model, '-o', os.path.join(tmp, 'out.png'),

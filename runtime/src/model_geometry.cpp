@@ -167,9 +167,10 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
             raster.clear();
             for (uint32_t i = first; i < end; ++i) {
                 const model::ClusterRecord& c = model.clusters[i];
+                // Chunk-relative: below the chunk limit (<= 1 GiB), so 32 bits hold them.
                 const int32_t vertexOffset = int32_t(c.firstVertex - start.firstVertex);
                 if (rasterIndices == RasterIndices::Strips) {
-                    commands[i] = {c.indexBytes, 1, c.firstIndex - start.firstIndex, vertexOffset, i};
+                    commands[i] = {c.indexBytes, 1, uint32_t(c.firstIndex - start.firstIndex), vertexOffset, i};
                     continue;
                 }
                 const size_t at = raster.size();
