@@ -54,7 +54,7 @@ struct GpuGeometry {
     // lavapipe a texel fetch is a branch-free gather, every other buffer load
     // not provably uniform a loop over the lanes (2.5-4x slower, measured).
     // nodes and clusters: RGBA32UI (a Node is one texel, a ClusterRecord
-    // three); vertices: R16G16B16A16_UINT (one QuantizedVertex a texel);
+    // four); vertices: R16G16B16A16_UINT (one QuantizedVertex a texel);
     // strips: RGBA32UI (16 strip bytes a texel, the buffer padded to 16).
     // Made when the nodes, the vertices and the strips each lie in one buffer
     // within the device's texel-buffer limit (texelsComplete); the views

@@ -29,11 +29,9 @@ static_assert(sizeof(ModelTableHeader) == 64);
 
 struct ModelTableChunk {
     uint32_t firstCluster;
-    uint32_t vertexBase;
-    uint32_t indexBase;
-    uint32_t reserved;
-    VkDeviceAddress vertices;
-    VkDeviceAddress indices;
+    uint32_t reserved[3];
+    VkDeviceAddress vertices; // the chunk's vertex buffer address minus 8 x its first vertex (mod 2^64)
+    VkDeviceAddress indices;  // the chunk's strip buffer address minus its first strip byte (mod 2^64)
 };
 static_assert(sizeof(ModelTableChunk) == 32);
 
@@ -88,10 +86,9 @@ void TracePass::bindModel(vk::Device& device, const GpuGeometry& geometry)
         const GpuGeometry::Chunk& chunk = geometry.chunks[i];
         ModelTableChunk entry{};
         entry.firstCluster = chunk.firstCluster;
-        entry.vertexBase = uint32_t(chunk.vertexBase); // ClusterRecord::firstVertex is 32-bit
-        entry.indexBase = uint32_t(chunk.indexBase);   // ClusterRecord::firstIndex is 32-bit
-        entry.vertices = vk::bufferAddress(device, chunk.vertices);
-        entry.indices = vk::bufferAddress(device, chunk.indices);
+        // ClusterRecord::firstVertex and firstIndex are 64-bit: the shader adds them to these bases.
+        entry.vertices = vk::bufferAddress(device, chunk.vertices) - chunk.vertexBase * sizeof(model::QuantizedVertex);
+        entry.indices = vk::bufferAddress(device, chunk.indices) - chunk.indexBase;
         std::memcpy(table.data() + chunksOffset + i * sizeof(entry), &entry, sizeof(entry));
     }
     vk::destroyBuffer(device, modelTable);
