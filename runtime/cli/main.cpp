@@ -35,6 +35,7 @@ struct RenderArgs {
     std::vector<std::string> lights;
     std::string shadows = "sm";
     std::string cull = "all";
+    std::string rasterIndices = "auto";
     std::string shadowFit = "view";
     uint32_t shadowMapSize = 2048;
     uint32_t samples = RenderSettings{}.lightSamples;
@@ -184,6 +185,7 @@ int runRender(const RenderArgs& args)
     settings.rhSort = args.rhSort == "on";
     settings.rhTwoPass = args.rhTwoPass == "on";
     settings.cull = parseCullMode(args.cull);
+    const RasterIndices rasterIndices = parseRasterIndices(args.rasterIndices);
     settings.fitShadowMapsToView = args.shadowFit == "view";
     settings.shadowMapSize = args.shadowMapSize;
     settings.lightSamples = args.samples;
@@ -230,6 +232,7 @@ int runRender(const RenderArgs& args)
     RendererOptions options;
     options.device = args.device;
     options.validation = args.validation;
+    options.rasterIndices = rasterIndices;
     std::optional<Renderer> renderer(std::in_place, options);
 
     auto loadStart = std::chrono::steady_clock::now();
@@ -558,6 +561,11 @@ int main(int argc, char** argv)
     renderCommand->add_option("--shadows", render.shadows, "Shadow method: " + shadowMethodsHelp())->capture_default_str();
     renderCommand->add_option("--cull", render.cull,
                               "Raster culling with the BVH: none, frustum, all (frustum + occlusion queries); same image in every mode")
+        ->capture_default_str();
+    renderCommand->add_option("--raster-indices", render.rasterIndices,
+                              "What the raster passes draw of the compressed model: auto (triangles on a CPU device, strips on a "
+                              "GPU), strips (the file's strips with primitive restart) or triangles (8-bit lists decoded at load); "
+                              "same image")
         ->capture_default_str();
     renderCommand->add_option("--shadow-fit", render.shadowFit,
                               "Directional and area lights' shadow maps cover: view (what the camera sees: finer texels, and the "

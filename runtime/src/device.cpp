@@ -453,6 +453,9 @@ void createDevice(Device& device, const RendererOptions& options)
     device.physical = choosePhysicalDevice(device.instance, options.device);
     device.maxModelBufferBytes = options.maxModelBufferBytes;
     vkGetPhysicalDeviceProperties(device.physical, &device.properties);
+    device.rasterIndices = options.rasterIndices != RasterIndices::Auto ? options.rasterIndices
+                           : device.properties.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU ? RasterIndices::Triangles
+                                                                                          : RasterIndices::Strips;
     vkGetPhysicalDeviceMemoryProperties(device.physical, &device.memory);
     graphicsComputeFamily(device.physical, device.queueFamily);
     {

@@ -21,10 +21,12 @@ enum class GeometryEncoding {
     UncompressedReference,  // indexed float triangle list: benchmarks compare against it
 };
 
+
 struct GpuGeometry {
     struct Chunk {
         vk::Buffer vertices;      // QuantizedVertex[] (or float3[] for the reference)
         vk::Buffer indices;       // uint8 strips (or uint32 triangle list for the reference)
+        vk::Buffer rasterIndices; // RasterIndices::Triangles: uint8 triangle lists the raster passes draw (else empty: `indices`)
         uint32_t firstCluster = 0;
         uint32_t clusterCount = 0;
         uint64_t vertexBase = 0;  // global index of the chunk's first vertex
@@ -35,6 +37,9 @@ struct GpuGeometry {
     std::vector<Chunk> chunks;
     vk::Buffer clusters;          // ClusterRecord[] as per-instance vertex data (reference: one identity record)
     vk::Buffer indirect;          // VkDrawIndexedIndirectCommand per cluster
+    std::vector<VkDrawIndexedIndirectCommand> commands; // the same on the host (compressed only)
+    RasterIndices rasterIndices = RasterIndices::Strips; // Strips or Triangles (device.rasterIndices)
+    uint64_t rasterIndexBytes = 0;                       // bytes of the chunks' rasterIndices
     vk::Buffer albedo;            // uint per cluster: its material's linear RGB, 8 bits each (gbuffer.vert); compressed only
     // The BVH (model::Node[]) for the ray tracer, in chunks of 2^nodeChunkShift
     // nodes (node i is in nodeChunks[i >> nodeChunkShift]); compressed only.
@@ -69,11 +74,13 @@ struct GpuGeometry {
     uint64_t deviceBytes = 0;     // bytes of all model buffers
 };
 
+// Raster passes draw device.rasterIndices (Strips or Triangles, RendererOptions).
 GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model);
 GpuGeometry uploadReference(vk::Device& device, const Mesh& mesh);
 void destroyGeometry(vk::Device& device, GpuGeometry& geometry);
 
-// Pipeline state of the encoding (vertex bindings/attributes, topology, restart).
+// Pipeline state of the encoding (vertex bindings/attributes, topology, restart);
+// rasterIndices: the compressed model's (device.rasterIndices).
 struct GeometryInputState {
     VkVertexInputBindingDescription bindings[2];
     VkVertexInputAttributeDescription attributes[4];
@@ -81,9 +88,11 @@ struct GeometryInputState {
     VkPrimitiveTopology topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_STRIP;
     VkBool32 primitiveRestart = VK_TRUE;
 };
-GeometryInputState geometryInputState(GeometryEncoding encoding);
+GeometryInputState geometryInputState(GeometryEncoding encoding, RasterIndices rasterIndices);
+// Binds the chunk's vertices (and the cluster records) and the index buffer the raster passes draw.
+void bindChunk(VkCommandBuffer cmd, const GpuGeometry& geometry, const GpuGeometry::Chunk& chunk);
 
-// Records the draws of the whole model; beforeChunk (optional) runs before each
+// Records the draws of the whole model (its per-cluster indirect commands); beforeChunk (optional) runs before each
 // chunk's draws with the chunk's global vertex base (e.g. to push constants).
 void drawGeometry(VkCommandBuffer cmd, const GpuGeometry& geometry, const std::function<void(uint64_t vertexBase)>& beforeChunk = {});
 
