@@ -16,25 +16,10 @@ namespace {
 
 using chunk::ChunkHeader;
 
-uint64_t align64(uint64_t value)
-{
-    return (value + 63) / 64 * 64;
-}
-
 uint64_t headerChecksum(ChunkHeader header)
 {
     header.headerChecksum = 0;
     return XXH64(&header, sizeof(header), 0);
-}
-
-void writeZeros(AtomicFileWriter& out, uint64_t count)
-{
-    static constexpr char kZeros[64] = {};
-    while (count > 0) {
-        const size_t n = size_t(std::min<uint64_t>(count, sizeof(kZeros)));
-        out.write(kZeros, n);
-        count -= n;
-    }
 }
 
 // Checks of the header alone against the file size; throws Error("<path>: ...").
@@ -71,7 +56,7 @@ void checkHeader(const ChunkHeader& h, uint64_t fileSize, const std::string& pat
             fail(path, "chunk cell is not a box");
     const bool empty = (h.flags & chunk::kFlagEmpty) != 0;
     if (empty) {
-        if (h.modelOffset || h.modelSize || h.boxesOffset || h.boxesSize || h.boxesChecksum || h.fileSize != sizeof(h) ||
+        if (h.modelOffset || h.modelSize || h.fileSize != sizeof(h) ||
             h.closedTriangles || h.closedClusterTriangles || h.closedClusters || h.chunkTriangles != h.droppedDegenerate)
             fail(path, "an empty chunk with a model");
         return;
@@ -80,15 +65,14 @@ void checkHeader(const ChunkHeader& h, uint64_t fileSize, const std::string& pat
         h.modelSize > fileSize - h.modelOffset)
         fail(path, "chunk model image at " + std::to_string(h.modelOffset) + "+" + std::to_string(h.modelSize) +
                        " does not fit the file (" + std::to_string(fileSize) + " bytes)");
-    if (h.boxesOffset != h.modelOffset + h.modelSize || h.boxesSize % 24 != 0 || h.boxesSize > fileSize - h.boxesOffset ||
-        align64(h.boxesOffset + h.boxesSize) != h.fileSize)
-        fail(path, "chunk node boxes at " + std::to_string(h.boxesOffset) + "+" + std::to_string(h.boxesSize) +
-                       " do not fit the file (" + std::to_string(fileSize) + " bytes)");
+    if (h.modelOffset + h.modelSize != h.fileSize)
+        fail(path, "chunk model image at " + std::to_string(h.modelOffset) + "+" + std::to_string(h.modelSize) +
+                       " does not end the file (" + std::to_string(h.fileSize) + " bytes)");
 }
 
 } // namespace
 
-void writeChunkFile(const std::string& path, ChunkHeader header, const CompressedModel* model, std::span<const float> boxes)
+void writeChunkFile(const std::string& path, ChunkHeader header, const CompressedModel* model)
 {
     std::memcpy(header.magic, chunk::kMagic, sizeof(header.magic));
     header.version = chunk::kVersion;
@@ -97,21 +81,13 @@ void writeChunkFile(const std::string& path, ChunkHeader header, const Compresse
     out.write(&header, sizeof(header)); // rewritten at the end
     if (!model) {
         header.flags |= chunk::kFlagEmpty;
-        header.modelOffset = header.modelSize = header.boxesOffset = header.boxesSize = header.boxesChecksum = 0;
+        header.modelOffset = header.modelSize = 0;
         header.fileSize = sizeof(header);
     } else {
-        if (boxes.size() != 6 * model->nodes.size())
-            fail(path, "internal error: " + std::to_string(boxes.size()) + " box floats for " +
-                           std::to_string(model->nodes.size()) + " nodes");
         header.flags &= ~chunk::kFlagEmpty;
         header.modelOffset = sizeof(header);
         header.modelSize = detail::writeModelImage(*model, out, path);
-        header.boxesOffset = header.modelOffset + header.modelSize;
-        header.boxesSize = boxes.size_bytes();
-        header.boxesChecksum = XXH64(boxes.data(), boxes.size_bytes(), 0);
-        out.write(boxes.data(), boxes.size_bytes());
-        header.fileSize = align64(header.boxesOffset + header.boxesSize);
-        writeZeros(out, header.fileSize - (header.boxesOffset + header.boxesSize));
+        header.fileSize = header.modelOffset + header.modelSize;
     }
     header.headerChecksum = headerChecksum(header);
     checkHeader(header, header.fileSize, path + ": refusing to write an invalid chunk");
@@ -150,22 +126,9 @@ ChunkFile openChunkFile(const std::string& path)
     const ChunkHeader& h = result.header;
     std::span<const uint8_t> image(file->data() + h.modelOffset, size_t(h.modelSize));
     result.model = openModelMemory(image, file, path);
-    const uint8_t* boxes = file->data() + h.boxesOffset;
-    if (h.boxesSize != 24 * uint64_t(result.model.nodes.size()))
-        fail(path, "chunk has " + std::to_string(h.boxesSize / 24) + " node boxes for " +
-                       std::to_string(result.model.nodes.size()) + " nodes");
-    if (XXH64(boxes, size_t(h.boxesSize), 0) != h.boxesChecksum)
-        fail(path, "checksum mismatch in the chunk's node boxes");
-    for (uint64_t at = h.boxesOffset + h.boxesSize; at < h.fileSize; ++at)
-        if (file->data()[at] != 0)
-            fail(path, "nonzero padding byte at offset " + std::to_string(at));
-    result.boxes = {reinterpret_cast<const float*>(boxes), size_t(h.boxesSize / 4)};
-    for (size_t n = 0; n < result.model.nodes.size(); ++n) {
-        const float* b = &result.boxes[6 * n];
-        for (int a = 0; a < 3; ++a)
-            if (!std::isfinite(b[a]) || !std::isfinite(b[3 + a]) || b[a] > b[3 + a])
-                fail(path, "node " + std::to_string(n) + ": chunk box is not a finite box");
-    }
+    if (result.model.header.bvhDepth + h.rootDepth - 1 > model::kMaxBvhDepth)
+        fail(path, "the chunk's BVH (" + std::to_string(result.model.header.bvhDepth) + " levels) does not fit below depth " +
+                       std::to_string(h.rootDepth) + " of a " + std::to_string(model::kMaxBvhDepth) + "-level BVH");
     result.storage = file;
     return result;
 }

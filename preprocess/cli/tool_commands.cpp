@@ -235,7 +235,19 @@ int runInfo(const std::string& path)
     std::printf("  vertices         %llu (%.3f per triangle)\n", (unsigned long long)h.vertexCount, double(h.vertexCount) / triangles);
     std::printf("  clusters         %u (avg %.0f triangles, %.0f vertices)\n", h.clusterCount, triangles / h.clusterCount,
                 double(h.vertexCount) / h.clusterCount);
-    std::printf("  BVH              %u nodes, depth %u\n", h.nodeCount, h.bvhDepth);
+    // The 4-wide BVH (format version 4): nodes above the clusters and inside them, leaf slots.
+    uint64_t topNodes = 0, slots = 0, leaves = 0;
+    for (const model::Node& node : model.nodes) {
+        const uint32_t children = model::childCount(node);
+        topNodes += node.cluster == model::kNoCluster ? 1 : 0;
+        slots += children;
+        for (uint32_t c = 0; c < children; ++c)
+            leaves += model::childKind(node, c) == model::ChildKind::Leaf ? 1 : 0;
+    }
+    std::printf("  BVH              %u nodes (%llu above the clusters), depth %u (at most %u), 4-wide: %.2f children per node\n",
+                h.nodeCount, (unsigned long long)topNodes, h.bvhDepth, model::kMaxBvhDepth, double(slots) / h.nodeCount);
+    std::printf("  leaves           %llu strip ranges (avg %.1f triangles)\n", (unsigned long long)leaves,
+                triangles / double(std::max<uint64_t>(leaves, 1)));
     std::printf("  bounds           (%g, %g, %g) - (%g, %g, %g)\n", double(h.boundsMin[0]), double(h.boundsMin[1]), double(h.boundsMin[2]),
                 double(h.boundsMax[0]), double(h.boundsMax[1]), double(h.boundsMax[2]));
     std::printf("  quantization     %u-bit positions per cluster box, max error %.3g; %u-bit node bounds\n", h.build.positionBits,

@@ -2,19 +2,21 @@
 // one .penumbra file (or, for a chunk built in parts, one chunk file).
 //   check     every chunk file's header (same build, every index once), then
 //             each non-empty chunk whole (openChunkFile: the model as a reader
-//             checks a file, the node boxes), one at a time
+//             checks a file), one at a time
 //   top tree  a balanced binary tree over the non-empty chunks in index order
 //             (the partition numbers its cells depth first, so neighbours in
-//             space are neighbours here; each chunk was built with its root at
-//             the depth this tree gives it, so the depth budget holds)
+//             space are neighbours here), collapsed into 4-wide nodes by the
+//             layout stage's collapse (layoutSubtrees) with the chunks' roots
+//             as opaque children; each chunk was built with its root at the
+//             depth this gives it (subtreeRootDepth), so the depth budget holds
 //   write     sections in file order, each streamed from the chunk files with
 //             pread and checked against the chunk's checksums as it is read:
 //             clusters rebased (vertex, strip, node and material offsets), the
-//             top nodes and the chunk roots, then every chunk's other nodes with
-//             their 8-bit boxes encoded again under their new parents from the
-//             chunks' exact boxes, vertices and strips copied; the header last.
-// Memory: one chunk at a time (its mapping while it is checked, a box per node
-// while its nodes are written) plus buffers.
+//             top nodes with the chunks' roots in their places, then every
+//             chunk's other nodes, vertices and strips. A version-4 node's child
+//             boxes lie on a grid of its own, so the chunks' nodes are copied
+//             with only their node and cluster indices rebased. The header last.
+// Memory: one chunk at a time (its mapping while it is checked) plus buffers.
 #include <xxhash.h>
 
 #include <algorithm>
@@ -48,14 +50,27 @@ struct Part {
     std::vector<CameraRecord> cameras;
     std::vector<LightRecord> lights;
     Node root{};
-    float rootBox[6] = {};
     // Output placement.
     uint32_t slot = 0;              // output index of the root
     uint32_t slotDepth = 0;         // its depth (output root = 1)
     uint64_t nodeBase = 0;          // output index of the chunk's node 1
     uint64_t clusterBase = 0, vertexBase = 0, indexBase = 0;
     uint32_t materialBase = 0;
-    float rootDecoded[6] = {};
+
+    uint32_t node(uint32_t n) const { return n == 0 ? slot : uint32_t(nodeBase + n - 1); }
+    // A node of this chunk with its node and cluster indices rebased (leaf ranges are
+    // relative to their cluster's strips: unchanged).
+    Node rebased(Node node) const
+    {
+        if (node.cluster != kNoCluster)
+            node.cluster += uint32_t(clusterBase);
+        for (uint32_t c = 0; c < kNodeChildren; ++c) {
+            const ChildKind kind = childKind(node, c);
+            if (kind == ChildKind::Interior || kind == ChildKind::Cluster)
+                node.child[c] = this->node(node.child[c]);
+        }
+        return node;
+    }
 };
 
 const SectionEntry* findSection(const FileHeader& header, SectionType type)
@@ -92,7 +107,6 @@ Part checkPart(const std::string& path, const chunk::ChunkHeader& header)
     part.cameras.assign(m.cameras.begin(), m.cameras.end());
     part.lights.assign(m.lights.begin(), m.lights.end());
     part.root = m.nodes[0];
-    std::memcpy(part.rootBox, file.boxes.data(), sizeof(part.rootBox));
     return part;
 }
 
@@ -165,42 +179,30 @@ struct Output {
     }
 };
 
-// A node of the top tree: over parts[first, first + count).
-struct TopNode {
-    uint32_t first = 0, count = 0;
-    uint32_t child[2] = {0, 0};
-    float box[6];
-};
-
-uint32_t buildTop(std::vector<TopNode>& top, const std::vector<Part>& parts, uint32_t first, uint32_t count)
+// A balanced binary tree over parts[first, first + count) (leaves: TopNode::cluster = part
+// index) for layoutSubtrees; returns its node.
+uint32_t buildTop(preprocess_detail::TopTree& tree, std::vector<Box>& boxes, const std::vector<Part>& parts, uint32_t first,
+                  uint32_t count)
 {
-    const uint32_t index = uint32_t(top.size());
-    top.emplace_back();
-    top[index].first = first;
-    top[index].count = count;
-    float box[6] = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
-    for (uint32_t p = first; p < first + count; ++p)
-        for (int a = 0; a < 3; ++a) {
-            box[a] = std::min(box[a], parts[p].rootBox[a]);
-            box[3 + a] = std::max(box[3 + a], parts[p].rootBox[3 + a]);
-        }
-    std::memcpy(top[index].box, box, sizeof(box));
-    if (count > 1) {
-        const uint32_t left = count / 2;
-        const uint32_t l = buildTop(top, parts, first, left);
-        const uint32_t r = buildTop(top, parts, first + left, count - left);
-        top[index].child[0] = l;
-        top[index].child[1] = r;
+    using preprocess_detail::kNone;
+    const uint32_t index = uint32_t(tree.nodes.size());
+    tree.nodes.push_back({0, 0, {0, 0}, 0, count == 1 ? first : kNone, 0});
+    boxes.emplace_back();
+    if (count == 1) {
+        const FileHeader& h = parts[first].model;
+        boxes[index].min = {h.boundsMin[0], h.boundsMin[1], h.boundsMin[2]};
+        boxes[index].max = {h.boundsMax[0], h.boundsMax[1], h.boundsMax[2]};
+        return index;
     }
+    const uint32_t left = count / 2;
+    const uint32_t l = buildTop(tree, boxes, parts, first, left);
+    const uint32_t r = buildTop(tree, boxes, parts, first + left, count - left);
+    tree.nodes[index].child[0] = l;
+    tree.nodes[index].child[1] = r;
+    tree.nodes[index].childCount = 2;
+    boxes[index] = boxes[l];
+    boxes[index].grow(boxes[r]);
     return index;
-}
-
-Box boxOf(const float* b)
-{
-    Box box;
-    box.min = {b[0], b[1], b[2]};
-    box.max = {b[3], b[4], b[5]};
-    return box;
 }
 
 } // namespace
@@ -287,74 +289,30 @@ MergeResult mergeChunks(const std::vector<std::string>& paths, const std::string
         fail(output, std::to_string(materials) + " cluster colours in the chunks' material tables, more than the format's " +
                          std::to_string(kMaxMaterials) + " entries (a model with vertex colours this large needs fewer chunks)");
 
-    // The top tree and its layout: depth first, each node's children stored consecutively after it.
-    std::vector<TopNode> top;
-    buildTop(top, parts, 0, uint32_t(parts.size()));
-    std::vector<Node> topNodes(1);
-    std::vector<float> topExact(6, 0.0f);
-    struct Item {
-        uint32_t top, index, depth;
-        float parent[6];
-    };
+    // The top nodes: the layout stage's collapse over the chunks' roots (one chunk: its root is the root).
     const uint32_t baseDepth = into ? into->rootDepth : 1; // depth of the output's root in the final BVH
-    std::vector<Item> stack{{0, 0, 1, {}}};
-    for (int a = 0; a < 3; ++a) {
-        stack[0].parent[a] = header.boundsMin[a];
-        stack[0].parent[3 + a] = header.boundsMax[a];
+    std::vector<Node> topNodes(1);
+    uint32_t depth = 1;
+    if (parts.size() == 1) {
+        parts[0].slot = 0;
+        parts[0].slotDepth = 1;
+    } else {
+        preprocess_detail::TopTree tree;
+        std::vector<Box> boxes;
+        buildTop(tree, boxes, parts, 0, uint32_t(parts.size()));
+        preprocess_detail::Layout layout = preprocess_detail::layoutSubtrees(tree, boxes);
+        topNodes = std::move(layout.nodes);
+        depth = layout.depth;
+        for (size_t p = 0; p < parts.size(); ++p) {
+            parts[p].slot = layout.subtreeNode[p];
+            parts[p].slotDepth = layout.subtreeDepth[p];
+        }
     }
-    uint32_t depth = 0;
-    while (!stack.empty()) {
-        const Item item = stack.back();
-        stack.pop_back();
-        const TopNode& t = top[item.top];
-        const bool slot = t.count == 1;
-        Part* part = slot ? &parts[t.first] : nullptr;
-        const float* exact = slot ? part->rootBox : t.box;
-        Node node = slot ? part->root : Node{};
-        glm::vec3 decodedMin, decodedMax;
-        if (item.index == 0) {
-            for (int a = 0; a < 3; ++a) {
-                node.lo[a] = 0;
-                node.hi[a] = 255;
-            }
-            decodedMin = {header.boundsMin[0], header.boundsMin[1], header.boundsMin[2]};
-            decodedMax = {header.boundsMax[0], header.boundsMax[1], header.boundsMax[2]};
-        } else {
-            uint64_t widened = 0;
-            preprocess_detail::encodeBounds(node, {item.parent[0], item.parent[1], item.parent[2]},
-                                            {item.parent[3], item.parent[4], item.parent[5]}, boxOf(exact), decodedMin,
-                                            decodedMax, widened);
-        }
-        std::memcpy(&topExact[6 * size_t(item.index)], exact, 24);
-        if (slot) {
-            part->slot = item.index;
-            part->slotDepth = item.depth;
-            for (int a = 0; a < 3; ++a) {
-                part->rootDecoded[a] = decodedMin[a];
-                part->rootDecoded[3 + a] = decodedMax[a];
-            }
-            if (item.depth + baseDepth - 1 > part->header.rootDepth)
-                fail(part->path, "the merged tree puts this chunk's root at depth " + std::to_string(item.depth + baseDepth - 1) +
-                                     ", below the depth " + std::to_string(part->header.rootDepth) + " it was built for");
-            depth = std::max(depth, item.depth + part->model.bvhDepth - 1);
-            topNodes[item.index] = node; // children remapped when the chunk blocks are placed
-            continue;
-        }
-        depth = std::max(depth, item.depth);
-        node.kind = uint8_t(NodeKind::Interior);
-        node.childCount = 2;
-        node.first = uint32_t(topNodes.size());
-        topNodes.resize(topNodes.size() + 2);
-        topExact.resize(6 * topNodes.size());
-        topNodes[item.index] = node;
-        for (int c = 1; c >= 0; --c) {
-            Item child{t.child[c], node.first + uint32_t(c), item.depth + 1, {}};
-            for (int a = 0; a < 3; ++a) {
-                child.parent[a] = decodedMin[a];
-                child.parent[3 + a] = decodedMax[a];
-            }
-            stack.push_back(child);
-        }
+    for (const Part& part : parts) {
+        if (part.slotDepth + baseDepth - 1 > part.header.rootDepth)
+            fail(part.path, "the merged tree puts this chunk's root at depth " + std::to_string(part.slotDepth + baseDepth - 1) +
+                                ", below the depth " + std::to_string(part.header.rootDepth) + " it was built for");
+        depth = std::max(depth, part.slotDepth + part.model.bvhDepth - 1);
     }
     uint64_t nodes = topNodes.size();
     for (Part& part : parts) {
@@ -366,13 +324,8 @@ MergeResult mergeChunks(const std::vector<std::string>& paths, const std::string
                          " (32-bit node indices)");
     if (depth + baseDepth - 1 > kMaxBvhDepth)
         fail(output, "internal error: merged BVH depth " + std::to_string(depth + baseDepth - 1));
-    auto remapNode = [](const Part& part, uint32_t n) { return n == 0 ? uint64_t(part.slot) : part.nodeBase + n - 1; };
-    for (Part& part : parts) {
-        Node& slot = topNodes[part.slot];
-        slot.first = uint32_t(remapNode(part, slot.first));
-        if (slot.kind == uint8_t(NodeKind::Cluster))
-            slot.second += uint32_t(part.clusterBase);
-    }
+    for (const Part& part : parts)
+        topNodes[part.slot] = part.rebased(part.root);
 
     // ---- write ----
     AtomicFileWriter out(output);
@@ -383,12 +336,6 @@ MergeResult mergeChunks(const std::vector<std::string>& paths, const std::string
     }
     Output image{out, out.written()};
     out.write(&header, sizeof(header)); // rewritten at the end
-    std::unique_ptr<TemporaryFile> boxes;
-    if (into)
-        boxes = std::make_unique<TemporaryFile>(std::filesystem::path(output).parent_path().string().empty()
-                                                    ? std::string(".")
-                                                    : std::filesystem::path(output).parent_path().string(),
-                                                "the node boxes of " + output);
     const uint64_t totalBytes = std::max<uint64_t>(1, clusters * sizeof(ClusterRecord) + nodes * sizeof(Node) +
                                                           vertices * sizeof(QuantizedVertex) + indexBytes);
     uint64_t doneBytes = 0;
@@ -410,7 +357,7 @@ MergeResult mergeChunks(const std::vector<std::string>& paths, const std::string
             for (ClusterRecord& c : records) {
                 c.firstVertex += part.vertexBase;
                 c.firstIndex += part.indexBase;
-                c.node = uint32_t(remapNode(part, c.node));
+                c.node = part.node(c.node);
                 c.material += part.materialBase;
             }
             image.write(records.data(), records.size() * sizeof(ClusterRecord));
@@ -422,61 +369,18 @@ MergeResult mergeChunks(const std::vector<std::string>& paths, const std::string
 
     entry = image.begin(SectionType::Nodes, sizeof(Node));
     image.write(topNodes.data(), topNodes.size() * sizeof(Node));
-    if (boxes)
-        boxes->append(topExact.data(), topExact.size() * sizeof(float));
     for (const Part& part : parts) {
         FileReader file(part.path, 4096);
         SectionReader reader(file, part.nodes, "section Nodes");
-        const uint64_t count = part.model.nodeCount;
-        // The decoded box of every node's parent, filled as the parents are written.
-        std::vector<float> parentBox(6 * size_t(count), 0.0f);
-        std::vector<float> exact;
-        uint64_t n = 0;
-        auto setChildren = [&](const Node& node, const glm::vec3& min, const glm::vec3& max) {
-            if (node.kind == uint8_t(NodeKind::Leaf))
-                return;
-            for (uint32_t c = node.first; c < node.first + node.childCount; ++c)
-                for (int a = 0; a < 3; ++a) {
-                    parentBox[6 * size_t(c) + size_t(a)] = min[a];
-                    parentBox[6 * size_t(c) + 3 + size_t(a)] = max[a];
-                }
-        };
+        bool root = true; // node 0 is in topNodes
         for (std::span<const uint8_t> bytes = reader.next(kBlock); !bytes.empty(); bytes = reader.next(kBlock)) {
             std::vector<Node> block(bytes.size() / sizeof(Node));
             std::memcpy(block.data(), bytes.data(), bytes.size());
-            exact.resize(6 * block.size());
-            file.readAt(part.header.boxesOffset + n * 24, exact.data(), exact.size() * sizeof(float));
-            std::vector<Node> written;
-            written.reserve(block.size());
-            for (size_t k = 0; k < block.size(); ++k, ++n) {
-                Node node = block[k];
-                if (n == 0) {
-                    setChildren(node, {part.rootDecoded[0], part.rootDecoded[1], part.rootDecoded[2]},
-                                {part.rootDecoded[3], part.rootDecoded[4], part.rootDecoded[5]});
-                    continue; // the root is the slot in the top nodes
-                }
-                const float* parent = &parentBox[6 * size_t(n)];
-                glm::vec3 decodedMin, decodedMax;
-                uint64_t widened = 0;
-                preprocess_detail::encodeBounds(node, {parent[0], parent[1], parent[2]}, {parent[3], parent[4], parent[5]},
-                                                boxOf(&exact[6 * k]), decodedMin, decodedMax, widened);
-                setChildren(node, decodedMin, decodedMax);
-                switch (NodeKind(node.kind)) {
-                case NodeKind::Leaf:
-                    node.first += uint32_t(part.clusterBase);
-                    break;
-                case NodeKind::Cluster:
-                    node.second += uint32_t(part.clusterBase);
-                    node.first = uint32_t(remapNode(part, node.first));
-                    break;
-                default:
-                    node.first = uint32_t(remapNode(part, node.first));
-                }
-                written.push_back(node);
-            }
-            image.write(written.data(), written.size() * sizeof(Node));
-            if (boxes)
-                boxes->append(exact.data() + (written.size() < block.size() ? 6 : 0), written.size() * 24);
+            const size_t skip = root ? 1 : 0;
+            root = false;
+            for (size_t k = skip; k < block.size(); ++k)
+                block[k] = part.rebased(block[k]);
+            image.write(block.data() + skip, (block.size() - skip) * sizeof(Node));
             advance(bytes.size());
         }
     }
@@ -547,25 +451,8 @@ MergeResult mergeChunks(const std::vector<std::string>& paths, const std::string
     header.headerChecksum = XXH64(&header, sizeof(header), 0);
     out.writeAt(image.imageBase, &header, sizeof(header));
     if (into) {
-        // The boxes after the image, then the chunk header.
-        boxes->flush();
         chunkHeader.modelOffset = image.imageBase;
         chunkHeader.modelSize = header.fileSize;
-        chunkHeader.boxesOffset = out.written();
-        chunkHeader.boxesSize = boxes->size();
-        XXH64_state_t* state = XXH64_createState();
-        XXH64_reset(state, 0);
-        std::vector<uint8_t> block(kBlock);
-        for (uint64_t at = 0; at < boxes->size(); at += kBlock) {
-            const size_t n = size_t(std::min<uint64_t>(kBlock, boxes->size() - at));
-            boxes->readAt(at, block.data(), n);
-            out.write(block.data(), n);
-            XXH64_update(state, block.data(), n);
-        }
-        chunkHeader.boxesChecksum = XXH64_digest(state);
-        XXH64_freeState(state);
-        static constexpr char kZeros[64] = {};
-        out.write(kZeros, size_t((64 - out.written() % 64) % 64));
         chunkHeader.fileSize = out.written();
         chunkHeader.flags &= ~chunk::kFlagEmpty;
         chunkHeader.droppedDegenerate = droppedDegenerate;

@@ -114,7 +114,9 @@ namespace {
 
 uint64_t estimatedNodes(uint64_t triangles, uint64_t leafTriangles)
 {
-    return triangles / leafTriangles * 4 + (triangles % leafTriangles != 0 ? 4 : 0) + 1;
+    // 4-wide nodes: at most one per binary interior node (fewer than the leaves)
+    // plus the clusters' roots; leaves at least half full: 2 per leafTriangles, rounded up.
+    return triangles / leafTriangles * 2 + (triangles % leafTriangles != 0 ? 2 : 0) + 1;
 }
 
 } // namespace
@@ -129,7 +131,7 @@ void checkModelLimits(uint64_t triangles, const PreprocessOptions& options, cons
         while (enough < model::kMaxClusterTriangles && estimatedNodes(triangles, enough) > model::kMaxNodes)
             ++enough;
         fail(subject, std::to_string(triangles) + " triangles may need about " + std::to_string(nodes) +
-                          " BVH nodes (4 per " + std::to_string(leaf) + "-triangle leaf), more than the format's " +
+                          " BVH nodes (2 per " + std::to_string(leaf) + " triangles), more than the format's " +
                           std::to_string(model::kMaxNodes) + " (32-bit node indices)" +
                           (estimatedNodes(triangles, enough) <= model::kMaxNodes
                                ? "; use --leaf-triangles " + std::to_string(enough) + " or more"
@@ -151,8 +153,9 @@ namespace preprocess_detail {
 CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* statsOut,
                            std::vector<uint32_t>* decodedTriangleSource, const BuildExtras& extras)
 {
-    if (extras.rootDepth < 1 || extras.rootDepth + 2 > model::kMaxBvhDepth)
+    if (extras.rootDepth < 1 || extras.rootDepth + 4 > model::kMaxBvhDepth)
         fail("preprocess", "internal error: root depth " + std::to_string(extras.rootDepth));
+    const uint32_t binaryRootDepth = 2 * (extras.rootDepth - 1) + 1;
     const auto start = Clock::now();
     checkOptions(options);
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
@@ -276,7 +279,7 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
         }
     }
     TopTree tree = buildTopTree(mesh, refs, meanExtent, options, threads, [&](double f) { progress.report(f); },
-                                splitKeys.empty() ? nullptr : splitKeys.data(), extras.rootDepth);
+                                splitKeys.empty() ? nullptr : splitKeys.data(), binaryRootDepth);
     splitKeys = {};
     std::vector<uint32_t> triangles(triangleCount);
     parallelFor(threads, (triangleCount + chunkSize - 1) / chunkSize, [&](uint64_t c) {
@@ -378,7 +381,7 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
         root.grow(c.inputBox);
         maxError = std::max(maxError, c.maxError);
     }
-    Layout layout = layoutNodes(tree, topBoxes, built, root.min, root.max, extras.rootDepth, extras.exactBoxes);
+    Layout layout = layoutNodes(tree, topBoxes, built, model::kMaxBvhDepth - (extras.rootDepth - 1));
     tree = TopTree();
     topBoxes = {};
     for (size_t i = 0; i < clusterCount; ++i)
@@ -431,7 +434,7 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
     h.clusterCount = uint32_t(clusterCount);
     h.nodeCount = uint32_t(data->nodes.size());
     h.materialCount = uint32_t(data->materials.size());
-    h.bvhDepth = layout.depth - extras.rootDepth + 1;
+    h.bvhDepth = layout.depth;
     for (int a = 0; a < 3; ++a) {
         h.boundsMin[a] = root.min[a];
         h.boundsMax[a] = root.max[a];

@@ -591,7 +591,7 @@ void buildChunkInMemory(Build& build, ChunkTemp& temp, chunk::ChunkHeader header
     header.droppedDegenerate = degenerate;
     if (degenerate == own) {
         temp.halo.reset();
-        writeChunkFile(path, header, nullptr, {});
+        writeChunkFile(path, header, nullptr);
         build.stats->chunks++;
         return;
     }
@@ -612,8 +612,6 @@ void buildChunkInMemory(Build& build, ChunkTemp& temp, chunk::ChunkHeader header
     BuildExtras extras;
     extras.rootDepth = rootDepth;
     extras.closed = closed.data();
-    std::vector<float> boxes;
-    extras.exactBoxes = &boxes;
     PreprocessOptions options = build.options->build;
     options.progress = nullptr;
     PreprocessStats stats;
@@ -625,7 +623,7 @@ void buildChunkInMemory(Build& build, ChunkTemp& temp, chunk::ChunkHeader header
     header.closedTriangles = stats.closedTriangles;
     header.closedClusterTriangles = stats.closedClusterTriangles;
     header.closedClusters = stats.closedClusters;
-    writeChunkFile(path, header, &model, boxes);
+    writeChunkFile(path, header, &model);
     build.stats->chunks++;
     build.stats->largestChunk = std::max(build.stats->largestChunk, own);
 }
@@ -761,7 +759,7 @@ void buildChunk(Build& build, ChunkTemp& temp, chunk::ChunkHeader header, const 
     build.addTemporary(-int64_t(temp.triangles * build.recordBytes() + temp.haloTriangles * 36));
     temp.own.reset();
     temp.halo.reset();
-    const uint32_t partDepth = rootDepth + balancedDepth(plan.leaves()) - 1;
+    const uint32_t partDepth = rootDepth + subtreeRootDepth(plan.leaves()) - 1;
     // The parts are the chunks of an inner build: their own fingerprint, indices and count.
     chunk::ChunkHeader part{};
     part.fingerprint = XXH64(&header, sizeof(header), splitLevel + 1);
@@ -990,7 +988,7 @@ StreamedStats preprocessStreamed(const std::string& input, const std::string& ou
     partitionInput(build, plan, temps, -1, stats);
 
     const auto buildStart = Clock::now();
-    const uint32_t rootDepth = balancedDepth(plan.leaves());
+    const uint32_t rootDepth = subtreeRootDepth(plan.leaves());
     FileSweeper files;
     const std::string name = std::filesystem::path(output).filename().string();
     for (uint32_t i = 0; i < plan.leaves(); ++i) {
@@ -1031,12 +1029,12 @@ StreamedStats preprocessChunk(const std::string& input, const std::string& chunk
     stats.chunkCapacity = build.capacity;
     Scanned scanned = scanAndPlan(input, options, count, build, stats);
     const Plan& plan = scanned.plan;
-    const uint32_t rootDepth = balancedDepth(count);
+    const uint32_t rootDepth = subtreeRootDepth(count);
     const auto buildStart = Clock::now();
     if (index >= plan.leaves()) {
         // The input's points could not be split into `count` cells: this chunk has no triangles.
         chunk::ChunkHeader header = chunkHeader(build, index, count, Cell{}, rootDepth);
-        writeChunkFile(chunkPath, header, nullptr, {});
+        writeChunkFile(chunkPath, header, nullptr);
         stats.chunks = 1;
     } else {
         std::vector<ChunkTemp> temps = makeTemps(build, plan, index, "chunk");

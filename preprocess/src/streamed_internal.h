@@ -83,11 +83,7 @@ struct Plan {
 // leaves). Points that cannot be told apart make fewer leaves.
 Plan makePlan(std::vector<float>& points, uint32_t count, const Cell& cell);
 
-// Levels of a balanced binary tree over n leaves, leaves included: ceil(log2 n) + 1.
-inline uint32_t balancedDepth(uint64_t n)
-{
-    return preprocess_detail::ceilLog2(std::max<uint64_t>(n, 1)) + 1;
-}
+using preprocess_detail::subtreeRootDepth;
 
 // The merge (merge.cpp): chunk files -> a .penumbra file, or (intoChunk set) a
 // chunk file whose model's root sits at intoChunk->rootDepth (a chunk too large

@@ -37,6 +37,7 @@ struct RenderArgs {
     std::vector<std::string> lights;
     std::string shadows = "sm";
     std::string cull = "all";
+    std::string rasterIndices = "auto";
     std::string shadowFit = "view";
     uint32_t shadowMapSize = 2048;
     uint32_t samples = RenderSettings{}.lightSamples;
@@ -73,6 +74,7 @@ struct BenchArgs {
     uint32_t softShadowMaps = 0; // 0: the suite's
     bool quiet = false;
     bool noPlots = false;
+    std::vector<std::string> methods, sections;
 };
 
 void parseSize(const std::string& text, RenderSettings& settings)
@@ -145,6 +147,7 @@ int runRender(const RenderArgs& args)
     settings.rhSort = args.rhSort == "on";
     settings.rhTwoPass = args.rhTwoPass == "on";
     settings.cull = parseCullMode(args.cull);
+    const RasterIndices rasterIndices = parseRasterIndices(args.rasterIndices);
     settings.fitShadowMapsToView = args.shadowFit == "view";
     settings.shadowMapSize = args.shadowMapSize;
     settings.lightSamples = args.samples;
@@ -191,6 +194,7 @@ int runRender(const RenderArgs& args)
     RendererOptions options;
     options.device = args.device;
     options.validation = args.validation;
+    options.rasterIndices = rasterIndices;
     std::optional<Renderer> renderer(std::in_place, options);
 
     auto loadStart = std::chrono::steady_clock::now();
@@ -313,6 +317,8 @@ int runBench(const BenchArgs& args)
     if (args.softShadowMaps) options.softShadowMaps = args.softShadowMaps;
     options.progress = !args.quiet;
     options.plots = !args.noPlots;
+    options.methods = args.methods;
+    options.sections = args.sections;
     runSuite(options);
     return 0;
 }
@@ -352,6 +358,11 @@ int main(int argc, char** argv)
     renderCommand->add_option("--shadows", render.shadows, "Shadow method: " + shadowMethodsHelp())->capture_default_str();
     renderCommand->add_option("--cull", render.cull,
                               "Raster culling with the BVH: none, frustum, all (frustum + occlusion queries); same image in every mode")
+        ->capture_default_str();
+    renderCommand->add_option("--raster-indices", render.rasterIndices,
+                              "What the raster passes draw of the compressed model: auto (triangles on a CPU device, strips on a "
+                              "GPU), strips (the file's strips with primitive restart) or triangles (8-bit lists decoded at load); "
+                              "same image")
         ->capture_default_str();
     renderCommand->add_option("--shadow-fit", render.shadowFit,
                               "Directional and area lights' shadow maps cover: view (what the camera sees: finer texels, and the "
@@ -412,6 +423,13 @@ int main(int argc, char** argv)
     benchCommand->add_option("--soft-shadow-maps", bench.softShadowMaps, "Soft shadows, sm: shadow maps averaged over the light (default 4)")->check(CLI::Range(1, 6));
     benchCommand->add_flag("--quiet", bench.quiet, "No progress bar");
     benchCommand->add_flag("--no-plots", bench.noPlots, "Write plot data and gnuplot scripts without running gnuplot");
+    benchCommand->add_option("--methods", bench.methods, "Only these GPU methods (the oracle always runs), e.g. --methods sm,srt,frt")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"sm", "srt", "frt", "afsm", "rh"}));
+    benchCommand->add_option("--sections", bench.sections,
+                             "Only these sections: methods (hard), soft, point, rh_variants, scalability, light_size")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"methods", "soft", "point", "rh_variants", "scalability", "light_size"}));
 
     app.add_subcommand("devices", "List the Vulkan devices");
 

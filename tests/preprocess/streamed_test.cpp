@@ -3,6 +3,7 @@
 // quantization error), the closed flag stays conservative, the chunk + merge
 // path run as separate processes gives the same bytes as the in-process build,
 // and bad chunk files or an interrupted build leave no model behind.
+#include <glm/common.hpp>
 #include <gtest/gtest.h>
 
 #include <signal.h>
@@ -143,13 +144,13 @@ void expectSameTriangles(const Mesh& mesh, const CompressedModel& model)
     matchTriangles(mesh, model);
 }
 
-// The merged BVH's boxes, decoded top-down, contain their children and every decoded vertex of
-// their leaves (the merge encodes the chunks' boxes again under their new parents).
+// Every decoded vertex of a leaf lies in the header's bounds and in every decoded child box on
+// the path to it (the merge lays new nodes out above the chunks' roots and rebases theirs).
 void expectBoxesContainGeometry(const CompressedModel& model)
 {
     struct Visit {
         uint32_t node;
-        glm::vec3 min, max;
+        glm::vec3 min, max; // the intersection of the boxes on the path
     };
     const model::FileHeader& h = model.header;
     std::vector<Visit> stack{{0, {h.boundsMin[0], h.boundsMin[1], h.boundsMin[2]}, {h.boundsMax[0], h.boundsMax[1], h.boundsMax[2]}}};
@@ -158,27 +159,29 @@ void expectBoxesContainGeometry(const CompressedModel& model)
         const Visit v = stack.back();
         stack.pop_back();
         const model::Node& n = model.nodes[v.node];
-        if (n.kind == uint8_t(model::NodeKind::Leaf)) {
+        for (uint32_t k = 0; k < model::childCount(n); ++k) {
+            glm::vec3 min, max;
+            decodeChildBox(n, k, min, max);
+            min = glm::max(min, v.min);
+            max = glm::min(max, v.max);
+            if (model::childKind(n, k) != model::ChildKind::Leaf) {
+                stack.push_back({n.child[k], min, max});
+                continue;
+            }
             ++leaves;
-            const model::ClusterRecord& c = model.clusters[n.first];
-            const uint8_t* strips = model.indices.data() + c.firstIndex + (n.second & 0xFFFF);
-            forEachStripTriangle(strips, strips + (n.second >> 16), [&](uint32_t a, uint32_t b, uint32_t d) {
+            const model::ClusterRecord& c = model.clusters[n.cluster];
+            const uint8_t* strips = model.indices.data() + c.firstIndex + (n.child[k] & 0xFFFF);
+            forEachStripTriangle(strips, strips + (n.child[k] >> 16), [&](uint32_t a, uint32_t b, uint32_t d) {
                 for (uint32_t i : {a, b, d}) {
                     const glm::vec3 p = decodePosition(c, model.vertices[c.firstVertex + i]);
                     for (int ax = 0; ax < 3; ++ax)
-                        outside += p[ax] < v.min[ax] || p[ax] > v.max[ax];
+                        outside += p[ax] < min[ax] || p[ax] > max[ax];
                 }
             });
-            continue;
-        }
-        for (uint32_t k = 0; k < n.childCount; ++k) {
-            Visit child{n.first + k, {}, {}};
-            decodeChildBounds(model.nodes[child.node], v.min, v.max, child.min, child.max);
-            stack.push_back(child);
         }
     }
     EXPECT_GT(leaves, 0u);
-    EXPECT_EQ(outside, 0u) << "decoded vertices outside their leaf's decoded box";
+    EXPECT_EQ(outside, 0u) << "decoded vertices outside a decoded box on their leaf's path";
 }
 
 CompressedModel streamed(const std::string& input, const std::string& output, const StreamedOptions& options,
@@ -217,6 +220,42 @@ TEST(Streamed, ScenesInManyChunksKeepEveryTriangle)
     EXPECT_EQ(lightFromRecord(model.lights[0]).direction, imported.lights[0].direction);
     {
     }
+}
+
+// Seventy chunks of one or two clusters each: the merge lays 4-wide nodes out above their roots
+// (the layout stage's collapse, level by level), each root at most at the depth it was built for.
+TEST(Streamed, ManySmallChunksUnderFourWideTopNodes)
+{
+    const Scene s = scene("scan", 12'000);
+    const std::string input = writeInput("streamed_many.ply", s);
+    StreamedOptions options = smallChunks(400);
+    options.chunks = 70;
+    StreamedStats stats;
+    CompressedModel model = streamed(input, tmp("streamed_many.penumbra"), options, &stats);
+    EXPECT_GE(stats.chunks, 60u);
+    expectSameTriangles(s.mesh, model);
+    expectBoxesContainGeometry(model);
+    EXPECT_EQ(model::childCount(model.nodes[0]), 4u) << "the top is collapsed into 4-wide nodes";
+    // The nodes above the clusters: each chunk's root (here mostly over one cluster) and the top's
+    // (1 + 4 + 16 + 6 for 70 leaves of 7 binary levels, against 69 binary nodes).
+    uint64_t above = 0;
+    for (const model::Node& n : model.nodes)
+        above += n.cluster == model::kNoCluster ? 1 : 0;
+    EXPECT_LE(above, uint64_t(stats.chunks) + uint64_t(stats.chunks) / 2);
+    // A chunk's root sits at depth <= subtreeRootDepth(70) = 5: its clusters' roots at most one below.
+    std::vector<uint32_t> depth(model.nodes.size(), 0);
+    depth[0] = 1;
+    uint32_t deepestClusterRoot = 0;
+    for (size_t n = 0; n < model.nodes.size(); ++n)
+        for (uint32_t c = 0; c < model::childCount(model.nodes[n]); ++c) {
+            if (model::childKind(model.nodes[n], c) == model::ChildKind::Leaf)
+                continue;
+            depth[model.nodes[n].child[c]] = depth[n] + 1;
+            if (model::childKind(model.nodes[n], c) == model::ChildKind::Cluster)
+                deepestClusterRoot = std::max(deepestClusterRoot, depth[n] + 1);
+        }
+    EXPECT_LE(deepestClusterRoot, 5u + 4u);
+    EXPECT_LE(model.header.bvhDepth, model::kMaxBvhDepth);
 }
 
 TEST(Streamed, EveryFormatAndChunksTooLargeAreSplit)
@@ -405,7 +444,7 @@ TEST(Streamed, BadChunkFilesGiveOneLineNamingTheFile)
     expectPrefix(mergeError({chunks[0], chunks[1], chunks[2], chunks[1]}), chunks[1], "chunk 1 of 3 again");
     expectPrefix(mergeError({chunks[0], foreign, chunks[2]}), foreign, "belongs to another build");
     expectPrefix(mergeError({chunks[0], tmp("streamed_no_such.chunk"), chunks[2]}), tmp("streamed_no_such.chunk"), "file not found");
-    // Corrupt: truncated, a flipped byte in the header, in the model, in the boxes; not a chunk file.
+    // Corrupt: truncated, a flipped byte in the header, in the model, in its nodes; trailing bytes; not a chunk file.
     const std::string bytes = readBytes(chunks[1]);
     const std::string bad = tmp("streamed_bad_corrupt.chunk1");
     auto corrupt = [&](const std::string& content) {
@@ -421,11 +460,18 @@ TEST(Streamed, BadChunkFilesGiveOneLineNamingTheFile)
     flipped[bytes.size() / 2] ^= 0x20;
     const std::string modelMessage = corrupt(flipped);
     EXPECT_EQ(modelMessage.rfind(bad + ": ", 0), 0u) << modelMessage;
+    // A flipped byte in the model's node section: its checksum (the reader's check, in one line).
     chunk::ChunkHeader header;
     std::memcpy(&header, bytes.data(), sizeof(header));
-    flipped = bytes;
-    flipped[header.boxesOffset + 5] ^= 0x40;
-    expectPrefix(corrupt(flipped), bad, "checksum mismatch in the chunk's node boxes");
+    model::FileHeader image;
+    std::memcpy(&image, bytes.data() + header.modelOffset, sizeof(image));
+    for (const model::SectionEntry& section : image.sections)
+        if (section.type == uint32_t(model::SectionType::Nodes)) {
+            flipped = bytes;
+            flipped[header.modelOffset + section.offset + 17] ^= 0x40;
+            expectPrefix(corrupt(flipped), bad, "checksum");
+        }
+    expectPrefix(corrupt(bytes + std::string(64, '\0')), bad, "trailing data");
     expectPrefix(corrupt(readBytes(input)), bad, "not a Penumbra chunk file (bad magic)");
     // The CLI: the same, as one line, exit status 1.
     std::string err;
