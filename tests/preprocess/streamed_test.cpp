@@ -531,6 +531,43 @@ TEST(Streamed, InterruptedBuildLeavesNoModel)
     // The killed builds' chunk files are gone too (the next build of the output removes them).
     for (const auto& entry : std::filesystem::directory_iterator(PENUMBRA_TEST_TMP))
         EXPECT_EQ(entry.path().filename().string().find("streamed_kill.penumbra."), std::string::npos) << entry.path();
+
+    // A killed chunk process (penumbra preprocess --chunk I/N) leaves no chunk file, and a
+    // killed merge no model: both write to a temporary name and rename when complete.
+    const std::string chunk0 = tmp("streamed_kill.chunk0"), chunk1 = tmp("streamed_kill.chunk1");
+    const std::string merged = tmp("streamed_kill_merged.penumbra");
+    for (const std::string& path : {chunk0, chunk1, merged})
+        std::filesystem::remove(path);
+    auto killAfter = [](int delayMs, std::vector<std::string> args) {
+        const pid_t pid = fork();
+        if (pid == 0) {
+            std::freopen("/dev/null", "w", stdout);
+            std::freopen("/dev/null", "w", stderr);
+            std::vector<char*> argv;
+            for (std::string& a : args)
+                argv.push_back(a.data());
+            argv.push_back(nullptr);
+            execv(argv[0], argv.data());
+            _exit(127);
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(delayMs));
+        kill(pid, SIGKILL);
+        int status = 0;
+        waitpid(pid, &status, 0);
+        return !WIFEXITED(status); // killed before it finished
+    };
+    for (int delayMs : {150, 500})
+        if (killAfter(delayMs, {PENUMBRA_PREPROCESS_CLI, "preprocess", input, "--chunk", "0/2", "-o", chunk0, "--memory-limit", "32",
+                                "--threads", "1", "--quiet"}))
+            EXPECT_FALSE(std::filesystem::exists(chunk0)) << "a killed chunk process left " << chunk0;
+    for (const char* index : {"0/2", "1/2"})
+        EXPECT_EQ(run({PENUMBRA_PREPROCESS_CLI, "preprocess", input, "--chunk", index, "-o", index[0] == '0' ? chunk0 : chunk1,
+                       "--memory-limit", "32", "--quiet"}, &err), 0) << err;
+    for (int delayMs : {20, 60})
+        if (killAfter(delayMs, {PENUMBRA_PREPROCESS_CLI, "merge", chunk0, chunk1, "-o", merged, "--quiet"}))
+            EXPECT_FALSE(std::filesystem::exists(merged)) << "a killed merge left " << merged;
+    EXPECT_EQ(run({PENUMBRA_PREPROCESS_CLI, "merge", chunk0, chunk1, "-o", merged, "--quiet"}, &err), 0) << err;
+    EXPECT_NO_THROW(openModelFile(merged));
 }
 
 } // namespace
