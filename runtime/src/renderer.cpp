@@ -369,7 +369,8 @@ struct Renderer::Impl::FrameScript {
             r.classify.recordSoft(cmd, {light, slot, PENUMBRA_SOFT_RECEIVERS, 0, 1.0f, t.shadowSize, top, 0}, width(), height());
             const float range = l.mapRange[slot].x - l.mapEye[slot].w;
             r.penumbraMask.record(cmd, {glm::inverse(l.viewProj[slot]), light, slot, 0, t.shadowSize, top, spec.uses(Step::ThinTriangles) ? 1u : 0u,
-                                        float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0});
+                                        float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0},
+                                   uint32_t(l.positionType.w));
             timer.mark(cmd, PassId::PenumbraMask);
             return;
         }

@@ -63,7 +63,7 @@ void ClassifyPass::record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_
 
 void ClassifyPass::recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t width, uint32_t height, bool floor) const
 {
-    soft.bind(cmd, floor);
+    soft.bind(cmd, vk::Specialization{push.mode}, floor);
     soft.push(cmd, push);
     dispatchPixels(cmd, width, height);
 }
