@@ -20,6 +20,8 @@
 // get visibility 0 and no rays.
 
 #include "config.h"
+layout(constant_id = 1) const uint kLightType = PENUMBRA_LIGHT_SPHERE; // rectangle, disk or sphere
+#define PENUMBRA_LIGHT_TYPE kLightType
 #include "shadow_common.glsli"
 #include "penumbra_mask.glsli"
 
