@@ -94,9 +94,12 @@ uint32_t planNode(std::vector<float>& points, size_t begin, size_t end, uint32_t
         m = std::clamp<size_t>(m, 1, n - 1);
         // Near the quantile (within 1/16 of the points either way), cut in the widest gap between
         // points: between objects rather than through one (a part cut by a boundary counts as open).
+        // (The window is fixed around the quantile: growing gaps, e.g. exponentially spaced parts,
+        // must not drag the cut to the end of the range.)
         const size_t window = n / 16;
+        const size_t first = std::max<size_t>(1, m > window ? m - window : 1), last = std::min(n - 1, m + window);
         float widest = range[m][size_t(axis)] - range[m - 1][size_t(axis)];
-        for (size_t j = std::max<size_t>(1, m > window ? m - window : 1); j <= std::min(n - 1, m + window); ++j) {
+        for (size_t j = first; j <= last; ++j) {
             const float gap = range[j][size_t(axis)] - range[j - 1][size_t(axis)];
             if (gap > widest) {
                 widest = gap;

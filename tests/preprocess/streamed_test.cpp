@@ -258,6 +258,33 @@ TEST(Streamed, ManySmallChunksUnderFourWideTopNodes)
     EXPECT_LE(model.header.bvhDepth, model::kMaxBvhDepth);
 }
 
+// Exponentially spaced triangles in clusters of 4 and leaves of 1 make the deepest trees SAH
+// builds (Preprocess.DepthLimit): in chunks below 4-wide top nodes, each chunk's binary build
+// and layout keep to the levels left below its root, so the merged BVH stays within 32 levels.
+// (Their ever wider gaps also once dragged the partition's cut to the end of every range.)
+TEST(Streamed, DepthBudgetHoldsBelowTheTopNodes)
+{
+    Scene s;
+    float x = 1.0f;
+    for (uint32_t i = 0; i < 8000; ++i) { // sizes grow with x: no two corners round to one position
+        const uint32_t base = uint32_t(s.mesh.vertexCount());
+        s.mesh.positions.insert(s.mesh.positions.end(), {x, 0, 0, x * 1.001f, 0, 0, x, x * 1e-3f, 0});
+        s.mesh.indices.insert(s.mesh.indices.end(), {base, base + 1, base + 2});
+        x *= 1.008f;
+    }
+    const std::string input = writeInput("streamed_deep.ply", s);
+    StreamedOptions options = smallChunks(600);
+    options.build.maxClusterTriangles = 4;
+    options.build.maxLeafTriangles = 1;
+    StreamedStats stats;
+    CompressedModel model = streamed(input, tmp("streamed_deep.penumbra"), options, &stats); // validates the depth
+    EXPECT_GE(stats.chunks, 10u);
+    EXPECT_LE(stats.largestChunk, 600u);
+    EXPECT_LE(model.header.bvhDepth, model::kMaxBvhDepth);
+    // (expectSameTriangles' hash grid does not fit coordinates from 1 to 1e27: the count instead.)
+    EXPECT_EQ(model.header.triangleCount, s.mesh.triangleCount());
+}
+
 TEST(Streamed, EveryFormatAndChunksTooLargeAreSplit)
 {
     Scene s = scene("city", 20'000);
