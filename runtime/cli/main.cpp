@@ -37,7 +37,7 @@ struct RenderArgs {
     std::string cull = "all";
     std::string shadowFit = "view";
     uint32_t shadowMapSize = 2048;
-    uint32_t samples = RenderSettings{}.lightSamples;
+    uint32_t samples = 0; // 0: the method's default (srt, frt: RenderSettings' 16; afsm: 256)
     uint32_t penumbraMaps = RenderSettings{}.penumbraMaps;
     uint32_t smMaps = RenderSettings{}.softShadowMaps;
     float biasConstant = RenderSettings{}.depthBiasConstant;
@@ -185,7 +185,13 @@ int runRender(const RenderArgs& args)
     settings.cull = parseCullMode(args.cull);
     settings.fitShadowMapsToView = args.shadowFit == "view";
     settings.shadowMapSize = args.shadowMapSize;
-    settings.lightSamples = args.samples;
+    // Light samples: srt and frt trace 4..256 per pixel; afsm keeps 128..1024 bits per view sample (one clear error each).
+    const bool afsm = settings.shadows == ShadowMethod::AliasFree;
+    settings.lightSamples = args.samples ? args.samples : afsm ? 256 : RenderSettings{}.lightSamples;
+    if (afsm && (settings.lightSamples < 128 || settings.lightSamples > 1024))
+        fail("--samples " + std::to_string(settings.lightSamples), "afsm takes 128..1024 light samples per pixel");
+    if (!afsm && settings.lightSamples > 256)
+        fail("--samples " + std::to_string(settings.lightSamples), args.shadows + " takes 4..256 light samples per pixel (afsm: 128..1024)");
     settings.penumbraMaps = args.penumbraMaps;
     settings.softShadowMaps = args.smMaps;
     settings.depthBiasConstant = args.biasConstant;
@@ -562,7 +568,7 @@ int main(int argc, char** argv)
     renderCommand->add_flag("--exr-layers", render.exrLayers,
                             ".exr output: also write float channels visibility.lightN (every light), pip (pixels given rays) and Z (view depth)");
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
-    renderCommand->add_option("--samples", render.samples, "Area lights, srt/frt: light samples per pixel (soft shadows)")->capture_default_str()->check(CLI::Range(4, 256));
+    renderCommand->add_option("--samples", render.samples, "Area lights: light samples per pixel (soft shadows); srt, frt: 4..256 (default 16), afsm: 128..1024 (default 256)")->check(CLI::Range(4, 1024));
     renderCommand->add_option("--cone-test", render.coneTest, "rh: the cone/triangle test: precise (Olsson and Assarsson 2011, section 3.2) or spheres (bounding spheres, for comparison)")->capture_default_str();
     renderCommand->add_option("--rh-sort", render.rhSort, "rh: order the rays by direction before building the cone hierarchy (section 3.5): on, or off (by pixel)")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--rh-two-pass", render.rhTwoPass, "rh: the large casters first, then the hierarchy rebuilt without the rays they shadowed, then the others (section 3.4): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));

@@ -44,7 +44,7 @@ std::vector<vk::Buffer*> FrameTargets::mapSizedBuffers()
 
 std::vector<vk::Buffer*> FrameTargets::afsmBuffers()
 {
-    return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSamples, &afsmShadowed};
+    return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSamples, &afsmShadowed, &afsmFar};
 }
 
 void FrameTargets::destroyImageSized(vk::Device& device)
@@ -169,6 +169,7 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     afsmBlockSums = vk::createBuffer(device, PENUMBRA_AFSM_MAX_GRID * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmSamples = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmFar = vk::createBuffer(device, 16, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmGrid = gridSize;
     return true;
 }

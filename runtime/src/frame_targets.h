@@ -48,6 +48,7 @@ struct FrameTargets {
     uint32_t afsmGrid = 0;   // cells per side
     vk::Buffer afsmCellFirst, afsmCellCount, afsmBlockSums; // per grid cell
     vk::Buffer afsmSamples, afsmShadowed;                   // per pixel
+    vk::Buffer afsmFar;                                     // soft: the layer's farthest sample depth
     // RenderSettings::readbackLightLayers only, made on first use: every light's
     // visibility and marks (PENUMBRA_MAX_LIGHTS slices of one image each).
     vk::Buffer readbackLightVisibility, readbackLightMarks;
