@@ -29,22 +29,22 @@
 #ifdef PENUMBRA_AFSM_SOFT
 #define AFSM_SOFT 1
 #endif
+#define AFSM_SLOTS 1
 #include "afsm.glsli"
 
 layout(local_size_x = PENUMBRA_AFSM_BIN_GROUP) in;
 
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding).
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
-layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
-layout(set = 0, binding = 3, std430) readonly buffer CellFirst { uint cellFirst[]; };
-layout(set = 0, binding = 4, std430) readonly buffer CellCount { uint cellCount[]; };
-layout(set = 0, binding = 5, std430) readonly buffer SampleList { uint samplePixels[]; };
-layout(set = 0, binding = 6, std430) buffer Shadowed { uint shadowed[]; };
-layout(set = 0, binding = 7, std430) readonly buffer Far { uint farBits; };
-// Soft shadows: where the masks, slots and table are (AfsmPass::prepareSoft).
-layout(set = 0, binding = 8, std430) readonly buffer SoftParams {
-    uint64_t softSlots, softMasks, softTable;
+layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };
+layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };
+layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
+layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
+layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };
+layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
+// Where the slots (and, soft, the masks and the table) are (AfsmPass: AfsmParams).
+layout(set = 0, binding = 7, std430) readonly buffer Params {
+    uint64_t slots, softMasks, softTable;
     uint softSamples, softTableSize;
 };
 
@@ -66,31 +66,48 @@ layout(push_constant) uniform AfsmBinPush {
 
 void binCaster(vec3 v0, vec3 v1, vec3 v2)
 {
-    LightData light = frame.lights[push.lightIndex];
 #ifdef PENUMBRA_AFSM_SOFT
-    AfsmRect r = afsmSoftRect(push.viewProj, light, uintBitsToFloat(farBits), v0, v1, v2, push.gridSize);
+    LightData light = frame.lights[push.lightIndex];
+    float nearest;
+    AfsmRect r = afsmSoftRect(push.viewProj, light, uintBitsToFloat(farBits), v0, v1, v2, push.gridSize, nearest);
     uint perSample = 1u + afsmQuads(softSamples);
-    AfsmSoftTable table = AfsmSoftTable(softSlots, softMasks, softTable, softSamples, softTableSize);
+    AfsmSoftTable table = AfsmSoftTable(slots, softMasks, softTable, softSamples, softTableSize);
 #else
     vec2 projected[3];
     bool behind;
-    AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, projected, behind);
+    AfsmDepthBound depth;
+    AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, projected, behind, depth);
+    float nearest = depth.nearest;
     uint perSample = 1u;
 #endif
-    if (!afsmComputeTakes(r, push.gridSize, push.computeCells, perSample, false))
+    // The cells one by one, counting the work as afsmComputeWork does (the
+    // raster path's mirror of this choice); past the budget the raster path
+    // takes the caster (the cells tested so far are tested twice).
+    if (r.empty || !(afsmRectCells(r, push.gridSize) <= push.computeCells))
         return;
     ivec2 first, last;
     afsmRectCellRange(r, push.gridSize, first, last);
+    uint work = 0u;
     for (int y = first.y; y <= last.y; ++y)
         for (int x = first.x; x <= last.x; ++x) {
             uint cell = uint(y) * push.gridSize + uint(x);
-            if (cellCount[cell] == 0u)
+            uint count = cellCount[cell];
+#ifdef PENUMBRA_AFSM_SOFT
+            bool beyond = afsmCellBehind(cell, nearest);
+#else
+            vec2 corner = vec2(x, y);
+            bool beyond = afsmCellBehind(cell, afsmNearestOver(depth, corner - 0.5, corner + 1.5));
+#endif
+            work += 1u + (beyond ? 0u : perSample * count);
+            if (work > PENUMBRA_AFSM_COMPUTE_BUDGET)
+                return;
+            if (count == 0u || beyond)
                 continue;
 #ifdef PENUMBRA_AFSM_SOFT
             afsmTestCellSoft(cell, light, table, v0, v1, v2);
 #else
-            if (afsmCellMayMeetTriangle(vec2(x, y) + 0.5, projected, !behind))
-                afsmTestCellHard(cell, light, push.originOffset, v0, v1, v2);
+            if (afsmCellMayMeetTriangle(corner + 0.5, projected, !behind))
+                afsmTestCellHard(cell, slots, v0, v1, v2);
 #endif
         }
 }

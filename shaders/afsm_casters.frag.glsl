@@ -1,5 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Alias-free shadow maps, casters (Sintorn et al. 2008, section 3.3): for
 // one triangle and one grid cell, the exact test of every sample listed in
 // the cell (afsm_samples.comp.glsl): the tracer's watertight ray/triangle
@@ -7,7 +9,8 @@
 // planes through the ray and each edge (through the light and each edge for
 // point and spot lights; the edges' extrusions along the light's direction
 // for directional lights) and t the triangle's supporting plane, as in the
-// paper; a hit sets the sample's shadow flag (afsm_casters.glsli). No depth is
+// paper, on the ray the sample's slot holds (afsm.glsli: AfsmRaySlot); a hit
+// sets the sample's shadow flag (afsm_casters.glsli). No depth is
 // compared, so there is no acne and no aliasing, and the result equals the
 // tracer's.
 
@@ -15,6 +18,7 @@
 #include "shadow_common.glsli"
 #include "shadow_ray.glsli"
 #include "penumbra/light_sampling.h"
+#define AFSM_SLOTS 1
 #include "afsm.glsli"
 
 layout(location = 0) flat in vec3 vertex0;
@@ -22,20 +26,21 @@ layout(location = 1) flat in vec3 vertex1;
 layout(location = 2) flat in vec3 vertex2;
 layout(location = 3) flat in vec4 projected01;
 layout(location = 4) flat in vec4 projected2;
+layout(location = 5) flat in vec4 depthPlane;
+layout(location = 6) flat in float depthNearest;
 
 // C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
-layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
-layout(set = 0, binding = 3, std430) readonly buffer CellFirst { uint cellFirst[]; };  // first slot per cell
-layout(set = 0, binding = 4, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
-layout(set = 0, binding = 5, std430) readonly buffer SampleList { uint samplePixels[]; };
-layout(set = 0, binding = 6, std430) buffer Shadowed { uint shadowed[]; };
+layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };  // first slot per cell
+layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
+layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
+layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };   // per cell: its farthest sample depth
+layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
 
 #include "afsm_casters.glsli"
 
 layout(push_constant) uniform AfsmCastersPush {
     mat4 viewProj;
+    uint64_t slots;     // AfsmRaySlot per slot
     uint lightIndex;
     uint gridSize;
     float originOffset;
@@ -47,7 +52,9 @@ void main()
     uvec2 cellXY = uvec2(gl_FragCoord.xy);
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     vec2 v[3] = vec2[](projected01.xy, projected01.zw, projected2.xy);
-    if (cellCount[cell] == 0u || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0))
+    // The caster's nearest depth over the cell grown by the margin of afsmCellMayMeetTriangle.
+    float nearest = afsmNearestOver(AfsmDepthBound(depthPlane, depthNearest), vec2(cellXY) - 0.5, vec2(cellXY) + 1.5);
+    if (cellCount[cell] == 0u || afsmCellBehind(cell, nearest) || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0))
         return;
-    afsmTestCellHard(cell, frame.lights[push.lightIndex], push.originOffset, vertex0, vertex1, vertex2);
+    afsmTestCellHard(cell, push.slots, vertex0, vertex1, vertex2);
 }

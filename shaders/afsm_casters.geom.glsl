@@ -1,13 +1,16 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Alias-free shadow maps, casters (Sintorn et al. 2008, section 3.2):
 // conservative rasterization of each triangle over the sample grid. lavapipe
-// has no conservative-rasterization extension, so the triangle is drawn as
-// its bounding rectangle in the grid, grown by one cell on each side: every
-// cell whose area the triangle's projection touches has its centre inside,
-// so the fragment shader sees every cell whose samples the triangle can
-// shadow (afsm_casters.frag.glsl tests them exactly). A triangle reaching
-// behind a perspective projection's eye covers the whole grid. With
+// has no conservative-rasterization extension, so the triangle is drawn
+// grown: each edge moved out by half a cell's extent along its normal plus
+// half a cell (afsm_casters.glsli: afsmOffsetAndClip), within its bounding
+// rectangle grown by one cell. Every cell whose area the triangle's
+// projection touches has its centre inside, so the fragment shader sees every
+// cell whose samples the triangle can shadow (afsm_casters.frag.glsl tests
+// them exactly). A triangle reaching behind a perspective projection's eye
+// covers the whole grid. With
 // push.computeCells > 0 the triangles whose rectangle spans at most that many
 // cells were tested by the compute path (afsm_bin.comp.glsl) and are left out.
 
@@ -16,12 +19,16 @@
 #include "shadow_ray.glsli"
 #include "penumbra/light_sampling.h"
 #include "afsm.glsli"
-layout(set = 0, binding = 4, std430) readonly buffer CellCount { uint cellCount[]; }; // samples per cell
+// C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
+layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
+layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };            // the layer's farthest sample depth
+layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth
 #define AFSM_RECTANGLES_ONLY 1
+#define AFSM_POLYGONS 1
 #include "afsm_casters.glsli"
 
 layout(triangles) in;
-layout(triangle_strip, max_vertices = 4) out;
+layout(triangle_strip, max_vertices = 8) out;
 
 layout(location = 0) in vec3 worldPosition[];
 layout(location = 0) flat out vec3 vertex0;
@@ -31,9 +38,12 @@ layout(location = 2) flat out vec3 vertex2;
 // cell test; projected2.w = 0: no test (a vertex behind the eye).
 layout(location = 3) flat out vec4 projected01; // xy vertex 0, zw vertex 1
 layout(location = 4) flat out vec4 projected2;  // xy vertex 2, w = 1 when valid
+layout(location = 5) flat out vec4 depthPlane;  // AfsmDepthBound
+layout(location = 6) flat out float depthNearest;
 
 layout(push_constant) uniform AfsmCastersPush {
     mat4 viewProj;     // the layer's projection (the grid's)
+    uint64_t slots;    // AfsmRaySlot per slot (afsm_casters.frag.glsl)
     uint lightIndex;
     uint gridSize;     // cells per side
     float originOffset;
@@ -44,17 +54,32 @@ void main()
 {
     vec2 cells[3];
     bool behind;
-    AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, cells, behind);
-    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, true))
+    AfsmDepthBound depth;
+    AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, cells, behind, depth);
+    // Beyond every sample of the layer, or the compute path's.
+    if (r.empty || depth.nearest > uintBitsToFloat(farBits) * 1.0001 || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
         return;
-    const vec2 corners[4] = vec2[](vec2(0.0, 0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), vec2(1.0, 1.0));
-    for (int i = 0; i < 4; ++i) {
-        gl_Position = vec4(mix(r.lo, r.hi, corners[i]), 0.5, 1.0);
+    // The triangle grown by half a cell and the margin of afsmCellMayMeetTriangle, within the rectangle.
+    vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);
+    float area = afsmCross(cells[1] - cells[0], cells[2] - cells[0]);
+    if (behind || area == 0.0) {
+        afsmRectPolygon(lo, hi);
+    } else {
+        afsmPolygon[0] = cells[0];
+        afsmPolygon[1] = area > 0.0 ? cells[1] : cells[2];
+        afsmPolygon[2] = area > 0.0 ? cells[2] : cells[1];
+        afsmPolygonCount = 3;
+        afsmOffsetAndClip(0.5, lo, hi);
+    }
+    for (int i = 0; i < afsmPolygonCount; ++i) {
+        gl_Position = afsmStripVertex(i, push.gridSize);
         vertex0 = worldPosition[0];
         vertex1 = worldPosition[1];
         vertex2 = worldPosition[2];
         projected01 = behind ? vec4(0.0) : vec4(cells[0], cells[1]);
         projected2 = behind ? vec4(0.0) : vec4(cells[2], 0.0, 1.0);
+        depthPlane = depth.plane;
+        depthNearest = depth.nearest;
         EmitVertex();
     }
     EndPrimitive();

@@ -8,19 +8,20 @@
 // Alias-free shadow maps, the view samples' passes (Sintorn et al. 2008,
 // section 3; afsm.glsli). Per camera pixel, one of:
 //  PENUMBRA_AFSM_COUNT: the sample's grid cell in layer `layer` gets one more
-//    sample (atomicAdd on cellCount);
+//    sample (atomicAdd on cellCount) and keeps its farthest sample's depth
+//    (afsmDepth of the ray origin), as the layer keeps its farthest (the
+//    casters' early-outs; soft: the influence regions' far plane);
 //  PENUMBRA_AFSM_LIST: after the prefix sum (afsm_scan.comp.glsl) turned the
-//    counts into offsets, the sample writes its pixel index into its cell's
-//    range of the flat list (cellFill counts the cell's slots taken);
+//    counts into offsets, the sample writes its ray and pixel index
+//    (AfsmRaySlot, afsm.glsli) into its cell's range of the flat list of
+//    slots (cellFill counts the cell's slots taken);
 //  PENUMBRA_AFSM_RESOLVE: after every layer's casters (afsm_casters), the
 //    light's visibility: 0 where a caster blocked the sample's ray or the
 //    surface faces away, 1 elsewhere; -1 for background. Clears the marks
 //    (nothing is traced) and counts covered pixels.
 // Built a second time with PENUMBRA_AFSM_SOFT (afsm_samples.comp.soft) for
 // area lights (section 4): a pixel is a sample when some point of the light
-// lies above its plane and it is in front of a one-sided emitter; the count
-// also keeps the layer's farthest sample depth (the influence regions' far
-// plane, afsm_soft.geom.glsl); the list also writes the slot's ray origin and
+// lies above its plane and it is in front of a one-sided emitter; the list writes the slot's ray origin and
 // the light's jittered axes (AfsmSlot); the resolve counts the light samples
 // above the pixel's plane that no caster's mask holds, and clears the mask.
 
@@ -31,6 +32,7 @@
 #ifdef PENUMBRA_AFSM_SOFT
 #define AFSM_SOFT 1
 #endif
+#define AFSM_SLOTS 1
 #include "afsm.glsli"
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
@@ -40,13 +42,14 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 // C++: runtime/src/passes/afsm.h (AfsmSamplesBinding).
 layout(set = 0, binding = 6, std430) buffer CellCount { uint cellCount[]; };   // per cell: samples, then (scan) first slot
 layout(set = 0, binding = 7, std430) buffer CellFill { uint cellFill[]; };     // per cell: slots taken (PENUMBRA_AFSM_LIST)
-layout(set = 0, binding = 8, std430) buffer SampleList { uint samplePixels[]; }; // pixel index per slot
-layout(set = 0, binding = 9, std430) buffer Shadowed { uint shadowed[]; };     // per pixel: 1 when a caster blocks its ray (soft: all its samples)
-layout(set = 0, binding = 10, std430) buffer Far { uint farBits; };            // soft: the layer's farthest sample depth (float bits)
+layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };     // per pixel: 1 when a caster blocks its ray (soft: all its samples)
+layout(set = 0, binding = 9, std430) buffer Far { uint farBits; };             // the layer's farthest sample depth (float bits)
+layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth (float bits)
+layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared here)
 
 layout(push_constant) uniform AfsmSamplesPush {
     mat4 viewProj;      // the layer's grid projection
-    uint64_t slots;     // soft: AfsmSlot per slot
+    uint64_t slots;     // AfsmRaySlot (soft: AfsmSlot) per slot
     uint64_t masks;     // soft: afsmWords(samples) uints per pixel
     uint64_t table;     // soft: the lookup table (afsm_table.comp.glsl)
     uint lightIndex;
@@ -156,13 +159,16 @@ uvec2 samplePixel()
 #endif
     if (push.mode == PENUMBRA_AFSM_COUNT) {
         atomicAdd(cellCount[cell], 1u);
-#ifdef PENUMBRA_AFSM_SOFT
-        return uvec2(0u, floatBitsToUint(depth));
-#endif
+        // Depths are positive (in front of the light) except for a hair past a near plane; non-negative floats order as uints.
+        uint depthBits = floatBitsToUint(max(depth, 0.0));
+        atomicMax(cellDepth[cell], depthBits);
+        return uvec2(0u, depthBits);
     } else {
         uint slot = cellCount[cell] + atomicAdd(cellFill[cell], 1u);
-        samplePixels[slot] = index;
-#ifdef PENUMBRA_AFSM_SOFT
+        slotShadowed[slot] = 0u;
+#ifndef PENUMBRA_AFSM_SOFT
+        AfsmRaySlots(push.slots).slots[slot] = afsmRaySlot(ray, index);
+#else
         uint shape = areaShape(light);
         vec4 jitter = afsmJitter(shape, sampleSeed(uint(pixel.x), uint(pixel.y), push.lightIndex));
         vec3 c = light.positionType.xyz;
@@ -181,12 +187,10 @@ void main()
     uvec2 counts = samplePixel();
     if (push.mode == PENUMBRA_AFSM_RESOLVE)
         countPixels(counts);
-#ifdef PENUMBRA_AFSM_SOFT
     // The layer's farthest sample depth: one atomic per subgroup.
     if (push.mode == PENUMBRA_AFSM_COUNT) {
         uint farthest = subgroupMax(counts.y);
         if (subgroupElect() && farthest != 0u)
             atomicMax(farBits, farthest);
     }
-#endif
 }

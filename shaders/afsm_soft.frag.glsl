@@ -17,12 +17,15 @@
 layout(location = 0) flat in vec3 vertex0;
 layout(location = 1) flat in vec3 vertex1;
 layout(location = 2) flat in vec3 vertex2;
+layout(location = 3) flat in float depthNearest;
 
 // C++: runtime/src/passes/afsm.h (AfsmSoftBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };  // first slot per cell
 layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };            // per pixel: every light sample hidden
+layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };   // per cell: its farthest sample depth
+layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
 
 #include "afsm_casters.glsli"
 
@@ -44,7 +47,7 @@ void main()
 {
     uvec2 cellXY = uvec2(gl_FragCoord.xy);
     uint cell = cellXY.y * push.gridSize + cellXY.x;
-    if (cellCount[cell] == 0u)
+    if (cellCount[cell] == 0u || afsmCellBehind(cell, depthNearest))
         return;
     afsmTestCellSoft(cell, frame.lights[push.lightIndex], AfsmSoftTable(push.slots, push.masks, push.table, push.samples, push.tableSize),
                      vertex0, vertex1, vertex2);

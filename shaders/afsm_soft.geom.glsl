@@ -3,10 +3,11 @@
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Alias-free shadow maps, soft shadows (Sintorn et al. 2008, section 4.1):
-// each caster is drawn over the sample grid as the bounding rectangle of its
-// influence region (afsm_casters.glsli: afsmSoftRect), grown by one cell
-// (conservative: every cell whose square the region touches has its centre
-// inside; lavapipe has no conservative rasterization), and
+// each caster is drawn over the sample grid as the convex hull of its
+// influence region (afsm_casters.glsli: afsmSoftRect, afsmHull), each edge
+// moved out by half a cell's extent (conservative: every cell whose square
+// the region touches has its centre inside; lavapipe has no conservative
+// rasterization), within the region's rectangle grown by one cell, and
 // afsm_soft.frag.glsl tests every sample listed there. With
 // push.computeCells > 0 the casters whose rectangle spans at most that many
 // cells were tested by the compute path (afsm_bin.comp.glsl) and are left out.
@@ -18,19 +19,22 @@
 #define AFSM_SOFT 1
 #include "afsm.glsli"
 layout(triangles) in;
-layout(triangle_strip, max_vertices = 4) out;
+layout(triangle_strip, max_vertices = 32) out;
 
 layout(location = 0) in vec3 worldPosition[];
 layout(location = 0) flat out vec3 vertex0;
 layout(location = 1) flat out vec3 vertex1;
 layout(location = 2) flat out vec3 vertex2;
+layout(location = 3) flat out float depthNearest; // the caster's nearest vertex depth
 
 // C++: runtime/src/passes/afsm.h (AfsmSoftBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; }; // samples per cell
 layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
+layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };
 
 #define AFSM_RECTANGLES_ONLY 1
+#define AFSM_POLYGONS 1
 #include "afsm_casters.glsli"
 
 layout(push_constant) uniform AfsmSoftPush {
@@ -49,16 +53,29 @@ layout(push_constant) uniform AfsmSoftPush {
 
 void main()
 {
+    float nearest;
     AfsmRect r = afsmSoftRect(push.viewProj, frame.lights[push.lightIndex], uintBitsToFloat(farBits), worldPosition[0], worldPosition[1],
-                              worldPosition[2], push.gridSize);
-    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u + afsmQuads(push.samples), true))
+                              worldPosition[2], push.gridSize, nearest);
+    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u + afsmQuads(push.samples), nearest, true))
         return;
-    const vec2 corners[4] = vec2[](vec2(0.0, 0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), vec2(1.0, 1.0));
-    for (int i = 0; i < 4; ++i) {
-        gl_Position = vec4(mix(r.lo, r.hi, corners[i]), 0.5, 1.0);
+    // The region's hull grown by half a cell, within the rectangle.
+    vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);
+    afsmRectPolygon(lo, hi);
+    if (!r.whole) {
+        for (int i = 0; i < afsmPointCount; ++i)
+            afsmPoints[i] = (afsmPoints[i] * 0.5 + 0.5) * float(push.gridSize);
+        afsmHull();
+        if (afsmPolygonCount >= 3)
+            afsmOffsetAndClip(0.0, lo, hi);
+        else
+            afsmRectPolygon(lo, hi);
+    }
+    for (int i = 0; i < afsmPolygonCount; ++i) {
+        gl_Position = afsmStripVertex(i, push.gridSize);
         vertex0 = worldPosition[0];
         vertex1 = worldPosition[1];
         vertex2 = worldPosition[2];
+        depthNearest = nearest;
         EmitVertex();
     }
     EndPrimitive();

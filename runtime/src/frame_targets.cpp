@@ -44,12 +44,12 @@ std::vector<vk::Buffer*> FrameTargets::mapSizedBuffers()
 
 std::vector<vk::Buffer*> FrameTargets::afsmBuffers()
 {
-    return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSamples, &afsmShadowed, &afsmFar};
+    return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSlots, &afsmShadowed, &afsmFar, &afsmCellDepth, &afsmSlotShadowed};
 }
 
 void FrameTargets::destroyImageSized(vk::Device& device)
 {
-    for (vk::Buffer* buffer : afsmBuffers()) // afsmSamples and afsmShadowed are per pixel
+    for (vk::Buffer* buffer : afsmBuffers()) // afsmSlots and afsmShadowed are per pixel
         vk::destroyBuffer(device, *buffer);
     vk::destroyBuffer(device, readbackLightVisibility);
     vk::destroyBuffer(device, readbackLightMarks);
@@ -166,8 +166,10 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     const VkDeviceSize cells = VkDeviceSize(gridSize) * gridSize, pixels = VkDeviceSize(width) * height;
     afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmCellDepth = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmBlockSums = vk::createBuffer(device, PENUMBRA_AFSM_MAX_GRID * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
-    afsmSamples = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmSlots = vk::createBuffer(device, pixels * 48, kStorageDst, vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
+    afsmSlotShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmFar = vk::createBuffer(device, 16, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmGrid = gridSize;

@@ -47,8 +47,10 @@ struct FrameTargets {
     // afsm only (alias-free shadow maps; passes/afsm.h), made on first use.
     uint32_t afsmGrid = 0;   // cells per side
     vk::Buffer afsmCellFirst, afsmCellCount, afsmBlockSums; // per grid cell
-    vk::Buffer afsmSamples, afsmShadowed;                   // per pixel
-    vk::Buffer afsmFar;                                     // soft: the layer's farthest sample depth
+    vk::Buffer afsmSlots, afsmShadowed;                     // per pixel: a slot of the sample list (48 bytes, addressable), a flag
+    vk::Buffer afsmSlotShadowed;                            // per slot: its pixel's flag
+    vk::Buffer afsmFar;                                     // the layer's farthest sample depth
+    vk::Buffer afsmCellDepth;                               // per grid cell: its farthest sample depth
     // RenderSettings::readbackLightLayers only, made on first use: every light's
     // visibility and marks (PENUMBRA_MAX_LIGHTS slices of one image each).
     vk::Buffer readbackLightVisibility, readbackLightMarks;

@@ -93,12 +93,15 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
         if (areaLights && (settings.lightSamples < PENUMBRA_AFSM_MIN_SAMPLES || settings.lightSamples > PENUMBRA_AFSM_MAX_SAMPLES))
             fail("render", "afsm soft shadows take " + std::to_string(PENUMBRA_AFSM_MIN_SAMPLES) + ".." + std::to_string(PENUMBRA_AFSM_MAX_SAMPLES) +
                                " light samples per pixel (--samples), not " + std::to_string(settings.lightSamples));
-        const uint64_t softBytes = passes::afsmSoftBufferBytes(settings.width, settings.height, settings.lightSamples);
-        if (areaLights && softBytes > device.maxAllocationSize)
-            fail("render", "afsm soft shadows at " + std::to_string(settings.width) + "x" + std::to_string(settings.height) + " with " +
-                               std::to_string(settings.lightSamples) + " light samples need " + std::to_string(softBytes >> 20) +
-                               " MiB in one buffer (sample masks), more than one allocation of this device (" +
-                               std::to_string(device.maxAllocationSize >> 20) + " MiB): use fewer samples or a smaller image");
+        const uint64_t largest = passes::afsmLargestBuffer(settings.width, settings.height, settings.lightSamples, areaLights);
+        const std::string size = std::to_string(settings.width) + "x" + std::to_string(settings.height);
+        if (largest > device.maxAllocationSize)
+            fail("render", (areaLights ? "afsm soft shadows at " + size + " with " + std::to_string(settings.lightSamples) + " light samples need "
+                                       : "afsm at " + size + " needs ") +
+                               std::to_string(largest >> 20) + " MiB in one buffer (" +
+                               (largest > passes::afsmLargestBuffer(settings.width, settings.height, 0, false) ? "sample masks" : "the sample list") +
+                               "), more than one allocation of this device (" + std::to_string(device.maxAllocationSize >> 20) +
+                               " MiB): use " + (areaLights ? "fewer samples or " : "") + "a smaller image");
     } else if (settings.lightSamples < 4 || settings.lightSamples > PENUMBRA_MAX_SAMPLES) {
         fail("render", "light samples must be 4.." + std::to_string(PENUMBRA_MAX_SAMPLES) + " for " + spec.name + " (afsm: " +
                            std::to_string(PENUMBRA_AFSM_MIN_SAMPLES) + ".." + std::to_string(PENUMBRA_AFSM_MAX_SAMPLES) + ")");

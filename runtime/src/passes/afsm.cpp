@@ -23,19 +23,13 @@ constexpr VkBufferUsageFlags kStorageDst = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | 
 std::vector<VkDescriptorType> castersBindingTypes()
 {
     using namespace vk;
-    return {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage};
-}
-
-std::vector<VkDescriptorType> softBindingTypes()
-{
-    using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
 }
 
 std::vector<VkDescriptorType> binBindingTypes()
 {
     using namespace vk;
-    return {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
 }
 
 // A perspective frustum from eye along forward with a square field of view
@@ -90,10 +84,10 @@ double AfsmTableSize::lineError(bool rectangle) const
     return rho / double(distances) + rho * 0.5 * pi / double(angles);
 }
 
-uint64_t afsmSoftBufferBytes(uint32_t width, uint32_t height, uint32_t samples)
+uint64_t afsmLargestBuffer(uint32_t width, uint32_t height, uint32_t samples, bool soft)
 {
     const uint64_t pixels = uint64_t(width) * height;
-    return std::max<uint64_t>(pixels * afsmTableSize(samples).words * 4, pixels * 48);
+    return std::max<uint64_t>(soft ? pixels * afsmTableSize(samples).words * 4 : 0, pixels * 48);
 }
 
 std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, bool& cube)
@@ -136,14 +130,14 @@ void AfsmPass::create(vk::Device& device)
 {
     using namespace vk;
     std::vector<VkDescriptorType> sampleTypes = pixelBindingTypes();
-    sampleTypes.insert(sampleTypes.end(), {kStorage, kStorage, kStorage, kStorage, kStorage});
+    sampleTypes.insert(sampleTypes.end(), {kStorage, kStorage, kStorage, kStorage, kStorage, kStorage});
     samples.create(device, "afsm_samples.comp", sampleTypes, sizeof(AfsmSamplesPush));
     samplesSoft.create(device, "afsm_samples.comp.soft", sampleTypes, sizeof(AfsmSamplesPush));
     scan.create(device, "afsm_scan.comp", {kStorage, kStorage}, sizeof(AfsmScanPush));
     table.create(device, "afsm_table.comp", {kStorage}, sizeof(AfsmTablePush));
     bin.create(device, "afsm_bin.comp", binBindingTypes(), sizeof(AfsmBinPush));
     binSoft.create(device, "afsm_bin.comp.soft", binBindingTypes(), sizeof(AfsmBinPush));
-    softParams = createBuffer(device, sizeof(AfsmSoftParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
+    params = createBuffer(device, sizeof(AfsmParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
     if (!device.aliasFree)
         return;
     castersSetLayout = createSetLayout(device, castersBindingTypes(), VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
@@ -155,13 +149,10 @@ void AfsmPass::create(vk::Device& device)
     desc.depthWrite = false;
     desc.pushBytes = sizeof(AfsmCastersPush);
     casters.create(device, desc, VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, castersSetLayout);
-
-    softSetLayout = createSetLayout(device, softBindingTypes(), VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
-    softSet = allocateSet(device, softSetLayout, softBindingTypes(), softPool);
     desc.geometryShader = "afsm_soft.geom";
     desc.fragmentShader = "afsm_soft.frag";
     desc.pushBytes = sizeof(AfsmSoftPush);
-    softCasters.create(device, desc, VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, softSetLayout);
+    softCasters.create(device, desc, VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, castersSetLayout);
 }
 
 void AfsmPass::destroy(vk::Device& device)
@@ -170,16 +161,14 @@ void AfsmPass::destroy(vk::Device& device)
         kernel->destroy(device);
     casters.destroy(device);
     softCasters.destroy(device);
-    for (VkDescriptorPool* pool : {&castersPool, &softPool})
-        if (*pool)
-            vkDestroyDescriptorPool(device.device, *pool, nullptr);
-    for (VkDescriptorSetLayout* layout : {&castersSetLayout, &softSetLayout})
-        if (*layout)
-            vkDestroyDescriptorSetLayout(device.device, *layout, nullptr);
-    castersPool = softPool = VK_NULL_HANDLE;
-    castersSetLayout = softSetLayout = VK_NULL_HANDLE;
-    castersSet = softSet = VK_NULL_HANDLE;
-    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &slots, &softParams, &clusterMasks})
+    if (castersPool)
+        vkDestroyDescriptorPool(device.device, castersPool, nullptr);
+    if (castersSetLayout)
+        vkDestroyDescriptorSetLayout(device.device, castersSetLayout, nullptr);
+    castersPool = VK_NULL_HANDLE;
+    castersSetLayout = VK_NULL_HANDLE;
+    castersSet = VK_NULL_HANDLE;
+    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &params, &clusterMasks})
         vk::destroyBuffer(device, *buffer);
     tableCounts[0] = tableCounts[1] = 0;
     maskWords = maskPixels = clusterMaskWords = 0;
@@ -188,44 +177,44 @@ void AfsmPass::destroy(vk::Device& device)
 void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
 {
     targets = t;
+    slotsAddress = vk::bufferAddress(device, *t.slots);
     std::vector<vk::Binding> bindings = pixelBindings(t.pixels);
     bindings.insert(bindings.end(), {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.cellCount->buffer),
-                                     vk::storageBuffer(t.samples->buffer), vk::storageBuffer(t.shadowed->buffer),
-                                     vk::storageBuffer(t.far->buffer)});
+                                     vk::storageBuffer(t.shadowed->buffer), vk::storageBuffer(t.far->buffer),
+                                     vk::storageBuffer(t.cellDepth->buffer), vk::storageBuffer(t.slotShadowed->buffer)});
     samples.write(device, bindings);
     samplesSoft.write(device, bindings);
-    const std::vector<vk::Binding> binBindings = {
-        vk::storageImage(t.pixels.position),      vk::storageImage(t.pixels.normal),         vk::uniformBuffer(t.pixels.frame),
-        vk::storageBuffer(t.cellFirst->buffer),   vk::storageBuffer(t.cellCount->buffer),    vk::storageBuffer(t.samples->buffer),
-        vk::storageBuffer(t.shadowed->buffer),    vk::storageBuffer(t.far->buffer),          vk::storageBuffer(softParams.buffer)};
+    scan.write(device, {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.blockSums->buffer)});
+    const std::vector<vk::Binding> common = {vk::uniformBuffer(t.pixels.frame), vk::storageBuffer(t.cellFirst->buffer),
+                                             vk::storageBuffer(t.cellCount->buffer), vk::storageBuffer(t.shadowed->buffer),
+                                             vk::storageBuffer(t.far->buffer), vk::storageBuffer(t.cellDepth->buffer),
+                                             vk::storageBuffer(t.slotShadowed->buffer)};
+    std::vector<vk::Binding> binBindings = common;
+    binBindings.push_back(vk::storageBuffer(params.buffer));
     bin.write(device, binBindings);
     binSoft.write(device, binBindings);
-    scan.write(device, {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.blockSums->buffer)});
     if (castersSet)
-        vk::writeSet(device, castersSet,
-                     {vk::storageImage(t.pixels.position), vk::storageImage(t.pixels.normal), vk::uniformBuffer(t.pixels.frame),
-                      vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.cellCount->buffer), vk::storageBuffer(t.samples->buffer),
-                      vk::storageBuffer(t.shadowed->buffer)});
-    if (softSet)
-        vk::writeSet(device, softSet,
-                     {vk::uniformBuffer(t.pixels.frame), vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.cellCount->buffer),
-                      vk::storageBuffer(t.shadowed->buffer), vk::storageBuffer(t.far->buffer)});
+        vk::writeSet(device, castersSet, common);
+    writeParams();
+}
+
+void AfsmPass::writeParams() const
+{
+    const AfsmParams values{slotsAddress, masksAddress, tableAddress, softSamples, softTable.packed()};
+    std::memcpy(params.mapped, &values, sizeof(values));
 }
 
 void AfsmPass::prepareSoft(vk::Device& device, VkCommandBuffer cmd, uint32_t lightSamples, bool rectangle)
 {
     const AfsmTableSize size = afsmTableSize(lightSamples);
     const uint32_t pixels = targets.width * targets.height;
-    // Masks and slots for the image: the masks must start at zero (each resolve clears what it read).
+    // Masks for the image: they must start at zero (each resolve clears what it read).
     if (maskPixels != pixels || maskWords < size.words) {
         vkDeviceWaitIdle(device.device);
         vk::destroyBuffer(device, masks);
-        vk::destroyBuffer(device, slots);
         maskPixels = maskWords = 0;
         masks = vk::createBuffer(device, VkDeviceSize(pixels) * size.words * 4, kStorageDst, vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
-        slots = vk::createBuffer(device, VkDeviceSize(pixels) * 48, kStorageDst, vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
         masksAddress = vk::bufferAddress(device, masks);
-        slotsAddress = vk::bufferAddress(device, slots);
         vk::memoryBarrier(cmd, kCompute | kFragment, kStorageRW, kClear, kTransferWrite);
         vkCmdFillBuffer(cmd, masks.buffer, 0, VK_WHOLE_SIZE, 0);
         vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute | kFragment, kStorageRW);
@@ -259,8 +248,7 @@ void AfsmPass::prepareSoft(vk::Device& device, VkCommandBuffer cmd, uint32_t lig
     tableAddress = vk::bufferAddress(device, tables[shape]);
     softSamples = lightSamples;
     softTable = size;
-    const AfsmSoftParams params{slotsAddress, masksAddress, tableAddress, softSamples, softTable.packed()};
-    std::memcpy(softParams.mapped, &params, sizeof(params));
+    writeParams();
 }
 
 void AfsmPass::clear(VkCommandBuffer cmd) const
@@ -273,9 +261,8 @@ void AfsmPass::clear(VkCommandBuffer cmd) const
 AfsmSamplesPush AfsmPass::samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube,
                                       float originOffset, bool soft) const
 {
-    AfsmSamplesPush push{viewProj, 0, 0, 0, lightIndex, mode, layer, targets.gridSize, originOffset, cube ? 1u : 0u, 0, 0};
+    AfsmSamplesPush push{viewProj, slotsAddress, 0, 0, lightIndex, mode, layer, targets.gridSize, originOffset, cube ? 1u : 0u, 0, 0};
     if (soft) {
-        push.slots = slotsAddress;
         push.masks = masksAddress;
         push.table = tableAddress;
         push.samples = softSamples;
@@ -301,6 +288,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     vkCmdFillBuffer(cmd, targets.cellFirst->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.cellCount->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.far->buffer, 0, VK_WHOLE_SIZE, 0);
+    vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_COUNT, layer, viewProj, cube, originOffset, soft), soft);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
@@ -362,12 +350,12 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     rendering.renderArea = {{0, 0}, {grid, grid}};
     rendering.layerCount = 1;
     const float computeCells = compute ? float(PENUMBRA_AFSM_COMPUTE_CELLS) : 0.0f;
-    const AfsmCastersPush hardPush{layer.viewProj, layer.lightIndex, grid, layer.originOffset, computeCells};
+    const AfsmCastersPush hardPush{layer.viewProj, slotsAddress, layer.lightIndex, grid, layer.originOffset, computeCells};
     const AfsmSoftPush softPush{layer.viewProj, slotsAddress, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,
                                 softSamples,   softTable.packed(), computeCells, {}};
     const vk::RasterPipelines& pipelines = layer.soft ? softCasters : casters;
     const VkPipeline pipeline = pipelines[geometry.encoding];
-    const VkDescriptorSet set = layer.soft ? softSet : castersSet;
+    const VkDescriptorSet set = castersSet;
     culling.recordView(cmd, layer.view, geometry, [&](bool) {
         vkCmdBeginRendering(cmd, &rendering);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);

@@ -33,20 +33,21 @@ namespace penumbra::passes {
 enum AfsmSamplesBinding : uint32_t {
     kAfsmCellFirst = kPixelBindingCount, // per cell: samples, then (after the scan) the first slot
     kAfsmCellCount,                      // per cell: slots taken while listing (= samples)
-    kAfsmSamples,                        // pixel index per slot
     kAfsmShadowed,                       // per pixel: 1 when a caster blocks its ray (soft: every light sample)
-    kAfsmFar,                            // soft: the layer's farthest sample depth
+    kAfsmFar,                            // the layer's farthest sample depth (afsm.glsli: afsmDepth)
+    kAfsmCellDepth,                      // per cell: its farthest sample depth
+    kAfsmSlotShadowed,                   // per slot: its pixel's flag (cleared when listed)
     kAfsmSamplesBindingCount
 };
 enum AfsmScanBinding : uint32_t { kAfsmScanCounts, kAfsmScanBlockSums, kAfsmScanBindingCount };
+// The raster path's set (hard and soft pipelines).
 enum AfsmCastersBinding : uint32_t {
-    kAfsmCastersPosition, kAfsmCastersNormal, kAfsmCastersFrame, kAfsmCastersCellFirst, kAfsmCastersCellCount, kAfsmCastersSamples,
-    kAfsmCastersShadowed, kAfsmCastersBindingCount
+    kAfsmCastersFrame, kAfsmCastersCellFirst, kAfsmCastersCellCount, kAfsmCastersShadowed, kAfsmCastersFar, kAfsmCastersCellDepth,
+    kAfsmCastersSlotShadowed, kAfsmCastersBindingCount
 };
-enum AfsmSoftBinding : uint32_t { kAfsmSoftFrame, kAfsmSoftCellFirst, kAfsmSoftCellCount, kAfsmSoftShadowed, kAfsmSoftFar, kAfsmSoftBindingCount };
 enum AfsmBinBinding : uint32_t {
-    kAfsmBinPosition, kAfsmBinNormal, kAfsmBinFrame, kAfsmBinCellFirst, kAfsmBinCellCount, kAfsmBinSamples, kAfsmBinShadowed, kAfsmBinFar,
-    kAfsmBinSoftParams, kAfsmBinBindingCount
+    kAfsmBinFrame, kAfsmBinCellFirst, kAfsmBinCellCount, kAfsmBinShadowed, kAfsmBinFar, kAfsmBinCellDepth, kAfsmBinSlotShadowed, kAfsmBinParams,
+    kAfsmBinBindingCount
 };
 
 struct AfsmSamplesPush {
@@ -73,12 +74,13 @@ static_assert(sizeof(AfsmScanPush) == 8);
 
 struct AfsmCastersPush {
     glm::mat4 viewProj;
+    uint64_t slots;     // AfsmRaySlot per slot
     uint32_t lightIndex;
     uint32_t gridSize;
     float originOffset;
     float computeCells; // casters of at most this many cells are the compute path's (0: none)
 };
-static_assert(sizeof(AfsmCastersPush) == 80);
+static_assert(sizeof(AfsmCastersPush) == 88);
 
 struct AfsmSoftPush {
     glm::mat4 viewProj;
@@ -106,12 +108,12 @@ struct AfsmBinPush {
 };
 static_assert(sizeof(AfsmBinPush) == 104);
 
-// afsm_bin.comp's soft-shadow parameters (binding kAfsmBinSoftParams).
-struct AfsmSoftParams {
+// afsm_bin.comp's buffers and table (binding kAfsmBinParams).
+struct AfsmParams {
     uint64_t slots, masks, table;
     uint32_t samples, tableSize;
 };
-static_assert(sizeof(AfsmSoftParams) == 32);
+static_assert(sizeof(AfsmParams) == 32);
 
 struct AfsmTablePush {
     uint64_t table;
@@ -127,9 +129,11 @@ struct AfsmTargets {
     const vk::Buffer* cellFirst = nullptr;
     const vk::Buffer* cellCount = nullptr;
     const vk::Buffer* blockSums = nullptr;
-    const vk::Buffer* samples = nullptr;
+    const vk::Buffer* slots = nullptr; // per slot (a pixel's worth): AfsmRaySlot or AfsmSlot (48 bytes), addressable
     const vk::Buffer* shadowed = nullptr;
     const vk::Buffer* far = nullptr;
+    const vk::Buffer* cellDepth = nullptr;
+    const vk::Buffer* slotShadowed = nullptr;
     uint32_t width = 0, height = 0, gridSize = 0;
 };
 
@@ -151,9 +155,10 @@ struct AfsmTableSize {
 };
 AfsmTableSize afsmTableSize(uint32_t samples);
 
-// Bytes of afsm's largest soft-shadow buffer for this image and sample
-// count (the per-pixel masks or the per-slot data), for the settings' check.
-uint64_t afsmSoftBufferBytes(uint32_t width, uint32_t height, uint32_t samples);
+// Bytes of afsm's largest buffer for this image (the slots of the sample
+// list; soft shadows with n samples: or the per-pixel masks), for the
+// settings' check.
+uint64_t afsmLargestBuffer(uint32_t width, uint32_t height, uint32_t samples, bool soft);
 
 // One layer of an area light's grid (soft shadows): the grid's projection
 // from the light's centre, and the frustum whose casters can shadow its
@@ -208,22 +213,24 @@ class AfsmPass {
     AfsmSamplesPush samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
                                 bool soft) const;
     vk::ComputeKernel samples, samplesSoft, scan, table, bin, binSoft;
-    VkDescriptorSetLayout castersSetLayout = VK_NULL_HANDLE, softSetLayout = VK_NULL_HANDLE;
-    VkDescriptorPool castersPool = VK_NULL_HANDLE, softPool = VK_NULL_HANDLE;
-    VkDescriptorSet castersSet = VK_NULL_HANDLE, softSet = VK_NULL_HANDLE;
+    void writeParams() const;
+    VkDescriptorSetLayout castersSetLayout = VK_NULL_HANDLE;
+    VkDescriptorPool castersPool = VK_NULL_HANDLE;
+    VkDescriptorSet castersSet = VK_NULL_HANDLE;
     vk::RasterPipelines casters, softCasters;
     AfsmTargets targets;
+    uint64_t slotsAddress = 0;
     // Soft shadows, made on the first soft frame: a table per shape (0:
     // rectangle, 1: disk) with the sample count it holds, its samples' 2-D
-    // positions, and per pixel of the bound image the masks and slots.
+    // positions, and per pixel of the bound image the masks.
     vk::Buffer tables[2], tableSamples;
     uint32_t tableCounts[2] = {};
-    vk::Buffer masks, slots;
+    vk::Buffer masks;
     uint32_t maskWords = 0, maskPixels = 0;
-    uint64_t tableAddress = 0, masksAddress = 0, slotsAddress = 0;
+    uint64_t tableAddress = 0, masksAddress = 0;
     uint32_t softSamples = 0;
     AfsmTableSize softTable;
-    vk::Buffer softParams;   // AfsmSoftParams (host-visible)
+    vk::Buffer params;       // AfsmParams (host-visible)
     vk::Buffer clusterMasks; // per light layer: bit per cluster in its view (host-visible)
     uint32_t clusterMaskWords = 0;
 };
