@@ -42,8 +42,9 @@ layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
 layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
 layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
+layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
 // Where the slots (and, soft, the masks and the table) are (AfsmPass: AfsmParams).
-layout(set = 0, binding = 7, std430) readonly buffer Params {
+layout(set = 0, binding = 8, std430) readonly buffer Params {
     uint64_t slots, softMasks, softTable;
     uint softSamples, softTableSize;
 };
@@ -96,12 +97,12 @@ void binCaster(vec3 v0, vec3 v1, vec3 v2)
             bool beyond = afsmCellBehind(cell, nearest);
 #else
             vec2 corner = vec2(x, y);
-            bool beyond = afsmCellBehind(cell, afsmNearestOver(depth, corner - 0.5, corner + 1.5));
+            bool beyond = afsmCellBehind(cell, afsmNearestOver(depth, corner, 0.5));
 #endif
             work += 1u + (beyond ? 0u : perSample * count);
             if (work > PENUMBRA_AFSM_COMPUTE_BUDGET)
                 return;
-            if (count == 0u || beyond)
+            if (count == 0u || beyond || cellAlive[cell] == 0u)
                 continue;
 #ifdef PENUMBRA_AFSM_SOFT
             afsmTestCellSoft(cell, light, table, v0, v1, v2);

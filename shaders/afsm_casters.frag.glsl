@@ -26,8 +26,6 @@ layout(location = 1) flat in vec3 vertex1;
 layout(location = 2) flat in vec3 vertex2;
 layout(location = 3) flat in vec4 projected01;
 layout(location = 4) flat in vec4 projected2;
-layout(location = 5) flat in vec4 depthPlane;
-layout(location = 6) flat in float depthNearest;
 
 // C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
 layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };  // first slot per cell
@@ -35,6 +33,7 @@ layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
 layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };   // per cell: its farthest sample depth
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
+layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed
 
 #include "afsm_casters.glsli"
 
@@ -52,9 +51,8 @@ void main()
     uvec2 cellXY = uvec2(gl_FragCoord.xy);
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     vec2 v[3] = vec2[](projected01.xy, projected01.zw, projected2.xy);
-    // The caster's nearest depth over the cell grown by the margin of afsmCellMayMeetTriangle.
-    float nearest = afsmNearestOver(AfsmDepthBound(depthPlane, depthNearest), vec2(cellXY) - 0.5, vec2(cellXY) + 1.5);
-    if (cellCount[cell] == 0u || afsmCellBehind(cell, nearest) || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0))
+    // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_casters.geom.glsl).
+    if (cellAlive[cell] == 0u || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0))
         return;
     afsmTestCellHard(cell, push.slots, vertex0, vertex1, vertex2);
 }

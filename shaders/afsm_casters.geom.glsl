@@ -21,7 +21,6 @@
 #include "afsm.glsli"
 // C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
 layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
-layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };            // the layer's farthest sample depth
 layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth
 #define AFSM_RECTANGLES_ONLY 1
 #define AFSM_POLYGONS 1
@@ -38,8 +37,6 @@ layout(location = 2) flat out vec3 vertex2;
 // cell test; projected2.w = 0: no test (a vertex behind the eye).
 layout(location = 3) flat out vec4 projected01; // xy vertex 0, zw vertex 1
 layout(location = 4) flat out vec4 projected2;  // xy vertex 2, w = 1 when valid
-layout(location = 5) flat out vec4 depthPlane;  // AfsmDepthBound
-layout(location = 6) flat out float depthNearest;
 
 layout(push_constant) uniform AfsmCastersPush {
     mat4 viewProj;     // the layer's projection (the grid's)
@@ -56,8 +53,7 @@ void main()
     bool behind;
     AfsmDepthBound depth;
     AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, cells, behind, depth);
-    // Beyond every sample of the layer, or the compute path's.
-    if (r.empty || depth.nearest > uintBitsToFloat(farBits) * 1.0001 || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
+    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
         return;
     // The triangle grown by half a cell and the margin of afsmCellMayMeetTriangle, within the rectangle.
     vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);
@@ -71,15 +67,18 @@ void main()
         afsmPolygonCount = 3;
         afsmOffsetAndClip(0.5, lo, hi);
     }
+    // Depth: at each cell's centre, the caster's nearest depth over the cell grown by the margin (afsmNearestOver's
+    // plane, affine across the polygon); the depth test (LESS against the cells' farthest samples, 0 for empty cells;
+    // clamped, not clipped) drops the cells every sample of which lies nearer the light than the caster.
+    AfsmDepthBound plane = AfsmDepthBound(depth.plane, -3.0e38);
     for (int i = 0; i < afsmPolygonCount; ++i) {
-        gl_Position = afsmStripVertex(i, push.gridSize);
+        float z = depth.plane.w == 0.0 ? depth.nearest : afsmNearestOver(plane, afsmPolygon[afsmStripIndex(i)] - 0.5, 0.5);
+        gl_Position = afsmStripVertex(i, push.gridSize, z);
         vertex0 = worldPosition[0];
         vertex1 = worldPosition[1];
         vertex2 = worldPosition[2];
         projected01 = behind ? vec4(0.0) : vec4(cells[0], cells[1]);
         projected2 = behind ? vec4(0.0) : vec4(cells[2], 0.0, 1.0);
-        depthPlane = depth.plane;
-        depthNearest = depth.nearest;
         EmitVertex();
     }
     EndPrimitive();

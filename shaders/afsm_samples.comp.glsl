@@ -9,8 +9,8 @@
 // section 3; afsm.glsli). Per camera pixel, one of:
 //  PENUMBRA_AFSM_COUNT: the sample's grid cell in layer `layer` gets one more
 //    sample (atomicAdd on cellCount) and keeps its farthest sample's depth
-//    (afsmDepth of the ray origin), as the layer keeps its farthest (the
-//    casters' early-outs; soft: the influence regions' far plane);
+//    (afsmDepth of the ray origin: the casters' depth test), and the layer
+//    its farthest sample's clip.w (soft: the influence regions' far plane);
 //  PENUMBRA_AFSM_LIST: after the prefix sum (afsm_scan.comp.glsl) turned the
 //    counts into offsets, the sample writes its ray and pixel index
 //    (AfsmRaySlot, afsm.glsli) into its cell's range of the flat list of
@@ -43,9 +43,10 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 layout(set = 0, binding = 6, std430) buffer CellCount { uint cellCount[]; };   // per cell: samples, then (scan) first slot
 layout(set = 0, binding = 7, std430) buffer CellFill { uint cellFill[]; };     // per cell: slots taken (PENUMBRA_AFSM_LIST)
 layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };     // per pixel: 1 when a caster blocks its ray (soft: all its samples)
-layout(set = 0, binding = 9, std430) buffer Far { uint farBits; };             // the layer's farthest sample depth (float bits)
+layout(set = 0, binding = 9, std430) buffer Far { uint farBits; };             // the layer's farthest sample's clip.w (float bits)
 layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth (float bits)
 layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared here)
+layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (counted here)
 
 layout(push_constant) uniform AfsmSamplesPush {
     mat4 viewProj;      // the layer's grid projection
@@ -145,8 +146,8 @@ uvec2 samplePixel()
     if (shadowLayer(light, position.xyz) != push.layer)
         return uvec2(0u);
 #endif
-    float depth;
-    uint cell = afsmGridCell(push.viewProj, origin, push.gridSize, depth);
+    float depth, w;
+    uint cell = afsmGridCell(push.viewProj, origin, push.gridSize, depth, w);
     if (cell == AFSM_NOT_BINNED)
         return uvec2(0u);
 #ifndef PENUMBRA_AFSM_SOFT
@@ -159,13 +160,14 @@ uvec2 samplePixel()
 #endif
     if (push.mode == PENUMBRA_AFSM_COUNT) {
         atomicAdd(cellCount[cell], 1u);
-        // Depths are positive (in front of the light) except for a hair past a near plane; non-negative floats order as uints.
-        uint depthBits = floatBitsToUint(max(depth, 0.0));
-        atomicMax(cellDepth[cell], depthBits);
-        return uvec2(0u, depthBits);
+        // Depths lie in [0, 1] (the grid's depth range holds the model) but for a hair past it; clamped as the casters' depth
+        // test clamps; non-negative floats order as uints.
+        atomicMax(cellDepth[cell], floatBitsToUint(clamp(depth, 0.0, 1.0)));
+        return uvec2(0u, floatBitsToUint(w));
     } else {
         uint slot = cellCount[cell] + atomicAdd(cellFill[cell], 1u);
         slotShadowed[slot] = 0u;
+        atomicAdd(cellAlive[cell], 1u);
 #ifndef PENUMBRA_AFSM_SOFT
         AfsmRaySlots(push.slots).slots[slot] = afsmRaySlot(ray, index);
 #else
@@ -187,7 +189,7 @@ void main()
     uvec2 counts = samplePixel();
     if (push.mode == PENUMBRA_AFSM_RESOLVE)
         countPixels(counts);
-    // The layer's farthest sample depth: one atomic per subgroup.
+    // The layer's farthest sample (clip.w): one atomic per subgroup.
     if (push.mode == PENUMBRA_AFSM_COUNT) {
         uint farthest = subgroupMax(counts.y);
         if (subgroupElect() && farthest != 0u)

@@ -17,7 +17,6 @@
 layout(location = 0) flat in vec3 vertex0;
 layout(location = 1) flat in vec3 vertex1;
 layout(location = 2) flat in vec3 vertex2;
-layout(location = 3) flat in float depthNearest;
 
 // C++: runtime/src/passes/afsm.h (AfsmSoftBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
@@ -26,6 +25,7 @@ layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };            // per pixel: every light sample hidden
 layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };   // per cell: its farthest sample depth
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
+layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed
 
 #include "afsm_casters.glsli"
 
@@ -47,7 +47,8 @@ void main()
 {
     uvec2 cellXY = uvec2(gl_FragCoord.xy);
     uint cell = cellXY.y * push.gridSize + cellXY.x;
-    if (cellCount[cell] == 0u || afsmCellBehind(cell, depthNearest))
+    // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_soft.geom.glsl).
+    if (cellAlive[cell] == 0u)
         return;
     afsmTestCellSoft(cell, frame.lights[push.lightIndex], AfsmSoftTable(push.slots, push.masks, push.table, push.samples, push.tableSize),
                      vertex0, vertex1, vertex2);

@@ -25,7 +25,6 @@ layout(location = 0) in vec3 worldPosition[];
 layout(location = 0) flat out vec3 vertex0;
 layout(location = 1) flat out vec3 vertex1;
 layout(location = 2) flat out vec3 vertex2;
-layout(location = 3) flat out float depthNearest; // the caster's nearest vertex depth
 
 // C++: runtime/src/passes/afsm.h (AfsmSoftBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
@@ -70,12 +69,12 @@ void main()
         else
             afsmRectPolygon(lo, hi);
     }
+    // Depth: the caster's nearest vertex (the depth test drops the cells whose samples all lie nearer the light).
     for (int i = 0; i < afsmPolygonCount; ++i) {
-        gl_Position = afsmStripVertex(i, push.gridSize);
+        gl_Position = afsmStripVertex(i, push.gridSize, nearest);
         vertex0 = worldPosition[0];
         vertex1 = worldPosition[1];
         vertex2 = worldPosition[2];
-        depthNearest = nearest;
         EmitVertex();
     }
     EndPrimitive();

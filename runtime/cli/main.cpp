@@ -78,6 +78,7 @@ struct BenchArgs {
     uint32_t frames = 0;         // 0: the suite's
     uint64_t scanTriangles = 0;  // 0: the suite's
     uint32_t lightSamples = 0;   // 0: the suite's
+    uint32_t afsmSamples = 0;    // 0: the suite's
     uint32_t penumbraMaps = 0;   // 0: the suite's
     uint32_t softShadowMaps = 0; // 0: the suite's
     bool quiet = false;
@@ -496,6 +497,7 @@ int runBench(const BenchArgs& args)
     if (args.frames) options.frames = args.frames;
     if (args.scanTriangles) options.scanTriangles = args.scanTriangles;
     if (args.lightSamples) options.lightSamples = args.lightSamples;
+    if (args.afsmSamples) options.afsmSamples = args.afsmSamples;
     if (args.penumbraMaps) options.penumbraMaps = args.penumbraMaps;
     if (args.softShadowMaps) options.softShadowMaps = args.softShadowMaps;
     options.progress = !args.quiet;
@@ -616,6 +618,7 @@ int main(int argc, char** argv)
     benchCommand->add_option("--frames", bench.frames, "Timed frames per case after one warm-up (default: the suite's)")->check(CLI::Range(1, 1000));
     benchCommand->add_option("--scan-triangles", bench.scanTriangles, "Scalability: triangles of the full scan model (default: the suite's)")->check(CLI::Range(uint64_t(1000), uint64_t(1'000'000'000)));
     benchCommand->add_option("--light-samples", bench.lightSamples, "Soft shadows: light samples per pixel (default 16)")->check(CLI::Range(4, 256));
+    benchCommand->add_option("--afsm-samples", bench.afsmSamples, "Soft shadows, afsm: light samples (bits per view sample; default 256)")->check(CLI::Range(128, 1024));
     benchCommand->add_option("--penumbra-maps", bench.penumbraMaps, "Soft shadows: penumbra maps, 1 or 5 (default 1)")->check(CLI::IsMember({1, 5}));
     benchCommand->add_option("--soft-shadow-maps", bench.softShadowMaps, "Soft shadows, sm: shadow maps averaged over the light (default 4)")->check(CLI::Range(1, 6));
     benchCommand->add_flag("--quiet", bench.quiet, "No progress bar");

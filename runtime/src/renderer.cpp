@@ -124,7 +124,7 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
     if (areaLights && !spec.softShadows())
         fail("render", std::string(spec.name) + " does not do soft shadows (area lights) yet: use sm, srt or frt for them");
     if (settings.shadows == ShadowMethod::AliasFree && !device.aliasFree)
-        fail("render", "afsm needs geometry shaders and fragment-shader stores, which " + device.info.name + " lacks");
+        fail("render", "afsm needs geometry shaders, fragment-shader stores and depth clamping, which " + device.info.name + " lacks");
     if (settings.shadows == ShadowMethod::RayHierarchy) {
         if (!device.rayHierarchy)
             fail("render", "rh needs geometry shaders and vertex-stage stores, which " + device.info.name + " lacks");

@@ -23,13 +23,13 @@ constexpr VkBufferUsageFlags kStorageDst = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | 
 std::vector<VkDescriptorType> castersBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
 }
 
 std::vector<VkDescriptorType> binBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
 }
 
 // A perspective frustum from eye along forward with a square field of view
@@ -57,10 +57,9 @@ glm::mat4 pulledBackFrustum(glm::vec3 centre, glm::vec3 forward, float halfTan, 
 
 uint32_t afsmGridSize(uint32_t width, uint32_t height)
 {
-    uint32_t grid = 16;
-    while (grid < std::max(width, height) && grid < PENUMBRA_AFSM_MAX_GRID)
-        grid *= 2;
-    return grid;
+    // One cell per pixel of the longer side, rounded up to a multiple of 16: a power of two above it (512 cells for
+    // 320 pixels) spent 2.6 cells per pixel, most of them empty, and the casters' raster cost grows with their area.
+    return std::clamp((std::max(width, height) + 15) / 16 * 16, 16u, uint32_t(PENUMBRA_AFSM_MAX_GRID));
 }
 
 AfsmTableSize afsmTableSize(uint32_t samples)
@@ -130,7 +129,7 @@ void AfsmPass::create(vk::Device& device)
 {
     using namespace vk;
     std::vector<VkDescriptorType> sampleTypes = pixelBindingTypes();
-    sampleTypes.insert(sampleTypes.end(), {kStorage, kStorage, kStorage, kStorage, kStorage, kStorage});
+    sampleTypes.insert(sampleTypes.end(), {kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage});
     samples.create(device, "afsm_samples.comp", sampleTypes, sizeof(AfsmSamplesPush));
     samplesSoft.create(device, "afsm_samples.comp.soft", sampleTypes, sizeof(AfsmSamplesPush));
     scan.create(device, "afsm_scan.comp", {kStorage, kStorage}, sizeof(AfsmScanPush));
@@ -146,7 +145,10 @@ void AfsmPass::create(vk::Device& device)
     desc.vertexShader = "afsm_casters.vert";
     desc.geometryShader = "afsm_casters.geom";
     desc.fragmentShader = "afsm_casters.frag";
+    desc.depthFormat = VK_FORMAT_D32_SFLOAT;
     desc.depthWrite = false;
+    desc.depthCompare = VK_COMPARE_OP_LESS;
+    desc.depthClamp = true;
     desc.pushBytes = sizeof(AfsmCastersPush);
     casters.create(device, desc, VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, castersSetLayout);
     desc.geometryShader = "afsm_soft.geom";
@@ -181,14 +183,15 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
     std::vector<vk::Binding> bindings = pixelBindings(t.pixels);
     bindings.insert(bindings.end(), {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.cellCount->buffer),
                                      vk::storageBuffer(t.shadowed->buffer), vk::storageBuffer(t.far->buffer),
-                                     vk::storageBuffer(t.cellDepth->buffer), vk::storageBuffer(t.slotShadowed->buffer)});
+                                     vk::storageBuffer(t.cellDepth->buffer), vk::storageBuffer(t.slotShadowed->buffer),
+                                     vk::storageBuffer(t.cellAlive->buffer)});
     samples.write(device, bindings);
     samplesSoft.write(device, bindings);
     scan.write(device, {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.blockSums->buffer)});
     const std::vector<vk::Binding> common = {vk::uniformBuffer(t.pixels.frame), vk::storageBuffer(t.cellFirst->buffer),
                                              vk::storageBuffer(t.cellCount->buffer), vk::storageBuffer(t.shadowed->buffer),
                                              vk::storageBuffer(t.far->buffer), vk::storageBuffer(t.cellDepth->buffer),
-                                             vk::storageBuffer(t.slotShadowed->buffer)};
+                                             vk::storageBuffer(t.slotShadowed->buffer), vk::storageBuffer(t.cellAlive->buffer)};
     std::vector<vk::Binding> binBindings = common;
     binBindings.push_back(vk::storageBuffer(params.buffer));
     bin.write(device, binBindings);
@@ -289,6 +292,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     vkCmdFillBuffer(cmd, targets.cellCount->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.far->buffer, 0, VK_WHOLE_SIZE, 0);
     vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(cells) * 4, 0);
+    vkCmdFillBuffer(cmd, targets.cellAlive->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_COUNT, layer, viewProj, cube, originOffset, soft), soft);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
@@ -302,7 +306,18 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     }
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_LIST, layer, viewProj, cube, originOffset, soft), soft);
-    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry | kCompute, kStorageRW);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry | kCompute | kCopy, kStorageRW | kTransferRead);
+
+    // The cells' farthest sample depths into the depth image the casters are tested against.
+    const vk::Image& depth = *targets.depth;
+    vk::transition(cmd, depth, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, kDepthTests,
+                   VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT, kCopy, kTransferWrite);
+    VkBufferImageCopy region{};
+    region.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
+    region.imageExtent = {grid, grid, 1};
+    vkCmdCopyBufferToImage(cmd, targets.cellDepth->buffer, depth.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+    vk::transition(cmd, depth, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, kCopy, kTransferWrite,
+                   kDepthTests, VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT);
 }
 
 void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry,
@@ -346,9 +361,15 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     }
     afterCompute();
     // The raster path: the other casters (all of them without the compute path).
+    VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depthAttachment.imageView = targets.depth->view;
+    depthAttachment.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depthAttachment.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+    depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_NONE;
     VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
     rendering.renderArea = {{0, 0}, {grid, grid}};
     rendering.layerCount = 1;
+    rendering.pDepthAttachment = &depthAttachment;
     const float computeCells = compute ? float(PENUMBRA_AFSM_COMPUTE_CELLS) : 0.0f;
     const AfsmCastersPush hardPush{layer.viewProj, slotsAddress, layer.lightIndex, grid, layer.originOffset, computeCells};
     const AfsmSoftPush softPush{layer.viewProj, slotsAddress, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,

@@ -37,16 +37,17 @@ enum AfsmSamplesBinding : uint32_t {
     kAfsmFar,                            // the layer's farthest sample depth (afsm.glsli: afsmDepth)
     kAfsmCellDepth,                      // per cell: its farthest sample depth
     kAfsmSlotShadowed,                   // per slot: its pixel's flag (cleared when listed)
+    kAfsmCellAlive,                      // per cell: its samples not yet shadowed
     kAfsmSamplesBindingCount
 };
 enum AfsmScanBinding : uint32_t { kAfsmScanCounts, kAfsmScanBlockSums, kAfsmScanBindingCount };
 // The raster path's set (hard and soft pipelines).
 enum AfsmCastersBinding : uint32_t {
     kAfsmCastersFrame, kAfsmCastersCellFirst, kAfsmCastersCellCount, kAfsmCastersShadowed, kAfsmCastersFar, kAfsmCastersCellDepth,
-    kAfsmCastersSlotShadowed, kAfsmCastersBindingCount
+    kAfsmCastersSlotShadowed, kAfsmCastersCellAlive, kAfsmCastersBindingCount
 };
 enum AfsmBinBinding : uint32_t {
-    kAfsmBinFrame, kAfsmBinCellFirst, kAfsmBinCellCount, kAfsmBinShadowed, kAfsmBinFar, kAfsmBinCellDepth, kAfsmBinSlotShadowed, kAfsmBinParams,
+    kAfsmBinFrame, kAfsmBinCellFirst, kAfsmBinCellCount, kAfsmBinShadowed, kAfsmBinFar, kAfsmBinCellDepth, kAfsmBinSlotShadowed, kAfsmBinCellAlive, kAfsmBinParams,
     kAfsmBinBindingCount
 };
 
@@ -134,11 +135,14 @@ struct AfsmTargets {
     const vk::Buffer* far = nullptr;
     const vk::Buffer* cellDepth = nullptr;
     const vk::Buffer* slotShadowed = nullptr;
+    const vk::Buffer* cellAlive = nullptr;
+    const vk::Image* depth = nullptr; // D32, grid x grid: each cell's farthest sample depth, for the casters' depth test
     uint32_t width = 0, height = 0, gridSize = 0;
 };
 
 // Cells per side of the grid for a width x height view: one cell per pixel of
-// the longer side, a power of two (the paper fits one sample per texel).
+// the longer side, rounded up to a multiple of 16 (the paper fits one sample
+// per texel).
 uint32_t afsmGridSize(uint32_t width, uint32_t height);
 
 // The soft-shadow lookup table for n light samples: angles x distances
