@@ -18,7 +18,7 @@
 //  PENUMBRA_AFSM_RESOLVE: after every layer's casters (afsm_casters), the
 //    light's visibility: 0 where a caster blocked the sample's ray or the
 //    surface faces away, 1 elsewhere; -1 for background. Clears the marks
-//    (nothing is traced) and counts covered pixels.
+//    (nothing is traced); shade counts the covered pixels.
 // Built a second time with PENUMBRA_AFSM_SOFT (afsm_samples.comp.soft) for
 // area lights (section 4): a pixel is a sample when some point of the light
 // lies above its plane and it is in front of a one-sided emitter; the list writes the slot's ray origin and
@@ -127,7 +127,7 @@ uvec2 samplePixel()
         imageStore(visibilityImage, pixel, vec4(facing && shadowed[index] == 0u ? 1.0 : 0.0));
 #endif
         marks[index] = 0u;
-        return uvec2(1u, 0u);
+        return uvec2(0u);
     }
     if (position.w == 0.0)
         return uvec2(0u);
@@ -182,13 +182,9 @@ uvec2 samplePixel()
     return uvec2(0u);
 }
 
-#include "pixel_counts.glsli"
-
 void main()
 {
-    uvec2 counts = samplePixel();
-    if (push.mode == PENUMBRA_AFSM_RESOLVE)
-        countPixels(counts);
+    uvec2 counts = samplePixel(); // covered pixels are counted by shade
     // The layer's farthest sample (clip.w): one atomic per subgroup.
     if (push.mode == PENUMBRA_AFSM_COUNT) {
         uint farthest = subgroupMax(counts.y);
