@@ -10,14 +10,15 @@
 // tested here, cell by cell, exactly as the fragment shader would
 // (afsmTestCellHard, afsmTestCellSoft); the raster path (afsm_casters.geom,
 // afsm_soft.geom) draws the others. Leaves are decoded as the thin-triangle
-// pass decodes them (thin_triangles.comp.glsl: one invocation per strip
-// byte, the tracer's decoding), those of clusters outside the view skipped.
+// pass decodes them (thin_triangles.comp.glsl: one invocation per leaf, the
+// tracer's strip walk), those of clusters outside the view skipped.
 // Built twice: hard shadows, and soft shadows with PENUMBRA_AFSM_SOFT
 // (afsm_bin.comp.soft).
 #version 460
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_8bit_storage : require
+#extension GL_EXT_shader_16bit_storage : require
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_ballot : require
@@ -113,13 +114,16 @@ void binCaster(vec3 v0, vec3 v1, vec3 v2)
         }
 }
 
-shared uvec4 passingLeaves[PENUMBRA_AFSM_BIN_GROUP];
+shared uvec2 passingLeaves[4 * PENUMBRA_AFSM_BIN_GROUP]; // cluster, leaf reference (start | count << 16)
 shared uint passingCount;
 
-// As thin_triangles.comp.glsl: each workgroup takes PENUMBRA_AFSM_BIN_GROUP
-// BVH nodes and keeps the leaves of the view's clusters; each subgroup then
-// decodes its share of them, one invocation per strip byte (a byte's place
-// in its strip, which decides the winding, from the last restart before it).
+// As thin_triangles.comp.glsl (format version 4): each workgroup takes
+// PENUMBRA_AFSM_BIN_GROUP BVH nodes and lists their leaf children (a node's
+// children belong to its one cluster) whose cluster is in the layer's culled
+// view; then each invocation decodes whole leaves of the list, one after
+// another, with the tracer's strip walk (leafOccludes: the last two decoded
+// vertices kept, the first two swapped for odd strip positions, triangles
+// with a repeated index skipped), and bins each triangle.
 void main()
 {
     const uint lane = gl_LocalInvocationIndex;
@@ -129,41 +133,40 @@ void main()
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     uint index = group * PENUMBRA_AFSM_BIN_GROUP + lane;
     ModelTable table = ModelTable(push.modelTable);
-    NodeChunks nodeChunks = NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift);
     if (index < push.nodeCount) {
-        uvec4 node = loadNode(nodeChunks, index);
-        if (((node.y >> 16) & 0xFFu) == PENUMBRA_NODE_LEAF && (ClusterMask(push.clusterMask).bits[node.z >> 5u] & (1u << (node.z & 31u))) != 0u)
-            passingLeaves[atomicAdd(passingCount, 1u)] = node;
+        WideNode node = loadNode(NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift), index);
+        const uint cluster = nodeCluster(node);
+        const bool inView = cluster != PENUMBRA_NO_CLUSTER && (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u;
+        for (uint slot = 0u; slot < 4u; ++slot)
+            if (inView && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF)
+                passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);
     }
     barrier();
     const uint leafCount = passingCount;
     GeometryChunks chunks = geometryChunksOf(push.modelTable, table);
-    for (uint j = gl_SubgroupID; j < leafCount; j += gl_NumSubgroups) {
-        uvec4 leaf = passingLeaves[j];
-        ClusterInfo cluster = loadCluster(table, leaf.z);
-        LeafStrips leafStrips = openLeaf(table, chunks, cluster, leaf);
-        ByteArray strips = leafStrips.strips;
-        uvec4 lanes = subgroupBallot(true);
-        uint width = subgroupBallotBitCount(lanes), slot = subgroupBallotExclusiveBitCount(lanes);
-        int lastRestart = -1; // of the bytes before this chunk
-        for (uint chunkStart = 0u; chunkStart < leafStrips.count; chunkStart += width) {
-            uint k = chunkStart + slot;
-            bool inside = k < leafStrips.count;
-            uint i2 = inside ? uint(strips.bytes[k]) : 0u;
-            int restart = inside && i2 == 0xFFu ? int(k) : -1;
-            int before = max(lastRestart, subgroupExclusiveMax(restart)); // last restart before k
-            lastRestart = max(lastRestart, subgroupMax(restart));
-            uint position = k - uint(before + 1); // bytes of this strip before k
-            if (inside && i2 != 0xFFu && position >= 2u) {
-                uint i0 = uint(strips.bytes[k - 2u]), i1 = uint(strips.bytes[k - 1u]);
-                if (i0 != i1 && i1 != i2 && i0 != i2) {
-                    vec3 p0 = decodeVertex(loadVertex(leafStrips.vertices, i0), cluster.boxMin, cluster.step);
-                    vec3 p1 = decodeVertex(loadVertex(leafStrips.vertices, i1), cluster.boxMin, cluster.step);
-                    vec3 p2 = decodeVertex(loadVertex(leafStrips.vertices, i2), cluster.boxMin, cluster.step);
-                    bool odd = ((position - 2u) & 1u) != 0u;
-                    binCaster(odd ? p1 : p0, odd ? p0 : p1, p2);
-                }
+    for (uint j = lane; j < leafCount; j += PENUMBRA_AFSM_BIN_GROUP) {
+        const uvec2 leaf = passingLeaves[j];
+        ClusterInfo cluster = loadCluster(table, leaf.x);
+        LeafStrips strips = openLeaf(table, chunks, cluster, leaf.y);
+        uint i0 = 0u, i1 = 0u;
+        vec3 p0 = vec3(0.0), p1 = vec3(0.0);
+        uint position = 0u; // bytes of the current strip so far
+        for (uint k = 0u; k < strips.count; ++k) {
+            uint i2 = uint(strips.strips.bytes[k]);
+            if (i2 == 0xFFu) {
+                position = 0u;
+                continue;
             }
+            vec3 p2 = decodeVertex(loadVertex(strips.vertices, i2), cluster.boxMin, cluster.step);
+            if (position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
+                bool odd = ((position - 2u) & 1u) != 0u;
+                binCaster(odd ? p1 : p0, odd ? p0 : p1, p2);
+            }
+            i0 = i1;
+            p0 = p1;
+            i1 = i2;
+            p1 = p2;
+            ++position;
         }
     }
 }
