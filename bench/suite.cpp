@@ -457,7 +457,7 @@ class SuiteRunner {
                 step("rh variants " + loaded.name + " " + name);
                 RenderSettings settings = baseSettings(ShadowMethod::RayHierarchy);
                 settings.coneTest = test;
-                settings.rhSort = sorted;
+                settings.rhSort = sorted ? RhSort::On : RhSort::Off;
                 std::vector<double> gpu;
                 FrameStats last;
                 for (uint32_t i = 0; i < std::max(options.frames, 1u) + 1; ++i) {

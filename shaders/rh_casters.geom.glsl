@@ -1,15 +1,17 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_atomic_int64 : require
-#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Cone ray hierarchies, the casters of one batch (rh.glsli): the clusters of
-// the light layer's culled view are drawn with the rasterizer off; each
-// triangle, decoded by the vertex shader exactly as the tracer decodes it
+// the light's culled views are drawn with the rasterizer off; each triangle,
+// decoded by the vertex shader exactly as the tracer decodes it
 // (afsm_casters.vert.glsl), is appended to the batch's triangle list in world
 // space. Triangles without area are left out (the watertight test never hits
 // them). The two-pass traversal draws the casters twice, the large ones
-// first, then the rest. The host sizes each batch by its clusters' triangle counts, so the
-// list never overflows (RhState::overflow bit 2 says if it did).
+// first, then the rest. The host sizes each batch by its clusters' triangle
+// counts, so the list never overflows (RhState::overflow bit 2 says if it did).
+// Each triangle carries its cluster's faces: a point light's cube faces whose
+// culled view (frustum and receiver masks) kept the cluster; its records skip
+// the other faces' rays (rh_traverse.comp). Other lights: every bit set.
 
 #include "config.h"
 #include "shadow_ray.glsli"
@@ -19,11 +21,14 @@ layout(triangles) in;
 layout(points, max_vertices = 1) out;
 
 layout(location = 0) in vec3 worldPosition[];
+layout(location = 1) flat in uint cluster[];
 
 #define RH_STATE_BINDING 0
 RH_STATE_DECLARE();
 // C++: runtime/src/passes/rh.h (RhCastersBinding).
-layout(set = 0, binding = 1, std430) writeonly buffer Triangles { uvec2 triangles[]; }; // 5 words of 64 bits per triangle (x, y, z per vertex, then padding)
+layout(set = 0, binding = 1, std430) writeonly buffer TrianglesA { u64vec4 trianglesA[]; }; // v0, v1, v2.xy
+layout(set = 0, binding = 2, std430) writeonly buffer TrianglesB { uvec2 trianglesB[]; };   // v2.z, the faces it may shadow
+layout(set = 0, binding = 3, std430) readonly buffer ClusterFaces { uint clusterFaces[]; }; // per cluster: faces whose view kept it
 
 layout(push_constant) uniform RhCastersPush {
     vec4 lightLarge; // xyz: the light; w: the two-pass traversal's "large" (bounding-sphere radius / distance from the light)
@@ -51,10 +56,7 @@ void main()
         atomicOr(state.overflow, 2u);
         return;
     }
-    uint base = 5u * slot;
-    triangles[base + 0u] = floatBitsToUint(v0.xy);
-    triangles[base + 1u] = floatBitsToUint(vec2(v0.z, v1.x));
-    triangles[base + 2u] = floatBitsToUint(v1.yz);
-    triangles[base + 3u] = floatBitsToUint(v2.xy);
-    triangles[base + 4u] = floatBitsToUint(vec2(v2.z, 0.0));
+    trianglesA[slot] = u64vec4(pack64(floatBitsToUint(v0.xy)), pack64(floatBitsToUint(vec2(v0.z, v1.x))), pack64(floatBitsToUint(v1.yz)),
+                               pack64(floatBitsToUint(v2.xy)));
+    trianglesB[slot] = uvec2(floatBitsToUint(v2.z), clusterFaces[cluster[0]]);
 }
