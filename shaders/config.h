@@ -24,7 +24,8 @@
 #define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: records or nodes per workgroup
 #define PENUMBRA_RH_MAX_LEVELS 16        // rh: most levels of a cone hierarchy (4^15 leaves: far more than any image's rays)
 #define PENUMBRA_RH_MAX_SORT_ORDER 10u   // rh sorted: at most 2^10 x 2^10 Hilbert cells per face (about 2 cells per pixel's ray, rh.cpp)
-#define PENUMBRA_RH_SORT_INCOHERENCE 3.0 // rh --rh-sort auto: sort when the tiles' mean incoherence (rh_rays.comp) exceeds this
+#define PENUMBRA_RH_SORT_SAVING 40.0    // rh --rh-sort auto: cone tests sorting saves a caster per unit of 1 + incoherence (rh_build.comp)
+#define PENUMBRA_RH_SORT_COST 3.0       // rh --rh-sort auto: the sort's cost per ray, in cone tests' time
 #define PENUMBRA_RH_FACE_SPLIT 24u      // rh sorted point lights: each face starts on a subtree of at most 1/24 of the rays (rh_build.comp)
 #define PENUMBRA_RH_MAX_INCOHERENCE 4096.0 // rh: one tile's incoherence counts at most this much
 #define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range

@@ -5,9 +5,9 @@
 // Olsson and Assarsson 2011, section 3.1, after Roger et al. 2007), one mode
 // per dispatch:
 //  PENUMBRA_RH_BUILD_DECIDE (one invocation): whether the light's rays are
-//    sorted (push.sort: on, off, or auto: when the tiles' mean incoherence,
-//    weighted by their rays, exceeds PENUMBRA_RH_SORT_INCOHERENCE), and the
-//    indirect dispatches of the sort (none when not sorting);
+//    sorted (push.sort: on, off, or auto: when the work sorting saves the
+//    casters is worth its cost, below), and the indirect dispatches of the
+//    sort (none when not sorting);
 //  PENUMBRA_RH_BUILD_FACES (one invocation, sorted rays): each face of a
 //    point light starts on a multiple of the alignment (a power of 4 near a
 //    24th of the rays), so that the nodes below the top levels each hold one
@@ -25,7 +25,7 @@
 //    node is in shadow.
 // A point or spot light's node (rh.glsli) is the cone from the light around
 // the directions to the rays' points, with the longest and the shortest
-// distance; its half-angle is grown by the rounding margin, and a cone
+// distance and the cube faces its rays fall on; its half-angle is grown by the rounding margin, and a cone
 // wider than pi - 0.001 is stored as pi
 // (every triangle passes it). A directional light's node (this shader
 // compiled with PENUMBRA_RH_PARALLEL) bounds the rays' origins in the
@@ -59,15 +59,16 @@ layout(push_constant) uniform RhBuildPush {
     uint keyGroupsY;
     uint scanGroups;    // PENUMBRA_RH_BUILD_DECIDE: the key scan's blocks
     uint faces;         // PENUMBRA_RH_BUILD_FACES: the light's faces (6 or 1)
-    uint pad0, pad1;
+    uint casters;       // PENUMBRA_RH_BUILD_DECIDE: the triangles of the light's culled views
+    uint pad0;
 } push;
 
 #ifndef PENUMBRA_RH_PARALLEL
-void storeCone(uint index, vec3 axis, float angle, float longest, float shortest)
+void storeCone(uint index, vec3 axis, float angle, float longest, float shortest, uint faces)
 {
     float tested = angle < 0.0 ? 0.0 : grownAngle(angle);
     tested = tested > 3.1406 ? 3.14159265 : tested;
-    nodes[index] = packNode(vec4(axis, angle < 0.0 ? -1.0 : tested),
+    nodes[index] = packNode(vec4(axis, angle < 0.0 ? -1.0 : withFaces(tested, faces)),
                             vec4(cos(tested), tested >= 3.14159265 ? 0.0 : sin(tested), longest, shortest));
 }
 
@@ -89,8 +90,14 @@ void main()
         if (gl_GlobalInvocationID.x != 0u)
             return;
         bool sorted = push.sort == PENUMBRA_RH_SORT_ON;
-        if (push.sort == PENUMBRA_RH_SORT_AUTO)
-            sorted = state.incoherence > uint64_t(PENUMBRA_RH_SORT_INCOHERENCE * 256.0) * state.coherenceRays;
+        if (push.sort == PENUMBRA_RH_SORT_AUTO) {
+            // Section 3.5's trade: sorting costs about PENUMBRA_RH_SORT_COST cone tests' time per ray
+            // and saves each caster about PENUMBRA_RH_SORT_SAVING tests per unit of 1 + the tiles' mean
+            // incoherence (rh_rays.comp: about 0 on one smooth surface, tens across many depth steps).
+            float incoherence = state.coherenceRays == 0ul ? 0.0 : float(state.incoherence) / 256.0 / float(state.coherenceRays);
+            float saved = float(push.casters) * float(PENUMBRA_RH_SORT_SAVING) * (1.0 + incoherence);
+            sorted = saved > float(PENUMBRA_RH_SORT_COST) * float(state.countedRays);
+        }
         state.sorted = sorted ? 1u : 0u;
         state.sortedLights += sorted ? 1u : 0u;
         state.keyDispatchX = sorted ? push.keyGroupsX : 0u;
@@ -120,12 +127,9 @@ void main()
         for (uint f = 0u; f < 6u; ++f) {
             uint count = state.faceCount[f >> 2u][f & 3u];
             state.faceShift[f >> 2u][f & 3u] = start - raw;
-            state.faceFirst[f >> 2u][f & 3u] = start;
             raw += count;
             start += count == 0u ? 0u : (f + 1u < push.faces ? (count + alignment - 1u) / alignment * alignment : count);
         }
-        state.faceFirst[1][2] = start;
-        state.faceFirst[1][3] = start;
         state.rayCount = start;
         return;
     }
@@ -200,6 +204,7 @@ void main()
         vec3 sum = vec3(0.0);
         float longest = 0.0, shortest = 3.0e38;
         bool any = false;
+        uint faces = 0u;
         for (uint k = 0u; k < 4u; ++k) {
             uint pixelIndex = pixels[k];
             valid[k] = pixelIndex != RH_NO_RAY && (push.skipShadowed == 0u || shadowed[pixelIndex] == 0u);
@@ -207,6 +212,7 @@ void main()
             if (valid[k]) {
                 ivec2 pixel = ivec2(int(pixelIndex % uint(width)), int(pixelIndex / uint(width)));
                 vec3 d = imageLoad(gPosition, pixel).xyz - light;
+                faces |= 1u << cubeFace(d);
                 float l = length(d);
                 longest = max(longest, l);
                 shortest = min(shortest, l);
@@ -221,7 +227,7 @@ void main()
         for (uint k = 0u; k < 4u; ++k)
             if (valid[k])
                 angle = max(angle, angleBetween(axis, directions[k]));
-        storeCone(RH_LEVEL_WORD(state.levelOffset, 0) + node, axis, any ? angle : -1.0, longest, any ? shortest : 0.0);
+        storeCone(RH_LEVEL_WORD(state.levelOffset, 0) + node, axis, any ? angle : -1.0, longest, any ? shortest : 0.0, faces);
 #endif
         return;
     }
@@ -247,9 +253,12 @@ void main()
     float longest = 0.0, shortest = 3.0e38;
     vec3 sum = vec3(0.0);
     bool any = false;
+    uint faces = 0u;
     for (uint k = 0u; k < 4u; ++k) {
         if (4u * node + k >= childCount || children[k].a.w < 0.0)
             continue;
+        faces |= nodeFaces(children[k]);
+        children[k].a.w = uintBitsToFloat(floatBitsToUint(children[k].a.w) | 63u); // the angle, rounded up past the face bits
         longest = max(longest, children[k].b.z);
         shortest = min(shortest, children[k].b.w);
         sum += children[k].a.xyz;
@@ -261,6 +270,6 @@ void main()
     for (uint k = 0u; k < 4u; ++k)
         if (4u * node + k < childCount && children[k].a.w >= 0.0)
             angle = max(angle, angleBetween(axis, children[k].a.xyz) + children[k].a.w);
-    storeCone(RH_LEVEL_WORD(state.levelOffset, level) + node, axis, any ? min(angle, 3.1416) : -1.0, longest, any ? shortest : 0.0);
+    storeCone(RH_LEVEL_WORD(state.levelOffset, level) + node, axis, any ? min(angle, 3.1416) : -1.0, longest, any ? shortest : 0.0, faces);
 #endif
 }

@@ -34,7 +34,8 @@ layout(push_constant) uniform RhCastersPush {
     vec4 lightLarge; // xyz: the light; w: the two-pass traversal's "large" (bounding-sphere radius / distance from the light)
     uint capacity;   // triangles the list holds
     uint select;     // PENUMBRA_RH_CASTERS_ALL, _LARGE (first pass), _SMALL (second pass)
-    uint pad0, pad1;
+    uint pointLight; // 1: the faces refined per triangle
+    uint pad0;
 } push;
 
 void main()
@@ -58,5 +59,13 @@ void main()
     }
     trianglesA[slot] = u64vec4(pack64(floatBitsToUint(v0.xy)), pack64(floatBitsToUint(vec2(v0.z, v1.x))), pack64(floatBitsToUint(v1.yz)),
                                pack64(floatBitsToUint(v2.xy)));
-    trianglesB[slot] = uvec2(floatBitsToUint(v2.z), clusterFaces[cluster[0]]);
+    // A point light's faces: the cluster's; a triangle whose corners all fall on one face lies inside
+    // that face's pyramid (convex) and shadows no other face's rays.
+    uint faces = clusterFaces[cluster[0]];
+    if (push.pointLight != 0u) {
+        vec3 light = push.lightLarge.xyz;
+        uint f0 = cubeFace(v0 - light), f1 = cubeFace(v1 - light), f2 = cubeFace(v2 - light);
+        faces &= f0 == f1 && f1 == f2 ? 1u << f0 : 63u;
+    }
+    trianglesB[slot] = uvec2(floatBitsToUint(v2.z), faces);
 }

@@ -141,19 +141,10 @@ void main()
         uint face = 0u;
         vec2 ndc;
         if (type == PENUMBRA_LIGHT_POINT) {
-            // Faces in the order +x, +y, +z, -x, -y, -z: each shares an edge with the next.
             vec3 d = p - light;
-            vec3 a = abs(d);
-            if (a.x >= a.y && a.x >= a.z) {
-                face = d.x >= 0.0 ? 0u : 3u;
-                ndc = d.yz / max(a.x, 1e-30);
-            } else if (a.y >= a.z) {
-                face = d.y >= 0.0 ? 1u : 4u;
-                ndc = d.zx / max(a.y, 1e-30);
-            } else {
-                face = d.z >= 0.0 ? 2u : 5u;
-                ndc = d.xy / max(a.z, 1e-30);
-            }
+            face = cubeFace(d);
+            uint axis = face % 3u;
+            ndc = (axis == 0u ? d.yz : axis == 1u ? d.zx : d.xy) / max(abs(d[axis]), 1e-30);
         } else {
             vec4 clip = frame.lights[push.lightIndex].viewProj[0] * vec4(p, 1.0);
             ndc = clip.xy / max(clip.w, 1e-30);
@@ -213,8 +204,11 @@ void main()
     uint padded = (total + 3u) & ~3u;
     uint tile = mortonIndex(gl_WorkGroupID.xy);
     if (push.mode == PENUMBRA_RH_RAYS_COUNT) {
-        if (local == 0u)
+        if (local == 0u) {
             tileOffsets[tile] = padded;
+            if (total != 0u)
+                atomicAdd(state.countedRays, total);
+        }
         PENUMBRA_SKIP_UNLESS(push.measure != 0u)
         {
             vec3 coordinate = type == PENUMBRA_LIGHT_DIRECTIONAL ? vec3(toParallel(parallelFrame(toLight), origin).xy, 0.0)
@@ -240,7 +234,6 @@ void main()
                 float incoherence = min(ratio * ratio, float(PENUMBRA_RH_MAX_INCOHERENCE));
                 atomicAdd(state.incoherence, uint64_t(incoherence * 256.0) * uint64_t(total));
                 atomicAdd(state.coherenceRays, uint64_t(total));
-                atomicAdd(state.coherenceTiles, 1u);
             }
         }
         return;

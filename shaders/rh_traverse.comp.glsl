@@ -51,18 +51,6 @@ layout(push_constant) uniform RhTraversePush {
     uint pad0, pad1, pad2;
 } push;
 
-// The faces whose rays a node's rays [first, end) include, on a sorted list
-// (each face's slots contiguous, from faceFirst).
-uint rangeFaces(uint first, uint end)
-{
-    uint lowest = 0u, highest = 0u;
-    for (uint f = 1u; f < 6u; ++f) {
-        uint start = RH_LEVEL_WORD(stepInfo.faceFirst, f);
-        lowest += start <= first ? 1u : 0u;
-        highest += start < end ? 1u : 0u;
-    }
-    return ((2u << highest) - 1u) & ~((1u << lowest) - 1u);
-}
 
 void main()
 {
@@ -85,8 +73,8 @@ void main()
     vec3 v0, v1, v2;
     uvec2 b = trianglesB[triangle];
     unpackTriangle(trianglesA[triangle], uintBitsToFloat(b.x), v0, v1, v2);
-    // The cube faces this caster's cluster may shadow (its faces' culled views kept it); gated on sorted lists.
-    bool gate = push.faces > 1u && stepInfo.sorted != 0u;
+    // The cube faces whose rays this caster may shadow (its cluster's culled views, rh_casters.geom).
+    bool gate = push.faces > 1u;
     uint casterFaces = b.y;
     // A record whose node was covered since it was written: every ray below is in shadow.
     PENUMBRA_SKIP_UNLESS(push.earlyAccept != 0u && depth > 0u && live)
@@ -127,11 +115,10 @@ void main()
             sphere = sphereTriangle(v0, v1, v2, light, push.originOffset);
         }
 #endif
-        uint childRays = 1u << (2u * level); // rays under a child (level - 1)
         for (uint k = 0u; k < 4u; ++k) {
             uint child = 4u * node + k;
             Node c = unpackNode(nodes[childOffset + min(child, childCount - 1u)]);
-            bool faced = !gate || (casterFaces & rangeFaces(child * childRays, (child + 1u) * childRays)) != 0u;
+            bool faced = !gate || (casterFaces & nodeFaces(c)) != 0u;
 #ifdef PENUMBRA_RH_PARALLEL
             bool valid = live && faced && child < childCount && c.a.x <= c.a.z && !nodeCovered(c);
 #else

@@ -208,6 +208,9 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type
     clusters.erase(std::unique(clusters.begin(), clusters.end()), clusters.end());
     if (!clusters.empty() && clusters.back() >= targets.clusters)
         fail("rh", "a view's cluster " + std::to_string(clusters.back()) + " is beyond the model's " + std::to_string(targets.clusters));
+    uint64_t casterTriangles = 0;
+    for (uint32_t cluster : clusters)
+        casterTriangles += model.clusterTriangles[cluster];
     auto* faceBits = static_cast<uint32_t*>(clusterFaces.mapped);
     for (uint32_t cluster : clusters)
         faceBits[cluster] = 0;
@@ -259,7 +262,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type
     raysPass(PENUMBRA_RH_RAYS_COUNT, false);
     builder.bind(cmd);
     builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_DECIDE, 0, 0, originOffset, sortMode, tilesX, tilesY,
-                                  groupCount(keys, kScanBlock), faces, {}});
+                                  groupCount(keys, kScanBlock), faces, uint32_t(std::min<uint64_t>(casterTriangles, UINT32_MAX)), 0});
     vkCmdDispatch(cmd, 1, 1, 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead);
     if (sortMode != PENUMBRA_RH_SORT_ON)
@@ -275,7 +278,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type
         }
         // Each face on whole subtrees; the slots between them stay RH_NO_RAY.
         builder.bind(cmd);
-        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_FACES, 0, 0, originOffset, sortMode, 0, 0, 0, faces, {}});
+        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_FACES, 0, 0, originOffset, sortMode, 0, 0, 0, faces, 0, 0});
         vkCmdDispatch(cmd, 1, 1, 1);
         vk::memoryBarrier(cmd, kCompute | kClear, kStorageWrite | kTransferWrite, kCompute, kStorageRW);
     }
@@ -286,13 +289,13 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type
     const uint32_t levels = maxLevels();
     auto buildHierarchy = [&](bool skipShadowed) {
         builder.bind(cmd);
-        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_INIT, 0, 0, originOffset, 0, 0, 0, 0, faces, {}});
+        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_INIT, 0, 0, originOffset, 0, 0, 0, 0, faces, 0, 0});
         vkCmdDispatch(cmd, 1, 1, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
         uint32_t count = maxRays / 4;
         for (uint32_t level = 0; level < levels; ++level) {
             builder.push(cmd, RhBuildPush{lightIndex, level == 0 ? PENUMBRA_RH_BUILD_LEAVES : PENUMBRA_RH_BUILD_LEVEL, level,
-                                          skipShadowed ? 1u : 0u, originOffset, 0, 0, 0, 0, faces, {}});
+                                          skipShadowed ? 1u : 0u, originOffset, 0, 0, 0, 0, faces, 0, 0});
             const Groups2D groups = spreadGroups(groupCount(count, PENUMBRA_RH_GROUP_SIZE), 65535u);
             vkCmdDispatch(cmd, groups.x, groups.y, 1);
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kUniformRead);
@@ -307,7 +310,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type
             return;
         acceptedResolved = hostState->lightAccepted;
         builder.bind(cmd);
-        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_RESOLVE, 0, 0, originOffset, 0, 0, 0, 0, faces, {}});
+        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_RESOLVE, 0, 0, originOffset, 0, 0, 0, 0, faces, 0, 0});
         const Groups2D groups = spreadGroups(groupCount(maxRays / 4, PENUMBRA_RH_GROUP_SIZE), 65535u);
         vkCmdDispatch(cmd, groups.x, groups.y, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
@@ -337,7 +340,8 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type
             vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters[geometry.encoding]);
             vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters.layout, 0, 1, &castersSet, 0, nullptr);
             vk::setViewport(cmd, 1, 1);
-            const RhCastersPush castersPush{glm::vec4(lightPosition, float(PENUMBRA_RH_LARGE_ANGLE)), kTriangleCapacity, select, {}};
+            const RhCastersPush castersPush{glm::vec4(lightPosition, float(PENUMBRA_RH_LARGE_ANGLE)), kTriangleCapacity, select,
+                                            type == PENUMBRA_LIGHT_POINT ? 1u : 0u, 0};
             vkCmdPushConstants(cmd, casters.layout, VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(castersPush), &castersPush);
             drawClusters(cmd, geometry, model, clusters.data() + begin, end - begin);
             vkCmdEndRendering(cmd);

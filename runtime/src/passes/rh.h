@@ -52,12 +52,12 @@ struct RhScanPush {
 struct RhBuildPush {
     uint32_t lightIndex, mode, level, skipShadowed;
     float originOffset;
-    uint32_t sort, keyGroupsX, keyGroupsY, scanGroups, faces, pad[2];
+    uint32_t sort, keyGroupsX, keyGroupsY, scanGroups, faces, casters, pad;
 };
 static_assert(sizeof(RhBuildPush) == 48);
 struct RhCastersPush {
     glm::vec4 lightLarge; // xyz light, w PENUMBRA_RH_LARGE_ANGLE
-    uint32_t capacity, select, pad[2];
+    uint32_t capacity, select, pointLight, pad;
 };
 static_assert(sizeof(RhCastersPush) == 32);
 struct RhStepPush {
@@ -77,9 +77,9 @@ struct RhState {
     uint32_t stepDepth, stepBegin, stepCount, triangleCount, rootCursor;
     uint32_t sorted;
     uint32_t keyDispatch[3], scanDispatch[3], scanPhase1[3];
-    uint32_t coherenceTiles, lightAccepted;
+    uint32_t countedRays, lightAccepted;
     uint64_t incoherence, coherenceRays;
-    uint32_t faceCount[8], faceShift[8], faceFirst[8];
+    uint32_t faceCount[8], faceShift[8];
     uint32_t builtLevels, alignmentLevel, treePad[2];
     uint32_t peakPairs, overflow, steps, raysListed, sortedLights, framePad0;
     uint64_t pairsTested, rayTests, accepted, framePad1, framePad2;
@@ -87,9 +87,9 @@ struct RhState {
     uint32_t segBegin[PENUMBRA_RH_MAX_LEVELS], segEnd[PENUMBRA_RH_MAX_LEVELS], cursor[PENUMBRA_RH_MAX_LEVELS];
     uint32_t depthTests[PENUMBRA_RH_MAX_LEVELS];
 };
-static_assert(offsetof(RhState, incoherence) == 96 && offsetof(RhState, faceCount) == 112 && offsetof(RhState, peakPairs) == 224 &&
-              offsetof(RhState, pairsTested) == 248 && offsetof(RhState, levelOffset) == 288 &&
-              sizeof(RhState) == 288 + 6 * 4 * PENUMBRA_RH_MAX_LEVELS);
+static_assert(offsetof(RhState, incoherence) == 96 && offsetof(RhState, faceCount) == 112 && offsetof(RhState, peakPairs) == 192 &&
+              offsetof(RhState, pairsTested) == 216 && offsetof(RhState, levelOffset) == 256 &&
+              sizeof(RhState) == 256 + 6 * 4 * PENUMBRA_RH_MAX_LEVELS);
 
 struct RhTargets {
     VkImageView position = VK_NULL_HANDLE, normal = VK_NULL_HANDLE;
