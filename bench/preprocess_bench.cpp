@@ -56,9 +56,11 @@ int main(int argc, char** argv)
 
         std::printf("%s: %.0f triangles in, %.0f stored, %u clusters, %u nodes, depth %u\n", input.c_str(), triangles, stored,
                     model.header.clusterCount, model.header.nodeCount, model.header.bvhDepth);
-        std::printf("  time      import %.2f s + build %.2f s (tree %.2f, clusters %.2f, layout %.2f) + write %.2f s = %.2f s -> %.2f M tris/s\n",
-                    seconds(t0, t1), seconds(t1, t2), stats.treeSeconds, stats.clusterSeconds, stats.layoutSeconds, seconds(t2, t3),
-                    total, triangles / total * 1e-6);
+        std::printf("  time      import %.2f s + build %.2f s (filter %.2f incl. closed %.2f, tree %.2f, clusters %.2f, layout %.2f) + write %.2f s = %.2f s -> %.2f M tris/s\n",
+                    seconds(t0, t1), seconds(t1, t2), stats.filterSeconds, stats.closedSeconds, stats.treeSeconds,
+                    stats.clusterSeconds, stats.layoutSeconds, seconds(t2, t3), total, triangles / total * 1e-6);
+        std::printf("  closed    %.1f%% of the triangles in closed clusters, %.1f%% in closed components\n",
+                    100.0 * double(stats.closedClusterTriangles) / stored, 100.0 * double(stats.closedTriangles) / stored);
         std::printf("  B/tri     clusters %.3f + nodes %.3f + vertices %.3f + indices %.3f = %.3f\n", clusters, nodes, vertices,
                     indices, clusters + nodes + vertices + indices);
         std::printf("  memory    peak RSS %.0f MiB = %.2fx the input file (%.0f MiB)\n", peakMiB, peakMiB / inputMiB, inputMiB);

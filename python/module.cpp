@@ -209,7 +209,7 @@ private:
 };
 
 py::dict preprocessFile(const std::filesystem::path& inputPath, const std::filesystem::path& outputPath, float simplify, uint32_t clusterVertices,
-                        uint32_t clusterTriangles, uint32_t leafTriangles, unsigned threads)
+                        uint32_t clusterTriangles, uint32_t leafTriangles, unsigned threads, bool separateClosed)
 {
     const std::string input = inputPath.string(), output = outputPath.string();
     if (!endsWith(output, ".penumbra"))
@@ -221,6 +221,7 @@ py::dict preprocessFile(const std::filesystem::path& inputPath, const std::files
     options.maxClusterTriangles = clusterTriangles;
     options.maxLeafTriangles = leafTriangles;
     options.threads = threads;
+    options.separateClosed = separateClosed;
     PreprocessStats stats;
     {
         py::gil_scoped_release unlocked;
@@ -239,7 +240,8 @@ py::dict preprocessFile(const std::filesystem::path& inputPath, const std::files
                     "clusters"_a = stats.clusters, "nodes"_a = stats.nodes, "vertices"_a = stats.vertices,
                     "bvh_depth"_a = stats.bvhDepth, "max_position_error"_a = stats.maxPositionError,
                     "bytes_per_triangle"_a = stats.bytesPerTriangle, "materials"_a = stats.materials,
-                    "seconds"_a = stats.totalSeconds);
+                    "closed_triangles"_a = stats.closedTriangles, "closed_cluster_triangles"_a = stats.closedClusterTriangles,
+                    "closed_clusters"_a = stats.closedClusters, "seconds"_a = stats.totalSeconds);
 }
 
 } // namespace
@@ -323,6 +325,7 @@ def render(model, size=(1024, 1024), shadows="srt", camera=None, lights=None, gr
           py::arg("cluster_vertices") = PreprocessOptions{}.maxClusterVertices,
           py::arg("cluster_triangles") = PreprocessOptions{}.maxClusterTriangles,
           py::arg("leaf_triangles") = PreprocessOptions{}.maxLeafTriangles, py::arg("threads") = 0u,
+          py::arg("separate_closed") = PreprocessOptions{}.separateClosed,
           "Compresses a model file into a .penumbra file (as `penumbra preprocess`); returns the build's stats as a dict");
     m.def(
         "generate",

@@ -74,11 +74,7 @@ uvec2 samplePixel()
     return uvec2(0u);
 }
 
-#include "pixel_counts.glsli"
-
 void main()
 {
-    uvec2 counts = samplePixel();
-    if (push.mode == PENUMBRA_AFSM_RESOLVE)
-        countPixels(counts);
+    samplePixel(); // covered pixels are counted by shade
 }

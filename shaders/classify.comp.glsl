@@ -14,8 +14,15 @@
 //    conservatively into the thin map (thin_triangles.comp.glsl), lies in front
 //    of it within its texel (a dropped thin occluder can only darken a pixel).
 // frt mode marks every light-facing pixel; sm mode marks none.
+// The mode and the light's type are specialization constants (one pipeline
+// each, runtime/src/passes/classify.cpp): on lavapipe a shader pays for every
+// instruction it holds, so the srt tests cost nothing in sm frames.
+// Marked pixels are counted by compaction (the ray list's length).
 
 #include "config.h"
+layout(constant_id = 0) const uint kMode = PENUMBRA_CLASSIFY_LOOKUP; // PENUMBRA_CLASSIFY_*
+layout(constant_id = 1) const uint kLightType = PENUMBRA_LIGHT_POINT; // PENUMBRA_LIGHT_* (not area lights)
+#define PENUMBRA_LIGHT_TYPE kLightType
 #include "shadow_common.glsli"
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
@@ -27,16 +34,15 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 
 layout(push_constant) uniform ClassifyPush {
     uint lightIndex;
-    uint mode;     // PENUMBRA_CLASSIFY_LOOKUP (sm), _PIP (srt), _ALL (frt)
+    uint mode;     // PENUMBRA_CLASSIFY_LOOKUP (sm), _PIP (srt), _ALL (frt): kMode's value (checked by the pass)
 } push;
 
-// Returns (covered, marked) for this invocation's pixel.
-uvec2 classifyPixel()
+void classifyPixel()
 {
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
     ivec2 imageSizeXY = imageSize(visibilityImage);
     if (any(greaterThanEqual(pixel, imageSizeXY)))
-        return uvec2(0u);
+        return;
     uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
     // Background pixels take the same path (one store of each output per
@@ -50,23 +56,24 @@ uvec2 classifyPixel()
     bool lightFacing = covered && dot(n, L) > 0.0;
 
     ivec2 size = textureSize(shadowMap, 0).xy;
-    ShadowLookup s = projectToShadowMap(light, p, size);
+    // A point light's cube face: its matrix read from the uniform buffer at the
+    // pixel's layer (projectToShadowMap's switch over the six costs far more).
+    const uint layer = shadowLayer(light, p);
+    ShadowLookup s = kLightType == PENUMBRA_LIGHT_POINT ? projectToLayer(frame.lights[push.lightIndex].viewProj[layer], layer, p, size)
+                                                          : projectToShadowMap(light, p, size);
     float visibility = !s.inside || s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
     imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
 
-    bool mark = lightFacing && push.mode == PENUMBRA_CLASSIFY_ALL;
-    // The PIP tests, skipped on lavapipe in sm and frt frames and in srt
-    // subgroups with no pixel to test (PENUMBRA_SKIP_UNLESS, config.h).
-    PENUMBRA_SKIP_UNLESS(lightFacing && push.mode == PENUMBRA_CLASSIFY_PIP && s.inside) {
+    bool mark = lightFacing && kMode == PENUMBRA_CLASSIFY_ALL;
+    if (kMode == PENUMBRA_CLASSIFY_PIP && lightFacing && s.inside) {
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
-        mark = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
-               (visibility == 1.0 && thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r), light, s, size, n, L));
+        float d = linearLightDepth(light, s.depth);
+        float dHat = receiverNearestDepth(light, d, size, n, L);
+        mark = depthDiscontinuityNear(shadowMap, frame.pip.x, light, s, size, d, dHat) ||
+               (visibility == 1.0 && thinOccluderNearer(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r), light, s, d, dHat));
     }
     marks[index] = mark ? 1u : 0u;
-    return uvec2(covered ? 1u : 0u, mark ? 1u : 0u);
 }
-
-#include "pixel_counts.glsli"
 
 #ifdef PENUMBRA_FLOOR
 #include "floor.glsli"
@@ -86,6 +93,6 @@ void main()
 #else
 void main()
 {
-    countPixels(classifyPixel());
+    classifyPixel();
 }
 #endif

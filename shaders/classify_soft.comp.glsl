@@ -156,8 +156,6 @@ uvec2 classifyPixel()
     return uvec2(1u, mark ? 1u : 0u);
 }
 
-#include "pixel_counts.glsli"
-
 #ifdef PENUMBRA_FLOOR
 #include "floor.glsli"
 void main()
@@ -179,6 +177,6 @@ void main()
 #else
 void main()
 {
-    countPixels(classifyPixel());
+    classifyPixel(); // covered pixels are counted by shade, marked ones by compaction
 }
 #endif

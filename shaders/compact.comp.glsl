@@ -1,12 +1,15 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_EXT_shader_atomic_int64 : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Stream compaction of marked pixels into a dense ray list: per subgroup, a
 // ballot gives each marked pixel its exclusive prefix and the subgroup's
 // total, one elected invocation reserves the subgroup's range with a single
 // atomicAdd, then every marked pixel writes its slot (no workgroup barriers,
 // which are expensive on CPU drivers). Phase 1 (one invocation) writes the
-// tracer's indirect dispatch size from the final count (2-D above 65535 groups).
+// tracer's indirect dispatch size from the final count (2-D above 65535 groups)
+// and adds the count to the frame's PIP counter (the pixels given rays).
 
 #include "config.h"
 
@@ -14,6 +17,7 @@ layout(local_size_x = PENUMBRA_COMPACT_GROUP_SIZE) in;
 
 layout(set = 0, binding = 0, std430) readonly buffer Marks { uint marks[]; };
 layout(set = 0, binding = 1, std430) buffer RayList { uint rays[]; }; // header, then pixel indices
+layout(set = 0, binding = 2, std430) buffer Stats { uint64_t stats[]; };
 
 layout(push_constant) uniform CompactPush {
     uint pixelCount;
@@ -44,6 +48,7 @@ void main()
         rays[1] = x;
         rays[2] = x == 0u ? 1u : (groups + x - 1u) / x;
         rays[3] = 1u;
+        atomicAdd(stats[PENUMBRA_STAT_PIP], uint64_t(rays[0]));
         return;
     }
     uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * PENUMBRA_COMPACT_GROUP_SIZE + gl_LocalInvocationID.x;

@@ -2,11 +2,18 @@
 #extension GL_GOOGLE_include_directive : require
 // Shade pass: one light per dispatch, accumulated into the colour image,
 // with the light's visibility from the classify pass (shadow map) or the
-// tracer (srt/frt).
+// tracer (srt/frt). The light's type, whether it is the first light shaded
+// and the PIP tint are specialization constants (runtime/src/passes/shade.cpp):
+// lavapipe pays for every instruction a shader holds. The first light shaded
+// also counts the covered pixels (PENUMBRA_STAT_COVERED, once per frame).
 
 #extension GL_EXT_shader_atomic_int64 : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 #include "config.h"
+layout(constant_id = 0) const uint kLightType = PENUMBRA_LIGHT_POINT; // PENUMBRA_LIGHT_*
+layout(constant_id = 1) const uint kFirstLight = 0u;                  // push.firstLight
+layout(constant_id = 2) const uint kDebugPip = 0u;                    // push.debugPip
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
 
@@ -44,25 +51,22 @@ void main()
         return;
 
     vec4 position = imageLoad(gPosition, pixel);
-    vec3 color = vec3(0.0);
-    PENUMBRA_SKIP_UNLESS(push.firstLight == 0u) // later lights add to the colour
-        color = imageLoad(outColor, pixel).rgb;
-    if (position.w == 0.0) {
-        if (push.firstLight != 0u)
-            imageStore(outColor, pixel, frame.background);
-        return;
+    const bool covered = position.w != 0.0;
+    if (kFirstLight != 0u) {
+        uint coveredPixels = subgroupAdd(covered ? 1u : 0u);
+        if (subgroupElect() && coveredPixels != 0u)
+            atomicAdd(stats[PENUMBRA_STAT_COVERED], uint64_t(coveredPixels));
     }
-
     vec4 normal = imageLoad(gNormal, pixel);
     vec3 n = normal.xyz;
     vec3 albedo = vec3(frame.shading.y);
     if (frame.shading.z != 0.0) // --colors on: the material's colour packed by gbuffer.frag
         albedo *= vec3(uvec3(uint(normal.w)) >> uvec3(0u, 8u, 16u) & 255u) / 255.0;
-    if (push.firstLight != 0u)
-        color = vec3(albedo * frame.shading.x * (0.75 + 0.25 * n.y));
+    // The first light shaded writes ambient (and the background); later ones add to the colour.
+    vec3 color = kFirstLight != 0u ? vec3(albedo * frame.shading.x * (0.75 + 0.25 * n.y)) : imageLoad(outColor, pixel).rgb;
 
-    LightData light = frame.lights[push.lightIndex];
-    uint type = uint(light.positionType.w);
+    const LightData light = frame.lights[push.lightIndex];
+    const uint type = kLightType;
     vec3 p = position.xyz;
     vec3 toLight;
     float attenuation = 1.0;
@@ -79,8 +83,9 @@ void main()
             attenuation *= clamp(1.0 - r * r * r * r, 0.0, 1.0);
         }
         // One-sided area emitters (rectangle, disk): Lambertian, cosine at the light.
-        if (light.areaU.w != 0.0)
-            attenuation *= max(dot(-toLight, normalize(light.directionRange.xyz)), 0.0);
+        if (type == PENUMBRA_LIGHT_RECTANGLE || type == PENUMBRA_LIGHT_DISK)
+            if (light.areaU.w != 0.0)
+                attenuation *= max(dot(-toLight, normalize(light.directionRange.xyz)), 0.0);
         if (type == PENUMBRA_LIGHT_SPOT) {
             float cosAngle = dot(-toLight, normalize(light.directionRange.xyz));
             attenuation *= smoothstep(light.spotCosLayers.y, light.spotCosLayers.x, cosAngle);
@@ -88,13 +93,14 @@ void main()
     }
 
     float visibility = max(imageLoad(visibilityImage, pixel).r, 0.0);
-    bool area = type == PENUMBRA_LIGHT_RECTANGLE || type == PENUMBRA_LIGHT_DISK || type == PENUMBRA_LIGHT_SPHERE;
-    PENUMBRA_SKIP_UNLESS(area && visibility > 0.0 && visibility < 1.0)
+    const bool area = type == PENUMBRA_LIGHT_RECTANGLE || type == PENUMBRA_LIGHT_DISK || type == PENUMBRA_LIGHT_SPHERE;
+    if (area && covered && visibility > 0.0 && visibility < 1.0)
         atomicAdd(stats[PENUMBRA_STAT_PENUMBRA], uint64_t(1));
     float nDotL = max(dot(n, toLight), 0.0);
     color += albedo * light.colorIntensity.rgb * light.colorIntensity.w * attenuation * nDotL * visibility;
-    PENUMBRA_SKIP_UNLESS(push.debugPip != 0u && marks[pixel.y * size.x + pixel.x] != 0u)
+    if (kDebugPip != 0u && marks[pixel.y * size.x + pixel.x] != 0u)
         color = mix(color, vec3(1.0, 0.0, 0.0), 0.75);
-    imageStore(outColor, pixel, vec4(color, 1.0));
+    // Background pixels keep the background (the first light writes it).
+    imageStore(outColor, pixel, covered ? vec4(color, 1.0) : kFirstLight != 0u ? frame.background : imageLoad(outColor, pixel));
 }
 #endif

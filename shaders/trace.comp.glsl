@@ -13,7 +13,14 @@
 #extension GL_EXT_shader_atomic_int64 : require
 
 #include "config.h"
+// 1: the model is read through texel buffers (bvh_texels.glsli, GpuGeometry::texelsComplete); 0: by device address.
+layout(constant_id = 0) const uint kTexelAccess = 0u;
+layout(set = 0, binding = 6) uniform usamplerBuffer modelNodes;
+layout(set = 0, binding = 7) uniform usamplerBuffer modelClusters;
+layout(set = 0, binding = 8) uniform usamplerBuffer modelVertices;
+layout(set = 0, binding = 9) uniform usamplerBuffer modelStrips;
 #include "bvh_traversal.glsli"
+#include "bvh_texels.glsli"
 #include "shadow_common.glsli"
 #include "penumbra/light_sampling.h"
 
@@ -37,8 +44,17 @@ layout(push_constant) uniform Push
     uint lightIndex;      // into frame.lights
     float originOffset;   // model units along the normal
     uint samples;         // area lights: light samples per pixel (soft shadows); 0: one ray to the light
-    uint pad;
+    uint pad0, pad1, pad2;
+    vec4 boundsMin;       // the root node's box (xyz)
+    vec4 boundsMax;
 } push;
+
+bool occluded(ShadowRay ray, inout TraceCounters counters)
+{
+    if (kTexelAccess != 0u)
+        return modelOccludesTexels(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters);
+    return modelOccludes(push.modelTable, ray, counters);
+}
 
 // Soft shadows (area lights): the fraction of the pixel's light samples
 // (penumbra/light_sampling.h, seeded by the pixel) that no triangle blocks;
@@ -62,7 +78,7 @@ float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, boo
             continue;
         ++rays;
         ShadowRay ray = makeShadowRay(p + normal * push.originOffset, direction, distance - push.originOffset);
-        if (!modelOccludes(push.modelTable, ray, counters))
+        if (!occluded(ray, counters))
             ++visible;
     }
     return float(visible) / float(traced);
@@ -99,7 +115,7 @@ float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout Tr
         return 0.0;
     ++rays;
     ShadowRay ray = makeShadowRay(position.xyz + normal * push.originOffset, direction, tMax);
-    return modelOccludes(push.modelTable, ray, counters) ? 0.0 : 1.0;
+    return occluded(ray, counters) ? 0.0 : 1.0;
 }
 
 void main()

@@ -3,6 +3,7 @@
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_EXT_control_flow_attributes : require
 // Bounds of what the camera sees in the clip space of each model-fitted
 // shadow map of the lights being fitted to the view: a directional light's
 // orthographic map, and each perspective map of an area light (x/w, y/w).
@@ -22,6 +23,14 @@
 // classification reads, covers no set cell (culling.h: ReceiverMask).
 
 #include "config.h"
+// The light masks are specialization constants (runtime/src/passes/view_fit.cpp):
+// the loops over the lights unroll and a pipeline holds only the code its
+// lights need (lavapipe pays for every instruction a shader holds).
+layout(constant_id = 0) const uint kFitMask = 0u;   // push.lightMask
+layout(constant_id = 1) const uint kGridMask = 0u;  // push.gridMask
+layout(constant_id = 2) const uint kPointMask = 0u;       // bit l: light l is a point light (cube faces)
+layout(constant_id = 3) const uint kDirectionalMask = 0u; // bit l: light l is directional (orthographic)
+#define kAreaMask (kFitMask & ~kDirectionalMask) // fitted lights are directional or area lights
 #include "shadow_common.glsli"
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
@@ -66,13 +75,41 @@ bool blockPoint(ivec2 origin, ivec2 size, int i, out vec3 p)
     return g.w > 0.0;
 }
 
-// The receiver grids of light l for the block's points. The lookup is
-// projectToShadowMap's (and shadowLayer's), written out on the uniform's
+// Bounds keys of map k of light l from the subgroup's lanes' bounds: one
+// atomic per key and subgroup (no workgroup barrier: on lavapipe each one
+// switches between the workgroup's subgroups).
+void writeBounds(uint l, uint k, vec3 lo, vec3 negHi, bool behind)
+{
+    const float inf = uintBitsToFloat(0x7F800000u);
+    Keys out_ = Keys(push.keys);
+    lo = subgroupMin(lo);
+    negHi = subgroupMin(negHi);
+    behind = subgroupMax(behind ? 1u : 0u) != 0u; // the device offers arithmetic, not vote
+    uint base = 8u * (6u * l + k);
+    if (subgroupElect() && lo.x != inf) {
+        atomicMin(out_.keys[base + 0u], orderKey(lo.x));
+        atomicMin(out_.keys[base + 1u], orderKey(lo.y));
+        atomicMin(out_.keys[base + 2u], orderKey(lo.z));
+        atomicMin(out_.keys[base + 3u], orderKey(negHi.x));
+        atomicMin(out_.keys[base + 4u], orderKey(negHi.y));
+        atomicMin(out_.keys[base + 5u], orderKey(negHi.z));
+    }
+    if (subgroupElect() && behind)
+        atomicMin(out_.keys[base + 6u], 0u);
+}
+
+// Light l, a directional, point or spot light: its receiver grids (kGridMask)
+// and the bounds of a directional light's map (kFitMask), both from the
+// model-fitted projection, in one walk over the block's points. The lookup
+// is projectToShadowMap's (and shadowLayer's), written out on the uniform's
 // fields: passing the LightData to them copies it per pixel, which made this
 // pass about 30 ms slower on lavapipe at 1024^2. Keep the two in step.
-void markReceivers(uint l, vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK], uint valid)
+void fitPointLikeLight(uint l, ivec2 origin, ivec2 size)
 {
-    const uint type = uint(frame.lights[l].positionType.w);
+    const float inf = uintBitsToFloat(0x7F800000u);
+    const bool grid = (kGridMask & (1u << l)) != 0u, fit = (kFitMask & (1u << l)) != 0u;
+    const bool pointLight = (kPointMask & (1u << l)) != 0u;
+    const bool directional = (kDirectionalMask & (1u << l)) != 0u; // orthographic: w = 1
     const vec3 lightPosition = frame.lights[l].positionType.xyz;
     // Read once: uniform-buffer reads in the loop below would be repeated per point.
     const mat4 viewProj0 = frame.lights[l].viewProj[0];
@@ -81,10 +118,12 @@ void markReceivers(uint l, vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK], u
     // written with an atomic when the next point's cell lies in another word,
     // and at the end once per subgroup when all its lanes share the word.
     uint word = ~0u, bits = 0u;
+    vec3 lo = vec3(inf), negHi = vec3(inf);
     for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
-        vec3 p = points[i];
+        vec3 p;
+        bool valid = blockPoint(origin, size, i, p);
         uint layer = 0u; // shadowLayer: a point light's cube face
-        if (type == PENUMBRA_LIGHT_POINT) {
+        if (pointLight) {
             vec3 d = p - lightPosition;
             vec3 a = abs(d);
             if (a.x >= a.y && a.x >= a.z)
@@ -94,27 +133,58 @@ void markReceivers(uint l, vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK], u
             else
                 layer = d.z >= 0.0 ? 4u : 5u;
         }
-        vec4 clip = viewProj0 * vec4(p, 1.0);
-        PENUMBRA_SKIP_UNLESS(layer != 0u) // cube faces other than +X: only point lights
-            clip = frame.lights[l].viewProj[layer] * vec4(p, 1.0);
-        vec3 ndc = clip.xyz / clip.w;
-        bool inside = clip.w > 0.0 && all(lessThanEqual(abs(ndc.xy), vec2(1.0))) && ndc.z <= 1.0;
-        ivec2 cell = clamp(ivec2((ndc.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID)), ivec2(0), ivec2(PENUMBRA_RECEIVER_GRID - 1));
-        uint bit = ((6u * l + layer) * PENUMBRA_RECEIVER_GRID + uint(cell.y)) * PENUMBRA_RECEIVER_GRID + uint(cell.x);
-        bool marks = (valid & (1u << i)) != 0u && (inside || type == PENUMBRA_LIGHT_DIRECTIONAL);
-        PENUMBRA_SKIP_UNLESS(marks && word != ~0u && (bit >> 5u) != word) {
-            atomicOr(cells.bits[word], bits);
-            bits = 0u;
+        vec4 clip = pointLight ? frame.lights[l].viewProj[layer] * vec4(p, 1.0) : viewProj0 * vec4(p, 1.0);
+        vec3 ndc = directional ? clip.xyz : clip.xyz / clip.w;
+        if (fit) { // directional: orthographic, nothing behind the eye
+            lo = valid ? min(lo, ndc) : lo;
+            negHi = valid ? min(negHi, -ndc) : negHi;
         }
-        word = marks ? bit >> 5u : word;
-        bits |= marks ? 1u << (bit & 31u) : 0u;
+        if (grid) {
+            bool inside = clip.w > 0.0 && all(lessThanEqual(abs(ndc.xy), vec2(1.0))) && ndc.z <= 1.0;
+            ivec2 cell = clamp(ivec2((ndc.xy * 0.5 + 0.5) * float(PENUMBRA_RECEIVER_GRID)), ivec2(0), ivec2(PENUMBRA_RECEIVER_GRID - 1));
+            uint bit = ((6u * l + layer) * PENUMBRA_RECEIVER_GRID + uint(cell.y)) * PENUMBRA_RECEIVER_GRID + uint(cell.x);
+            bool marks = valid && (inside || directional);
+            if (marks && word != ~0u && (bit >> 5u) != word) {
+                atomicOr(cells.bits[word], bits);
+                bits = 0u;
+            }
+            word = marks ? bit >> 5u : word;
+            bits |= marks ? 1u << (bit & 31u) : 0u;
+        }
     }
-    bool oneWord = subgroupMin(word) == subgroupMax(word);
-    uint sharedBits = subgroupOr(bits);
-    PENUMBRA_SKIP_UNLESS(oneWord && word != ~0u && subgroupElect())
-        atomicOr(cells.bits[word], sharedBits);
-    PENUMBRA_SKIP_UNLESS(!oneWord && word != ~0u)
-        atomicOr(cells.bits[word], bits);
+    if (grid) {
+        bool oneWord = subgroupMin(word) == subgroupMax(word);
+        uint sharedBits = subgroupOr(bits);
+        if (oneWord && word != ~0u && subgroupElect())
+            atomicOr(cells.bits[word], sharedBits);
+        if (!oneWord && word != ~0u)
+            atomicOr(cells.bits[word], bits);
+    }
+    if (fit)
+        writeBounds(l, 0u, lo, negHi, false);
+}
+
+// Light l, an area light: the bounds of each of its perspective maps.
+void fitAreaLight(uint l, ivec2 origin, ivec2 size)
+{
+    const float inf = uintBitsToFloat(0x7F800000u);
+    const uint maps = uint(frame.lights[l].spotCosLayers.w);
+    for (uint k = 0u; k < maps; ++k) {
+        const mat4 viewProj = frame.lights[l].viewProj[k];
+        vec3 lo = vec3(inf), negHi = vec3(inf);
+        bool behind = false;
+        for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
+            vec3 q;
+            bool used = blockPoint(origin, size, i, q);
+            vec4 clip = viewProj * vec4(q, 1.0);
+            behind = behind || (used && clip.w <= 0.0);
+            used = used && clip.w > 0.0;
+            vec3 c = clip.xyz / clip.w;
+            lo = used ? min(lo, c) : lo;
+            negHi = used ? min(negHi, -c) : negHi;
+        }
+        writeBounds(l, k, lo, negHi, behind);
+    }
 }
 
 #ifdef PENUMBRA_FLOOR
@@ -136,54 +206,14 @@ void main()
 #else
 void main()
 {
-    const float inf = uintBitsToFloat(0x7F800000u);
     const ivec2 size = imageSize(gPosition);
     const ivec2 origin = ivec2(gl_GlobalInvocationID.xy) * VIEW_BOUNDS_BLOCK;
-    // The block's points, read once for every light and map.
-    vec3 points[VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK];
-    uint valid = 0u;
-    for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i)
-        if (blockPoint(origin, size, i, points[i]))
-            valid |= 1u << i;
-    // Only the lights in the masks (lavapipe would run the body of a skipped
-    // iteration masked): one iteration per set bit.
-    for (uint lights = push.gridMask; lights != 0u; lights &= lights - 1u)
-        markReceivers(uint(findLSB(lights)), points, valid);
-    Keys out_ = Keys(push.keys);
-    for (uint lights = push.lightMask; lights != 0u; lights &= lights - 1u) {
-        const uint l = uint(findLSB(lights));
-        const bool perspective = isAreaLight(frame.lights[l]);
-        const uint maps = perspective ? uint(frame.lights[l].spotCosLayers.w) : 1u;
-        for (uint k = 0u; k < maps; ++k) {
-            const mat4 viewProj = frame.lights[l].viewProj[k];
-            vec3 lo = vec3(inf), negHi = vec3(inf);
-            bool behind = false;
-            for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
-                vec4 clip = viewProj * vec4(points[i], 1.0); // orthographic: w = 1
-                bool used = (valid & (1u << i)) != 0u;
-                behind = behind || (used && clip.w <= 0.0);
-                used = used && clip.w > 0.0;
-                vec3 c = clip.xyz / clip.w;
-                lo = used ? min(lo, c) : lo;
-                negHi = used ? min(negHi, -c) : negHi;
-            }
-            // One atomic per key and subgroup (no workgroup barrier: on lavapipe
-            // each one switches between the workgroup's subgroups).
-            lo = subgroupMin(lo);
-            negHi = subgroupMin(negHi);
-            behind = subgroupMax(behind ? 1u : 0u) != 0u; // the device offers arithmetic, not vote
-            uint base = 8u * (6u * l + k);
-            PENUMBRA_SKIP_UNLESS(subgroupElect() && lo.x != inf) {
-                atomicMin(out_.keys[base + 0u], orderKey(lo.x));
-                atomicMin(out_.keys[base + 1u], orderKey(lo.y));
-                atomicMin(out_.keys[base + 2u], orderKey(lo.z));
-                atomicMin(out_.keys[base + 3u], orderKey(negHi.x));
-                atomicMin(out_.keys[base + 4u], orderKey(negHi.y));
-                atomicMin(out_.keys[base + 5u], orderKey(negHi.z));
-            }
-            PENUMBRA_SKIP_UNLESS(subgroupElect() && behind)
-                atomicMin(out_.keys[base + 6u], 0u);
-        }
-    }
+    // The block's points are read again for every light and map: a private
+    // array of them, indexed in a loop, costs far more on lavapipe (so does
+    // unrolling these loops).
+    for (uint lights = (kFitMask | kGridMask) & ~kAreaMask; lights != 0u; lights &= lights - 1u)
+        fitPointLikeLight(uint(findLSB(lights)), origin, size);
+    for (uint lights = kFitMask & kAreaMask; lights != 0u; lights &= lights - 1u)
+        fitAreaLight(uint(findLSB(lights)), origin, size);
 }
 #endif

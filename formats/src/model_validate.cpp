@@ -30,6 +30,21 @@ std::string str(uint64_t value)
     return std::to_string(value);
 }
 
+// a + b as text, also when the sum does not fit 64 bits.
+std::string sumText(uint64_t a, uint64_t b)
+{
+    if (a <= std::numeric_limits<uint64_t>::max() - b)
+        return std::to_string(a + b);
+    return std::to_string(a) + "+" + std::to_string(b);
+}
+
+std::string hex(uint64_t value)
+{
+    char text[24];
+    std::snprintf(text, sizeof(text), "%llx", static_cast<unsigned long long>(value));
+    return text;
+}
+
 std::string strf(float value)
 {
     char text[32];
@@ -202,16 +217,19 @@ void validateClusters(const CompressedModel& model, const std::string& subject, 
         if (cluster.triangleCount < 1 || cluster.triangleCount > build.maxClusterTriangles)
             failCluster(c, "triangle count " + str(cluster.triangleCount) + " is outside 1..maxClusterTriangles (" +
                                str(build.maxClusterTriangles) + ")");
-        if (uint64_t(cluster.firstVertex) + cluster.vertexCount > vertexCount)
-            failCluster(c, "vertices " + str(cluster.firstVertex) + ".." +
-                               str(uint64_t(cluster.firstVertex) + cluster.vertexCount) + " run past the " +
-                               str(vertexCount) + " vertices");
+        // 64-bit offsets: compare without forming firstVertex + vertexCount, which may wrap.
+        if (cluster.firstVertex > vertexCount || cluster.vertexCount > vertexCount - cluster.firstVertex)
+            failCluster(c, "vertices " + str(cluster.firstVertex) + ".." + sumText(cluster.firstVertex, cluster.vertexCount) +
+                               " run past the " + str(vertexCount) + " vertices");
         if (cluster.indexBytes < 3)
             failCluster(c, "strip bytes " + str(cluster.indexBytes) + " < 3");
-        if (uint64_t(cluster.firstIndex) + cluster.indexBytes > indexBytes)
-            failCluster(c, "strip bytes " + str(cluster.firstIndex) + ".." +
-                               str(uint64_t(cluster.firstIndex) + cluster.indexBytes) + " run past the " +
-                               str(indexBytes) + " index bytes");
+        if (cluster.firstIndex > indexBytes || cluster.indexBytes > indexBytes - cluster.firstIndex)
+            failCluster(c, "strip bytes " + str(cluster.firstIndex) + ".." + sumText(cluster.firstIndex, cluster.indexBytes) +
+                               " run past the " + str(indexBytes) + " index bytes");
+        if (cluster.flags & ~kClusterFlagsMask)
+            failCluster(c, "unknown flag bits 0x" + hex(cluster.flags & ~kClusterFlagsMask));
+        if (cluster.reserved != 0)
+            failCluster(c, "reserved field is not zero");
         for (int axis = 0; axis < 3; ++axis) {
             const float boxMin = cluster.boxMin[axis], step = cluster.step[axis];
             if (!std::isfinite(boxMin))

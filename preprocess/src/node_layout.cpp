@@ -75,6 +75,9 @@ Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const 
     size_t total = tree.nodes.size();
     for (const BuiltCluster& c : clusters)
         total += c.nodes.size() - 1 + (c.nodes[0].childCount == 0 ? 1 : 0);
+    if (total > model::kMaxNodes)
+        fail("preprocess", "the BVH needs " + std::to_string(total) + " nodes, more than the format's limit of " +
+                               std::to_string(model::kMaxNodes) + " (32-bit node indices); use larger leaves (--leaf-triangles)");
     layout.nodes.reserve(total);
     layout.nodes.resize(1);
     std::vector<uint32_t> finalCluster(clusters.size(), kNone);

@@ -99,6 +99,47 @@ void checkOptions(const PreprocessOptions& o)
 
 } // namespace
 
+std::vector<uint8_t> findClosedTriangles(const Mesh& mesh, unsigned threads)
+{
+    if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0)
+        fail("preprocess", "mesh arrays are not multiples of 3");
+    const uint64_t vertexCount = mesh.vertexCount();
+    for (uint32_t i : mesh.indices)
+        if (i >= vertexCount)
+            fail("preprocess", "vertex index out of range");
+    return closedTriangles(mesh, threads ? threads : std::max(1u, std::thread::hardware_concurrency()));
+}
+
+namespace {
+
+uint64_t estimatedNodes(uint64_t triangles, uint64_t leafTriangles)
+{
+    return triangles / leafTriangles * 4 + (triangles % leafTriangles != 0 ? 4 : 0) + 1;
+}
+
+} // namespace
+
+void checkModelLimits(uint64_t triangles, const PreprocessOptions& options, const std::string& subject)
+{
+    const uint64_t leaf = std::max<uint32_t>(1, options.maxLeafTriangles);
+    const uint64_t cluster = std::max<uint32_t>(1, options.maxClusterTriangles);
+    const uint64_t nodes = estimatedNodes(triangles, leaf);
+    if (nodes > model::kMaxNodes) {
+        uint64_t enough = leaf;
+        while (enough < model::kMaxClusterTriangles && estimatedNodes(triangles, enough) > model::kMaxNodes)
+            ++enough;
+        fail(subject, std::to_string(triangles) + " triangles may need about " + std::to_string(nodes) +
+                          " BVH nodes (4 per " + std::to_string(leaf) + "-triangle leaf), more than the format's " +
+                          std::to_string(model::kMaxNodes) + " (32-bit node indices)" +
+                          (estimatedNodes(triangles, enough) <= model::kMaxNodes
+                               ? "; use --leaf-triangles " + std::to_string(enough) + " or more"
+                               : std::string("; split the model")));
+    }
+    if (triangles / cluster * 2 + 2 > model::kMaxClusters)
+        fail(subject, std::to_string(triangles) + " triangles may need more clusters than the format's " +
+                          std::to_string(model::kMaxClusters) + " (32-bit cluster indices)");
+}
+
 CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* statsOut,
                                      std::vector<uint32_t>* decodedTriangleSource)
 {
@@ -115,8 +156,9 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         fail("preprocess", "mesh arrays are not multiples of 3");
     const uint64_t inputTriangles = mesh.triangleCount();
     const uint64_t vertexCount = mesh.vertexCount();
-    if (inputTriangles > 0xFFFFFFFFull)
-        fail("preprocess", "more than 2^32-1 triangles");
+    if (inputTriangles > 0xFFFFFFFEull)
+        fail("preprocess", "more than 2^32-2 triangles in one in-core build (use --memory-limit: streamed builds have no such limit)");
+    checkModelLimits(inputTriangles, options);
     stats.inputTriangles = inputTriangles;
     const uint64_t chunkSize = 1 << 16;
     const uint64_t chunks = (inputTriangles + chunkSize - 1) / chunkSize;
@@ -169,6 +211,11 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     if (triangleCount == 0)
         fail("preprocess", inputTriangles == 0 ? "mesh has no triangles"
                                                : "mesh has no non-degenerate triangles (all repeat a vertex index)");
+    // Closed components (kClusterClosed), before the per-triangle arrays of the tree stage so that
+    // its temporary memory does not add to their peak.
+    const auto closedStart = Clock::now();
+    std::vector<uint8_t> closed = closedTriangles(mesh, threads);
+    stats.closedSeconds = secondsSince(closedStart);
     std::vector<TriangleRef> refs(triangleCount);
     std::vector<glm::dvec3> extentSums(chunks, glm::dvec3(0.0));
     parallelFor(threads, chunks, [&](uint64_t c) {
@@ -201,8 +248,25 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     // ---- tree --------------------------------------------------------------------
     progress.begin("tree");
     stageStart = Clock::now();
+    // Clusters keep apart what their keys tell apart: materials (when split) and, with
+    // separateClosed, closed components from open ones, so that closed ones get kClusterClosed.
+    std::vector<uint32_t> splitKeys;
+    if (splitMaterials || options.separateClosed) {
+        uint8_t seen = 0; // bit 0: an open triangle, bit 1: a closed one
+        for (uint64_t t = 0; t < inputTriangles && seen != 3; ++t)
+            seen |= closed[t] ? 2 : 1;
+        if (splitMaterials || seen == 3) {
+            splitKeys.resize(inputTriangles);
+            const bool byClosed = options.separateClosed && seen == 3;
+            parallelFor(threads, chunks, [&](uint64_t c) {
+                for (uint64_t t = c * chunkSize, e = std::min(inputTriangles, t + chunkSize); t < e; ++t)
+                    splitKeys[t] = (splitMaterials ? mesh.triangleMaterials[t] : 0u) * 2u + (byClosed ? closed[t] : 0u);
+            });
+        }
+    }
     TopTree tree = buildTopTree(mesh, refs, meanExtent, options, threads, [&](double f) { progress.report(f); },
-                                splitMaterials ? mesh.triangleMaterials.data() : nullptr);
+                                splitKeys.empty() ? nullptr : splitKeys.data());
+    splitKeys = {};
     std::vector<uint32_t> triangles(triangleCount);
     parallelFor(threads, (triangleCount + chunkSize - 1) / chunkSize, [&](uint64_t c) {
         for (uint64_t i = c * chunkSize, e = std::min(triangleCount, (c + 1) * chunkSize); i < e; ++i)
@@ -222,8 +286,6 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     for (size_t i = 0; i < clusterCount; ++i)
         vertexOffset[i + 1] = vertexOffset[i] + tree.clusters[i].vertices;
     const uint64_t vertexTotal = vertexOffset[clusterCount];
-    if (vertexTotal > 0xFFFFFFFFull)
-        fail("preprocess", "model too large for 32-bit vertex offsets");
     auto data = std::make_shared<CompressedModelData>();
     data->vertices.resize(vertexTotal);
     std::vector<BuiltCluster> built(clusterCount);
@@ -231,11 +293,16 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     // Per cluster: its material (split: the first triangle's; all the same unless the depth budget
     // forbade the split) or the mean colour of its triangles.
     std::vector<uint32_t> clusterMaterial(clusterCount, 0);
+    std::vector<uint8_t> clusterClosed(clusterCount, 0);
     std::vector<glm::vec3> clusterColor(clusterColors ? clusterCount : 0);
     parallelFor(
         threads, clusterCount,
         [&](uint64_t c) {
             const ClusterRange& r = tree.clusters[c];
+            uint8_t allClosed = 1;
+            for (uint32_t i = r.begin; i < r.end; ++i)
+                allClosed &= closed[triangles[i]];
+            clusterClosed[c] = allClosed;
             if (splitMaterials)
                 clusterMaterial[c] = mesh.triangleMaterials[triangles[r.begin]];
             if (clusterColors) {
@@ -270,6 +337,14 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     } else {
         data->materials.push_back({{1.0f, 1.0f, 1.0f, 1.0f}});
     }
+    for (size_t c = 0; c < clusterCount; ++c) {
+        const uint32_t n = tree.clusters[c].end - tree.clusters[c].begin;
+        for (uint32_t i = tree.clusters[c].begin; i < tree.clusters[c].end; ++i)
+            stats.closedTriangles += closed[triangles[i]];
+        stats.closedClusters += clusterClosed[c];
+        stats.closedClusterTriangles += clusterClosed[c] ? n : 0;
+    }
+    closed = {};
     triangles = {};
     stats.clusterSeconds = secondsSince(stageStart);
 
@@ -309,8 +384,6 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         stats.leaves += c.leaves;
         stats.stripFallbackLeaves += c.fallbackLeaves;
     }
-    if (byteTotal > 0xFFFFFFFFull)
-        fail("preprocess", "model too large for 32-bit index offsets");
     data->indices.resize(byteTotal);
     std::vector<uint64_t> sourceOffset;
     if (wantSource) {
@@ -322,11 +395,13 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     parallelFor(threads, clusterCount, [&](uint64_t i) {
         BuiltCluster& c = built[i];
         model::ClusterRecord record = c.record;
-        record.firstVertex = uint32_t(vertexOffset[i]);
-        record.firstIndex = uint32_t(byteOffset[i]);
+        record.firstVertex = vertexOffset[i];
+        record.firstIndex = byteOffset[i];
         record.indexBytes = uint32_t(c.bytes.size());
         record.node = layout.clusterNode[i];
         record.material = clusterMaterial[i];
+        record.flags = clusterClosed[i] ? model::kClusterClosed : 0u;
+        record.reserved = 0;
         data->clusters[i] = record;
         std::copy(c.bytes.begin(), c.bytes.end(), data->indices.begin() + byteOffset[i]);
         if (wantSource)

@@ -148,6 +148,18 @@ void quantizeCluster(const Mesh& mesh, const uint32_t* vertices, uint32_t count,
 bool appendLeafStrips(const uint32_t* localIndices, uint32_t count, uint32_t vertexCount, std::vector<uint8_t>& out,
                       const uint32_t* source, std::vector<uint32_t>* sourceOut);
 
+// ---- closed components (closed.cpp) ------------------------------------------------
+
+// Per triangle of mesh: 1 when it belongs to a closed, consistently oriented
+// 2-manifold (model::kClusterClosed): vertices welded by exact position,
+// components connected through edges, every edge of the component used by
+// exactly two of its triangles in opposite directions, no triangle with two
+// corners at one position. Triangles with a repeated vertex index are ignored
+// (not stored) and get 0. openSeed (optional, one per triangle): a nonzero entry
+// makes that triangle's whole component open (streaming builds: a triangle that
+// a chunk boundary cuts, or a neighbour from another chunk). Indices must be in range.
+std::vector<uint8_t> closedTriangles(const Mesh& mesh, unsigned threads, const uint8_t* openSeed = nullptr);
+
 // ---- node array (node_layout.cpp) ------------------------------------------------
 
 struct Layout {

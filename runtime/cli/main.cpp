@@ -68,6 +68,7 @@ struct PreprocessArgs {
     uint32_t clusterTriangles = PreprocessOptions{}.maxClusterTriangles;
     uint32_t leafTriangles = PreprocessOptions{}.maxLeafTriangles;
     unsigned threads = 0;
+    bool separateClosed = false;
     bool quiet = false;
 };
 
@@ -385,6 +386,7 @@ int runPreprocess(const PreprocessArgs& args)
     options.maxClusterTriangles = args.clusterTriangles;
     options.maxLeafTriangles = args.leafTriangles;
     options.threads = args.threads;
+    options.separateClosed = args.separateClosed;
 
     ProgressBar progress(!args.quiet);
     auto start = std::chrono::steady_clock::now();
@@ -416,11 +418,14 @@ int runPreprocess(const PreprocessArgs& args)
         progress.finish();
         uint64_t bytes = model.clusters.size_bytes() + model.nodes.size_bytes() + model.vertices.size_bytes() + model.indices.size_bytes() +
                          model.materials.size_bytes();
-        std::printf("%s: %llu triangles (%.4g of %zu%s), %u clusters, %u nodes, %.2f B/tri, max error %.3g, %.2f s "
+        const double stored = double(std::max<uint64_t>(model.header.triangleCount, 1));
+        std::printf("%s: %llu triangles (%.4g of %zu%s), %u clusters, %u nodes, %.2f B/tri, max error %.3g, "
+                    "closed %.1f%% of triangles in closed clusters (%.1f%% in closed components), %.2f s "
                     "(%.2f M tris/s incl. import %.2f s)\n",
                     path.c_str(), (unsigned long long)model.header.triangleCount, double(model.header.triangleCount) / scene.mesh.triangleCount(),
                     scene.mesh.triangleCount(), ratio < 1.0f && simplified.sloppy ? ", sloppy" : "", model.header.clusterCount,
                     model.header.nodeCount, double(bytes) / double(model.header.triangleCount), double(model.header.maxPositionError),
+                    100.0 * double(stats.closedClusterTriangles) / stored, 100.0 * double(stats.closedTriangles) / stored,
                     seconds() - levelStart, double(mesh->triangleCount()) / (seconds() - levelStart + importSeconds) * 1e-6,
                     importSeconds);
     }
@@ -457,6 +462,14 @@ int runInfo(const std::string& path)
     }
     std::printf("  %-16s %14llu %10.3f\n", "total", (unsigned long long)total, double(total) / triangles);
     std::printf("  materials        %u\n", h.materialCount);
+    uint64_t closedClusters = 0, closedTriangles = 0;
+    for (const model::ClusterRecord& c : model.clusters)
+        if (c.flags & model::kClusterClosed) {
+            ++closedClusters;
+            closedTriangles += c.triangleCount;
+        }
+    std::printf("  closed           %llu clusters, %llu triangles (%.1f%%) of closed 2-manifold components\n",
+                (unsigned long long)closedClusters, (unsigned long long)closedTriangles, 100.0 * double(closedTriangles) / triangles);
     std::printf("  scene            %u camera(s), %u light(s), %llu bytes\n", h.cameraCount, h.lightCount,
                 (unsigned long long)(model.cameras.size_bytes() + model.lights.size_bytes()));
     return 0;
@@ -588,6 +601,9 @@ int main(int argc, char** argv)
     preprocessCommand->add_option("--cluster-triangles", preprocess.clusterTriangles, "Triangles per cluster")->capture_default_str()->check(CLI::Range(1, 1024));
     preprocessCommand->add_option("--leaf-triangles", preprocess.leafTriangles, "Triangles per strip-range leaf of a cluster's BVH")->capture_default_str()->check(CLI::Range(1, 1024));
     preprocessCommand->add_option("--threads", preprocess.threads, "Worker threads (0: all cores)")->capture_default_str();
+    preprocessCommand->add_flag("--separate-closed", preprocess.separateClosed,
+                                "Clusters do not mix closed 2-manifold parts with open ones, so more triangles get the closed "
+                                "flag (changes the clusters, hence the quantized positions, of models with both)");
     preprocessCommand->add_flag("--quiet", preprocess.quiet, "No progress bar");
 
     std::string infoPath;

@@ -49,6 +49,32 @@ std::vector<float> leafMinimumAltitudes(const CompressedModel& model)
 
 constexpr VkDeviceSize kChunkBytes = 1ull << 30; // per buffer, also capped by maxMemoryAllocationSize
 
+VkBufferView createTexelView(vk::Device& device, const vk::Buffer& buffer, VkFormat format, VkDeviceSize texelBytes)
+{
+    const VkDeviceSize limit = VkDeviceSize(device.properties.limits.maxTexelBufferElements) * texelBytes;
+    VkBufferViewCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+    info.buffer = buffer.buffer;
+    info.format = format;
+    info.range = std::min(buffer.size / texelBytes * texelBytes, limit);
+    VkBufferView view = VK_NULL_HANDLE;
+    VK_CHECK(vkCreateBufferView(device.device, &info, nullptr, &view));
+    return view;
+}
+
+// GpuGeometry::texels over the first buffer of each kind; complete when each kind has one.
+void createTexelViews(vk::Device& device, GpuGeometry& geometry)
+{
+    const VkDeviceSize maxTexels = device.properties.limits.maxTexelBufferElements;
+    GpuGeometry::TexelViews& t = geometry.texels;
+    t.nodes = createTexelView(device, geometry.nodeChunks[0], VK_FORMAT_R32G32B32A32_UINT, 16);
+    t.clusters = createTexelView(device, geometry.clusters, VK_FORMAT_R32G32B32A32_UINT, 16);
+    t.vertices = createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16G16B16A16_UINT, 8);
+    t.strips = createTexelView(device, geometry.chunks[0].indices, VK_FORMAT_R32G32B32A32_UINT, 16);
+    geometry.texelsComplete = geometry.nodeChunks.size() == 1 && geometry.chunks.size() == 1 &&
+                              geometry.nodeChunks[0].size / 16 <= maxTexels && geometry.clusters.size / 16 <= maxTexels &&
+                              geometry.chunks[0].vertices.size / 8 <= maxTexels && geometry.chunks[0].indices.size / 16 <= maxTexels;
+}
+
 VkDeviceSize chunkLimit(const vk::Device& device)
 {
     VkDeviceSize limit = std::min<VkDeviceSize>(kChunkBytes, device.maxAllocationSize);
@@ -95,19 +121,26 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
             chunk.vertexBase = start.firstVertex;
             chunk.indexBase = start.firstIndex;
             chunk.vertices = vk::createBufferWithData(device, model.vertices.data() + start.firstVertex,
-                                                      vertexCount * sizeof(model::QuantizedVertex), VK_BUFFER_USAGE_VERTEX_BUFFER_BIT,
+                                                      vertexCount * sizeof(model::QuantizedVertex),
+                                                      VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
                                                       vk::Addressable::Yes);
             geometry.chunks.push_back(chunk); // owned from here on, even if the next upload throws
-            geometry.chunks.back().indices = vk::createBufferWithData(device, model.indices.data() + start.firstIndex, indexBytes,
-                                                                      VK_BUFFER_USAGE_INDEX_BUFFER_BIT, vk::Addressable::Yes);
+            // Padded to whole 16-byte texels for the tracer's RGBA32UI view.
+            geometry.chunks.back().indices =
+                vk::createBufferWithData(device, model.indices.data() + start.firstIndex, indexBytes,
+                                         VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, vk::Addressable::Yes,
+                                         (indexBytes + 15) & ~VkDeviceSize(15));
             for (uint32_t i = first; i < end; ++i) {
                 const model::ClusterRecord& c = model.clusters[i];
-                commands[i] = {c.indexBytes, 1, c.firstIndex - start.firstIndex, int32_t(c.firstVertex - start.firstVertex), i};
+                // Chunk-relative: below the chunk limit (<= 1 GiB), so 32 bits hold them.
+                commands[i] = {c.indexBytes, 1, uint32_t(c.firstIndex - start.firstIndex),
+                               int32_t(c.firstVertex - start.firstVertex), i};
             }
             first = end;
         }
         geometry.clusters = vk::createBufferWithData(device, model.clusters.data(), model.clusters.size_bytes(),
-                                                     VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, vk::Addressable::Yes);
+                                                     VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
+                                                     vk::Addressable::Yes);
         // BVH nodes in power-of-two chunks below the limit, so a shader finds node i in chunk i >> shift.
         while (geometry.nodeChunkShift < 31 && (VkDeviceSize(sizeof(model::Node)) << (geometry.nodeChunkShift + 1)) <= limit)
             ++geometry.nodeChunkShift;
@@ -115,8 +148,10 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         for (size_t node = 0; node < model.nodes.size(); node += nodesPerChunk) {
             size_t count = std::min(nodesPerChunk, model.nodes.size() - node);
             geometry.nodeChunks.push_back(vk::createBufferWithData(device, model.nodes.data() + node, count * sizeof(model::Node),
-                                                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes));
+                                                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
+                                                                   vk::Addressable::Yes));
         }
+        createTexelViews(device, geometry);
         geometry.indirect = vk::createBufferWithData(device, commands.data(), commands.size() * sizeof(VkDrawIndexedIndirectCommand),
                                                      VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
         // Each cluster's material colour, packed for the G-buffer (8 bits per channel, linear).
@@ -175,6 +210,9 @@ GpuGeometry uploadReference(vk::Device& device, const Mesh& mesh)
 
 void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
 {
+    for (VkBufferView view : {geometry.texels.nodes, geometry.texels.clusters, geometry.texels.vertices, geometry.texels.strips})
+        if (view)
+            vkDestroyBufferView(device.device, view, nullptr);
     for (GpuGeometry::Chunk& chunk : geometry.chunks) {
         vk::destroyBuffer(device, chunk.vertices);
         vk::destroyBuffer(device, chunk.indices);

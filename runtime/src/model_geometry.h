@@ -45,6 +45,19 @@ struct GpuGeometry {
     vk::Buffer leafAltitudes;
     uint32_t nodeChunkShift = 0;
     uint32_t nodeCount = 0;
+    // The ray tracer's view of the model through uniform texel buffers: on
+    // lavapipe a texel fetch is a branch-free gather, every other buffer load
+    // not provably uniform a loop over the lanes (2.5-4x slower, measured).
+    // nodes and clusters: RGBA32UI (a Node is one texel, a ClusterRecord
+    // four); vertices: R16G16B16A16_UINT (one QuantizedVertex a texel);
+    // strips: RGBA32UI (16 strip bytes a texel, the buffer padded to 16).
+    // Made when the nodes, the vertices and the strips each lie in one buffer
+    // within the device's texel-buffer limit (texelsComplete); the views
+    // exist anyway, over the first buffers, so that descriptors are valid.
+    struct TexelViews {
+        VkBufferView nodes = VK_NULL_HANDLE, clusters = VK_NULL_HANDLE, vertices = VK_NULL_HANDLE, strips = VK_NULL_HANDLE;
+    } texels;
+    bool texelsComplete = false;
     float maxPositionError = 0;   // header.maxPositionError, model units
     uint64_t triangles = 0;
     uint64_t vertexCount = 0;

@@ -46,7 +46,9 @@ void writeSet(Device& device, VkDescriptorSet set, const std::vector<Binding>& b
         write.dstBinding = i;
         write.descriptorCount = 1;
         write.descriptorType = b.type;
-        if (b.buffer) {
+        if (b.type == kTexels) {
+            write.pTexelBufferView = &b.texels;
+        } else if (b.buffer) {
             buffers[i] = {b.buffer, 0, b.range};
             write.pBufferInfo = &buffers[i];
         } else {
@@ -161,7 +163,8 @@ void checkPushConstants(const char* shader, uint32_t pushBytes)
                             std::to_string(pushBytes));
 }
 
-VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineLayout layout, uint32_t pushBytes)
+VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineLayout layout, uint32_t pushBytes,
+                                 const Specialization& specialization)
 {
     checkPushConstants(shader, pushBytes);
     VkShaderModule module = createShaderModule(device, shader);
@@ -170,6 +173,17 @@ VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineL
     info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
     info.stage.module = module;
     info.stage.pName = "main";
+    std::array<VkSpecializationMapEntry, 4> entries{};
+    VkSpecializationInfo specializationInfo{};
+    if (specialization.count > 0) {
+        for (uint32_t i = 0; i < specialization.count; ++i)
+            entries[i] = {i, uint32_t(i * sizeof(uint32_t)), sizeof(uint32_t)};
+        specializationInfo.mapEntryCount = specialization.count;
+        specializationInfo.pMapEntries = entries.data();
+        specializationInfo.dataSize = specialization.count * sizeof(uint32_t);
+        specializationInfo.pData = specialization.values.data();
+        info.stage.pSpecializationInfo = &specializationInfo;
+    }
     info.layout = layout;
     VkPipeline pipeline;
     VkResult result = vkCreateComputePipelines(device.device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
@@ -214,6 +228,7 @@ void ComputeKernel::create(Device& device, const char* shader, const std::vector
         set = allocateSet(device, setLayout, bindings, pool);
         this->shader = shader;
         this->pushBytes = pushBytes;
+        this->device = &device;
     } catch (...) {
         destroy(device);
         throw;
@@ -231,6 +246,8 @@ void ComputeKernel::destroy(Device& device)
     VkDevice d = device.device;
     if (pool) vkDestroyDescriptorPool(d, pool, nullptr);
     if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
+    for (auto& [specialization, variant] : variants)
+        vkDestroyPipeline(d, variant, nullptr);
     if (floorPipeline) vkDestroyPipeline(d, floorPipeline, nullptr);
     if (layout) vkDestroyPipelineLayout(d, layout, nullptr);
     if (setLayout) vkDestroyDescriptorSetLayout(d, setLayout, nullptr);
@@ -242,6 +259,21 @@ void ComputeKernel::bind(VkCommandBuffer cmd, bool floor) const
     if (floor && !floorPipeline)
         fail("renderer", std::string(shader) + ": null pass recorded before createFloor");
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, floor ? floorPipeline : pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, nullptr);
+}
+
+void ComputeKernel::bind(VkCommandBuffer cmd, const Specialization& specialization, bool floor) const
+{
+    if (floor || specialization.count == 0) {
+        bind(cmd, floor);
+        return;
+    }
+    auto it = std::find_if(variants.begin(), variants.end(), [&](const auto& v) { return v.first == specialization; });
+    if (it == variants.end()) {
+        variants.emplace_back(specialization, createComputePipeline(*device, shader, layout, pushBytes, specialization));
+        it = variants.end() - 1;
+    }
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, it->second);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, nullptr);
 }
 

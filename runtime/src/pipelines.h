@@ -4,7 +4,10 @@
 // the shader's push-constant block, read from the embedded SPIR-V.
 #pragma once
 
+#include <array>
+#include <initializer_list>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "model_geometry.h"
@@ -16,6 +19,7 @@ constexpr VkDescriptorType kStorageImage = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
 constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
 constexpr VkDescriptorType kUniform = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
 constexpr VkDescriptorType kStorage = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+constexpr VkDescriptorType kTexels = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 
 // Pipeline layout with at most one set and one push-constant range of pushBytes.
 VkPipelineLayout createPipelineLayout(Device& device, VkDescriptorSetLayout setLayout, uint32_t pushBytes, VkShaderStageFlags stages);
@@ -31,11 +35,13 @@ struct Binding {
     VkBuffer buffer = VK_NULL_HANDLE;
     VkImageLayout layout = VK_IMAGE_LAYOUT_GENERAL;
     VkDeviceSize range = VK_WHOLE_SIZE;
+    VkBufferView texels = VK_NULL_HANDLE; // kTexels
 };
 inline Binding storageImage(VkImageView view) { return {kStorageImage, view}; }
 inline Binding sampledImage(VkImageView view, VkSampler sampler, VkImageLayout layout) { return {kSampled, view, sampler, {}, layout}; }
 inline Binding uniformBuffer(VkBuffer buffer) { return {kUniform, {}, {}, buffer}; }
 inline Binding storageBuffer(VkBuffer buffer, VkDeviceSize range = VK_WHOLE_SIZE) { return {kStorage, {}, {}, buffer, {}, range}; }
+inline Binding texelBuffer(VkBufferView view) { return {kTexels, {}, {}, {}, {}, VK_WHOLE_SIZE, view}; }
 
 // Writes bindings[i] to binding i of set.
 void writeSet(Device& device, VkDescriptorSet set, const std::vector<Binding>& bindings);
@@ -47,8 +53,28 @@ uint32_t shaderPushConstantBytes(const char* shader);
 // Throws when the shader's push-constant block is not pushBytes long.
 void checkPushConstants(const char* shader, uint32_t pushBytes);
 
+// Values of a compute pipeline's specialization constants: constant_id i
+// takes values[i] for i < count; the others keep the shader's defaults. On
+// lavapipe a shader pays for every instruction it holds, taken or not
+// (llvmpipe runs both sides of every if, masked): modes and light types that
+// a dispatch knows are specialization constants, so that the compiler drops
+// the code of the others.
+struct Specialization {
+    std::array<uint32_t, 4> values{};
+    uint32_t count = 0;
+
+    Specialization() = default;
+    Specialization(std::initializer_list<uint32_t> list)
+    {
+        for (uint32_t v : list)
+            values.at(count++) = v;
+    }
+    bool operator==(const Specialization&) const = default;
+};
+
 // Compute pipeline of an embedded shader ("classify.comp"); checks pushBytes against the shader.
-VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineLayout layout, uint32_t pushBytes);
+VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineLayout layout, uint32_t pushBytes,
+                                 const Specialization& specialization = {});
 
 // One descriptor set of setLayout (binding i of type bindings[i]) from a new
 // pool sized for it, returned in `pool` (destroying the pool frees the set).
@@ -67,6 +93,9 @@ struct ComputeKernel {
     VkPipeline floorPipeline = VK_NULL_HANDLE;
     const char* shader = nullptr;
     uint32_t pushBytes = 0;
+    Device* device = nullptr;
+    // Pipelines specialized by bind(cmd, specialization), made on first use.
+    mutable std::vector<std::pair<Specialization, VkPipeline>> variants;
 
     void create(Device& device, const char* shader, const std::vector<VkDescriptorType>& bindings, uint32_t pushBytes);
     // Makes the null twin once (same layout and set).
@@ -75,6 +104,9 @@ struct ComputeKernel {
     void write(Device& device, const std::vector<Binding>& bindings) const { writeSet(device, set, bindings); }
     // Binds the pipeline (floor: its null twin) and its set.
     void bind(VkCommandBuffer cmd, bool floor = false) const;
+    // Binds the pipeline specialized with `specialization` (made on first use;
+    // floor: the null twin, unspecialized) and its set.
+    void bind(VkCommandBuffer cmd, const Specialization& specialization, bool floor = false) const;
     template <typename Push>
     void push(VkCommandBuffer cmd, const Push& push) const
     {

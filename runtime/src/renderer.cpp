@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <functional>
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -35,11 +37,27 @@ namespace {
 // (RenderSettings::measureFloors) are therefore timed on the host: every
 // interval ends with a submission and a wait, and lasts from the end of the
 // previous wait to the end of its own (recording and one round trip included).
+// With PENUMBRA_FLOOR_CLOCK=cpu they count the process's CPU time instead of
+// the wall clock: on a CPU device (lavapipe) that is the pass's work, and it
+// holds steady when other processes share the cores.
+double hostClockMs()
+{
+    static const bool cpu = [] {
+        const char* clock = std::getenv("PENUMBRA_FLOOR_CLOCK");
+        return clock && std::strcmp(clock, "cpu") == 0;
+    }();
+    if (!cpu)
+        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    timespec time{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &time);
+    return double(time.tv_sec) * 1e3 + double(time.tv_nsec) * 1e-6;
+}
+
 struct PassTimer {
     VkQueryPool pool = VK_NULL_HANDLE;
     std::function<void()> submitAndRestart; // host-timed frames: submit, wait, begin the next command buffer
     std::vector<PassId> ended;              // pass of the interval ending at each timestamp (the first: PassId::Count)
-    std::vector<std::chrono::steady_clock::time_point> hostEnds; // host-timed frames: when each interval ended
+    std::vector<double> hostEnds; // host-timed frames: when each interval ended (hostClockMs)
 
     // The passes marked since the last call, for errors: "shadow_map, classify, shade".
     std::string passesSinceLastSubmit()
@@ -64,7 +82,7 @@ struct PassTimer {
         ended.push_back(pass);
         if (submitAndRestart) {
             submitAndRestart(); // names the passes up to this one if the device fails
-            hostEnds.push_back(std::chrono::steady_clock::now());
+            hostEnds.push_back(hostClockMs());
         }
         vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool, uint32_t(ended.size() - 1));
     }
@@ -254,8 +272,14 @@ struct Renderer::Impl::FrameScript {
             r.viewFit.recordFloor(cmd, r.device, r.targets.viewBounds, width(), height());
             timer.mark(cmd, PassId::ViewFitFloor);
         }
-        r.viewFit.record(cmd, r.device, r.targets.viewBounds, r.targets.receiverGrids, viewFitMask, receiverGridMask, gridLayers, width(),
-                         height());
+        uint32_t pointMask = 0, directionalMask = 0;
+        for (uint32_t i = 0; i < lights.size(); ++i) {
+            pointMask |= lights[i].type == LightType::Point ? 1u << i : 0u;
+            directionalMask |= lights[i].type == LightType::Directional ? 1u << i : 0u;
+        }
+        const uint32_t used = viewFitMask | receiverGridMask;
+        r.viewFit.record(cmd, r.device, r.targets.viewBounds, r.targets.receiverGrids, viewFitMask, receiverGridMask, pointMask & used,
+                         directionalMask & used, gridLayers, width(), height());
         timer.mark(cmd, PassId::ViewFit);
         r.submitAndWait(cmd, timer.passesSinceLastSubmit());
 
@@ -356,7 +380,7 @@ struct Renderer::Impl::FrameScript {
                     r.classify.recordSoft(cmd, {light, slot, mode, average && first ? 1u : 0u, average ? 1.0f / float(maps) : 1.0f,
                                                 t.shadowSize, maskTopLevel(t.shadowSize), 0}, width(), height(), floor);
                 } else {
-                    r.classify.record(cmd, {light, step.mode}, width(), height(), floor);
+                    r.classify.record(cmd, {light, step.mode}, uint32_t(l.positionType.w), width(), height(), floor);
                 }
                 timer.mark(cmd, floor ? PassId::ClassifyFloor : PassId::Classify);
             }
@@ -418,10 +442,10 @@ struct Renderer::Impl::FrameScript {
         case Step::Shade: {
             const ShadePush push{light, light + 1 == lights.size() ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u, 0u};
             if (settings.measureFloors) {
-                r.shade.record(cmd, push, width(), height(), true);
+                r.shade.record(cmd, push, uint32_t(l.positionType.w), width(), height(), true);
                 timer.mark(cmd, PassId::ShadeFloor);
             }
-            r.shade.record(cmd, push, width(), height());
+            r.shade.record(cmd, push, uint32_t(l.positionType.w), width(), height());
             timer.mark(cmd, PassId::Shade);
             if (settings.readbackLightLayers)
                 copyLightLayers(light);
@@ -532,7 +556,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     for (size_t i = 1; i < ticks.size(); ++i) {
         passMs[size_t(timer.ended[i])] +=
             timer.hostEnds.empty() ? double(ticks[i] - ticks[i - 1]) * period
-                                   : std::chrono::duration<double, std::milli>(timer.hostEnds[i] - timer.hostEnds[i - 1]).count();
+                                   : timer.hostEnds[i] - timer.hostEnds[i - 1];
         ran[size_t(timer.ended[i])] = true;
     }
     const uint64_t* counters = static_cast<const uint64_t*>(t.readbackStats.mapped);
@@ -542,7 +566,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     out.height = height();
     out.lights = uint32_t(lights.size());
     out.shadows = settings.shadows;
-    out.coveredPixels = counters[PENUMBRA_STAT_COVERED] / std::max<uint64_t>(out.lights, 1);
+    out.coveredPixels = counters[PENUMBRA_STAT_COVERED]; // counted by the first light's shade pass
     out.pipPixels = counters[PENUMBRA_STAT_PIP];
     out.pipFraction = out.coveredPixels ? double(out.pipPixels) / (double(out.coveredPixels) * out.lights) : 0.0;
     out.rays = counters[PENUMBRA_STAT_RAYS];

@@ -85,7 +85,7 @@ void Renderer::Impl::bindTargets()
                                &t.penumbraMask, &t.penumbraReceivers, &t.penumbraJobs, &t.penumbraThinMask, t.penumbraMaxJobs});
     classify.bind(device, {pixels, t.shadowMap.view, t.nearestSampler, t.thinMap.view, &t.penumbraMask, &t.penumbraReceivers,
                            &t.penumbraThinMask});
-    compact.bind(device, t.marks.buffer, t.rayList.buffer);
+    compact.bind(device, t.marks.buffer, t.rayList.buffer, t.stats.buffer);
     trace.bind(device, {t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.rayList.buffer, t.stats.buffer});
     shade.bind(device, pixels, t.color.view);
 }

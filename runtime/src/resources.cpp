@@ -1,5 +1,6 @@
 #include "resources.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "penumbra/shaders/registry.h"
@@ -91,21 +92,27 @@ void destroyBuffer(Device& device, Buffer& buffer)
     buffer = {};
 }
 
-Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage, Addressable addressable)
+Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage, Addressable addressable,
+                            VkDeviceSize capacity)
 {
+    capacity = std::max(capacity, size);
     if (deviceLocalIsHostVisible(device)) {
-        Buffer buffer = createBuffer(device, size, usage, MemoryUse::Upload, addressable);
+        Buffer buffer = createBuffer(device, capacity, usage, MemoryUse::Upload, addressable);
         std::memcpy(buffer.mapped, data, size);
+        std::memset(static_cast<char*>(buffer.mapped) + size, 0, capacity - size);
         return buffer;
     }
-    Buffer buffer = createBuffer(device, size, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUse::DeviceLocal, addressable);
+    Buffer buffer = createBuffer(device, capacity, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUse::DeviceLocal, addressable);
     const VkDeviceSize chunk = 64ull << 20;
     Buffer staging;
     try {
-        staging = createBuffer(device, std::min(size, chunk), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUse::Upload);
-        for (VkDeviceSize offset = 0; offset < size; offset += chunk) {
-            VkDeviceSize bytes = std::min(chunk, size - offset);
-            std::memcpy(staging.mapped, static_cast<const char*>(data) + offset, bytes);
+        staging = createBuffer(device, std::min(capacity, chunk), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUse::Upload);
+        for (VkDeviceSize offset = 0; offset < capacity; offset += chunk) {
+            VkDeviceSize bytes = std::min(chunk, capacity - offset);
+            VkDeviceSize fromData = offset < size ? std::min(bytes, size - offset) : 0;
+            if (fromData > 0)
+                std::memcpy(staging.mapped, static_cast<const char*>(data) + offset, fromData);
+            std::memset(static_cast<char*>(staging.mapped) + fromData, 0, bytes - fromData);
             immediateSubmit(device, [&](VkCommandBuffer cmd) {
                 VkBufferCopy region{0, offset, bytes};
                 vkCmdCopyBuffer(cmd, staging.buffer, buffer.buffer, 1, &region);

@@ -38,9 +38,10 @@ Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage,
 void destroyBuffer(Device& device, Buffer& buffer);
 
 // Creates a device-local buffer holding data: mapped directly when the
-// device-local heap is host-visible, else through a staging copy.
+// device-local heap is host-visible, else through a staging copy. capacity
+// (>= size; 0: size) sizes the buffer, the bytes after data zero.
 Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage,
-                            Addressable addressable = Addressable::No);
+                            Addressable addressable = Addressable::No, VkDeviceSize capacity = 0);
 
 // Device address of a buffer created with Addressable::Yes.
 VkDeviceAddress bufferAddress(const Device& device, const Buffer& buffer);

@@ -352,6 +352,29 @@ TEST(ModelFile, RoundTripIsIdentical)
     }
 }
 
+// Version 3: the closed flag and 64-bit offsets survive the file; a flag set is valid.
+TEST(ModelFile, ClusterFlagsRoundTrip)
+{
+    auto data = cubeModel();
+    data->clusters[0].flags = kClusterClosed;
+    CompressedModel model = openModelFile(writeModel("model_flags.penumbra", data));
+    ASSERT_EQ(model.clusters.size(), 2u);
+    EXPECT_EQ(model.clusters[0].flags, uint32_t(kClusterClosed));
+    EXPECT_EQ(model.clusters[1].flags, 0u);
+    EXPECT_EQ(model.clusters[1].firstVertex, 8u);
+    EXPECT_EQ(model.clusters[1].firstIndex, uint64_t(model.clusters[0].indexBytes));
+}
+
+// A version-2 file (the seed corpus's cube before version 3, kept as it was
+// written) is refused with one line that says what to do.
+TEST(ModelFileBad, Version2FileSaysToPreprocessAgain)
+{
+    const std::string path = (std::filesystem::path(__FILE__).parent_path() / "data" / "cube_version2.penumbra").string();
+    const std::string message = errorOf([&] { openModelFile(path); });
+    EXPECT_EQ(message, path + ": unsupported version 2 (this build reads version 3; run penumbra preprocess on the source "
+                              "model again)");
+}
+
 TEST(ModelFile, MappingOutlivesTheFile)
 {
     std::string path = writeModel("model_unlinked.penumbra", cubeModel());
@@ -457,10 +480,10 @@ TEST(ModelFileBad, FlippedByteInEachSection)
     }
     // Padding is not covered by a checksum but must be zero.
     std::string bad = bytes;
-    const SectionEntry& clusters = sectionOf(header, SectionType::Clusters);
-    bad[clusters.offset + clusters.size] = 1; // 96 bytes of clusters -> 32 bytes of padding follow
+    const SectionEntry& nodes = sectionOf(header, SectionType::Nodes);
+    bad[nodes.offset + nodes.size] = 1; // 96 bytes of nodes -> 32 bytes of padding follow
     EXPECT_ERROR_CONTAINS(openError("model_padding.penumbra", bad),
-                          "nonzero padding byte at offset " + std::to_string(clusters.offset + clusters.size));
+                          "nonzero padding byte at offset " + std::to_string(nodes.offset + nodes.size));
 }
 
 TEST(ModelFileBad, HeaderFields)
@@ -480,8 +503,10 @@ TEST(ModelFileBad, HeaderFields)
                           "model_magic.penumbra: not a Penumbra model file (bad magic)");
     EXPECT_ERROR_CONTAINS(openError("model_text.penumbra", "solid cube\n"), "not a Penumbra model file (bad magic)");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 7; }),
-                          "unsupported version 7 (this build reads version 2; run penumbra preprocess on the source model again)");
-    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 1; }), "unsupported version 1 (this build reads version 2");
+                          "unsupported version 7 (this build reads version 3; run penumbra preprocess on the source model again)");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 2; }),
+                          "model_header.penumbra: unsupported version 2 (this build reads version 3; run penumbra preprocess on the source model again)");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 1; }), "unsupported version 1 (this build reads version 3");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.headerSize = 320; }), "header size 320 is not 448");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.materialCount = 0; }), "header materialCount 0 is outside 1..16777216");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.cameraCount = 300; }), "header cameraCount 300 is above 256");
@@ -778,6 +803,26 @@ TEST(ModelValidate, Clusters)
     expectInvalid(
         cubeModel, [](CompressedModelData& d) { d.clusters[1].firstIndex = 0xFFFFFFF0; },
         "cluster 1: strip bytes 4294967280..4294967284 run past the");
+    // Version 3's 64-bit offsets: far beyond 32 bits, and at the end of the 64-bit range (no wrap-around).
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.clusters[1].firstVertex = 1ull << 40; },
+        "cluster 1: vertices 1099511627776..1099511627780 run past the 12 vertices");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.clusters[1].firstVertex = ~0ull - 1; },
+        "cluster 1: vertices 18446744073709551614..18446744073709551614+4 run past the 12 vertices");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.clusters[1].firstIndex = ~0ull - 2; },
+        "cluster 1: strip bytes 18446744073709551613..18446744073709551613+4 run past the");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.clusters[1].firstIndex = 1ull << 32; },
+        "cluster 1: strip bytes 4294967296..4294967300 run past the");
+    // Flags: only kClusterClosed is defined; the reserved word is zero.
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.clusters[0].flags = kClusterClosed | 4u; }, "cluster 0: unknown flag bits 0x4");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.clusters[1].flags = 0x80000000u; }, "cluster 1: unknown flag bits 0x80000000");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.clusters[1].reserved = 1; }, "cluster 1: reserved field is not zero");
     expectInvalid(
         cubeModel, [](CompressedModelData& d) { d.clusters[1].node = 99; },
         "cluster 1: node 99 out of range (6 nodes)");
@@ -984,7 +1029,9 @@ TEST(ModelValidate, HeaderBuildParameters)
 TEST(ModelFile, DISABLED_WriteFuzzSeeds)
 {
     writeModelFile(view(quadModel()), tempPath("fuzz_seed_quad.penumbra"));
-    writeModelFile(view(cubeModel()), tempPath("fuzz_seed_cube.penumbra"));
+    auto cube = cubeModel();
+    cube->clusters[0].flags = kClusterClosed; // the cube is closed: a seed with the flag set
+    writeModelFile(view(cube), tempPath("fuzz_seed_cube.penumbra"));
 }
 
 } // namespace

@@ -43,6 +43,11 @@ void useModel(const CompressedModel& model)
         check(triangles == cluster.triangleCount);
         check(model.nodes[cluster.node].kind == uint8_t(NodeKind::Cluster));
         check(cluster.material < model.materials.size());
+        check((cluster.flags & ~kClusterFlagsMask) == 0 && cluster.reserved == 0);
+        // 64-bit offsets: the whole range lies inside its section.
+        check(cluster.firstVertex <= model.vertices.size() && cluster.vertexCount <= model.vertices.size() - cluster.firstVertex);
+        check(cluster.firstIndex <= model.indices.size() && cluster.indexBytes <= model.indices.size() - cluster.firstIndex);
+        sum += float(model.vertices[cluster.firstVertex + cluster.vertexCount - 1].y);
         sum += model.materials[cluster.material].baseColor[0];
     }
     for (const Camera& camera : modelCameras(model))

@@ -488,6 +488,26 @@ TEST(Preprocess, Errors)
     EXPECT_EQ(message(materials), "preprocess: triangle materials do not match the triangles");
 }
 
+// Format version 3: 64-bit offsets, so 5 G triangles fit; the 32-bit node indices are the
+// limit, checked from the triangle count before any work.
+TEST(Preprocess, FormatLimitsCheckedBeforeTheBuild)
+{
+    EXPECT_NO_THROW(checkModelLimits(5'000'000'000ull, {}));
+    EXPECT_NO_THROW(checkModelLimits(50'000'000'000ull, {}));
+    std::string message;
+    try {
+        checkModelLimits(80'000'000'000ull, {}, "big.ply");
+    } catch (const Error& e) {
+        message = e.what();
+    }
+    EXPECT_EQ(message, "big.ply: 80000000000 triangles may need about 6666666669 BVH nodes (4 per 48-triangle leaf), more "
+                       "than the format's 4294967295 (32-bit node indices); use --leaf-triangles 75 or more");
+    PreprocessOptions bigLeaves;
+    bigLeaves.maxLeafTriangles = 75;
+    EXPECT_NO_THROW(checkModelLimits(80'000'000'000ull, bigLeaves));
+    EXPECT_THROW(checkModelLimits(10'000'000'000'000ull, bigLeaves), Error);
+}
+
 TEST(Preprocess, ProgressIsReported)
 {
     Mesh mesh = generate("city", 20'000);

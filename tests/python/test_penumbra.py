@@ -131,6 +131,10 @@ class Preprocess(unittest.TestCase):
         self.assertGreater(os.path.getsize(output), 0)
         self.assertEqual(stats["triangles"], 20_000)
         self.assertGreater(stats["clusters"], 0)
+        # Format version 3's closed flag: the generated city's parts are closed, its ground is not.
+        self.assertGreater(stats["closed_cluster_triangles"], 0)
+        self.assertLessEqual(stats["closed_cluster_triangles"], stats["closed_triangles"])
+        self.assertLess(stats["closed_triangles"], stats["triangles"])
         source = penumbra.render(CITY, size=SIZE, camera=CAMERA, lights=[SPOT])
         preprocessed = penumbra.render(output, size=np.array(SIZE), camera=CAMERA, lights=[SPOT])
         np.testing.assert_array_equal(preprocessed, source)

@@ -54,7 +54,7 @@ TEST(FrameStructure, ShadowMethodsComeFromOneTable)
         parseShadowMethod("pcss");
         FAIL() << "an unknown method was accepted";
     } catch (const Error& e) {
-        EXPECT_NE(std::string(e.what()).find("unknown method (expected sm, srt, frt or afsm)"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("unknown method (expected sm, srt, frt, afsm or rh)"), std::string::npos) << e.what();
     }
     EXPECT_TRUE(shadowMethodSpec(ShadowMethod::Selective).traces());
     EXPECT_FALSE(shadowMethodSpec(ShadowMethod::ShadowMap).traces());

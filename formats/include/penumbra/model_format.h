@@ -21,7 +21,7 @@ namespace penumbra {
 namespace model {
 
 inline constexpr char kMagic[8] = {'P', 'E', 'N', 'U', 'M', 'B', 'R', 'A'};
-inline constexpr uint32_t kVersion = 2;
+inline constexpr uint32_t kVersion = 3;
 inline constexpr uint32_t kSectionAlignment = 64;      // bytes; offsets and the file size are multiples
 inline constexpr uint8_t kStripRestart = 0xFF;         // primitive-restart value of the 8-bit strip indices
 inline constexpr uint32_t kMaxClusterVertices = 255;   // local indices 0..254; 255 is the restart
@@ -33,6 +33,14 @@ inline constexpr uint32_t kMaxBvhDepth = 64;           // readers may use fixed 
 inline constexpr uint32_t kMaxMaterials = 1u << 24;    // MaterialRecord elements
 inline constexpr uint32_t kMaxCameras = 256;           // CameraRecord elements
 inline constexpr uint32_t kMaxLights = 256;            // LightRecord elements
+// Nodes name their children and clusters, and clusters their Cluster node, by
+// 32-bit index: the format's only size limits. With the default options a
+// model has about 0.06 nodes and 0.004 clusters per triangle, so 2^32 - 1
+// nodes hold some 70 G triangles; preprocess checks a conservative estimate
+// (4 nodes per maxLeafTriangles triangles) before it builds. Vertex and strip
+// offsets and every byte count are 64-bit.
+inline constexpr uint64_t kMaxNodes = 0xFFFFFFFFull;
+inline constexpr uint64_t kMaxClusters = 0xFFFFFFFFull;
 
 enum class SectionType : uint32_t {
     Clusters = 1, // ClusterRecord[clusterCount]
@@ -78,8 +86,8 @@ struct FileHeader {
     uint64_t sourceTriangleCount;  // triangles of the input before simplification
     uint64_t vertexCount;          // QuantizedVertex elements
     uint64_t indexBytes;           // Indices section payload bytes
-    uint32_t clusterCount;         // ClusterRecord elements (>= 1)
-    uint32_t nodeCount;            // Node elements (>= 1)
+    uint32_t clusterCount;         // ClusterRecord elements (1..kMaxClusters: nodes name clusters in 32 bits)
+    uint32_t nodeCount;            // Node elements (1..kMaxNodes: nodes name nodes in 32 bits)
     uint32_t bvhDepth;             // levels from the root (1 = root only); <= kMaxBvhDepth
     uint32_t materialCount;        // MaterialRecord elements, 1..kMaxMaterials
     float boundsMin[3];            // root node box, model units
@@ -95,20 +103,45 @@ struct FileHeader {
 };
 static_assert(sizeof(FileHeader) == 448);
 
+// Bits of ClusterRecord::flags.
+enum ClusterFlags : uint32_t {
+    // Every triangle of the cluster belongs to a closed, consistently oriented
+    // 2-manifold connected component of the input: with vertices welded by
+    // exact position, every undirected edge of the component is used by exactly
+    // two of its triangles, in opposite directions (components connected by
+    // edges). Conservative: the preprocessor never sets it on a cluster that has
+    // one triangle of an open component (formats/README.md, "Cluster flags").
+    // A shadow method may then cast only the light-back-facing triangles of
+    // such clusters. The claim is about the input positions; decoded positions
+    // differ from them by at most the header's maxPositionError.
+    kClusterClosed = 1u << 0,
+};
+inline constexpr uint32_t kClusterFlagsMask = kClusterClosed; // every other bit is zero
+
 // A cluster: up to 255 vertices and its triangles as 8-bit strips.
 // Decoded position = boxMin + float(q) * step, evaluated without fused multiply-add.
+// Version 3: 64 bytes, with 64-bit vertex and strip offsets (a file may hold more
+// than 2^32 vertices or 4 GiB of strips) and flags.
 struct ClusterRecord {
-    float boxMin[3];       // quantization origin (the cluster's bounds minimum)
-    float step[3];         // model units per quantization step, per axis (>= 0)
-    uint32_t firstVertex;  // first QuantizedVertex of this cluster
-    uint32_t firstIndex;   // byte offset of this cluster's strips in Indices
-    uint32_t indexBytes;   // bytes of strips (restarts included); first and last byte are not restarts
-    uint16_t vertexCount;  // 3..maxClusterVertices
-    uint16_t triangleCount;// 1..maxClusterTriangles
-    uint32_t node;         // index of this cluster's Node (kind Cluster)
-    uint32_t material;     // index into Materials: every triangle of the cluster has this material
+    float boxMin[3];        // 0: quantization origin (the cluster's bounds minimum)
+    float step[3];          // 12: model units per quantization step, per axis (>= 0)
+    uint64_t firstVertex;   // 24: first QuantizedVertex of this cluster (index into Vertices)
+    uint64_t firstIndex;    // 32: byte offset of this cluster's strips in Indices
+    uint32_t indexBytes;    // 40: bytes of strips (restarts included); first and last byte are not restarts
+    uint16_t vertexCount;   // 44: 3..maxClusterVertices
+    uint16_t triangleCount; // 46: 1..maxClusterTriangles
+    uint32_t node;          // 48: index of this cluster's Node (kind Cluster)
+    uint32_t material;      // 52: index into Materials: every triangle of the cluster has this material
+    uint32_t flags;         // 56: ClusterFlags; bits outside kClusterFlagsMask are zero
+    uint32_t reserved;      // 60: 0
 };
-static_assert(sizeof(ClusterRecord) == 48);
+static_assert(sizeof(ClusterRecord) == 64, "ClusterRecord is 64 bytes (a multiple of 8; shaders read it as 4 x 16)");
+static_assert(offsetof(ClusterRecord, boxMin) == 0 && offsetof(ClusterRecord, step) == 12 &&
+                  offsetof(ClusterRecord, firstVertex) == 24 && offsetof(ClusterRecord, firstIndex) == 32 &&
+                  offsetof(ClusterRecord, indexBytes) == 40 && offsetof(ClusterRecord, vertexCount) == 44 &&
+                  offsetof(ClusterRecord, triangleCount) == 46 && offsetof(ClusterRecord, node) == 48 &&
+                  offsetof(ClusterRecord, material) == 52 && offsetof(ClusterRecord, flags) == 56,
+              "ClusterRecord layout is read by shaders/bvh_traversal.glsli (loadCluster)");
 
 // A material: the linear base colour of the clusters that name it.
 struct MaterialRecord {

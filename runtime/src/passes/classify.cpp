@@ -53,9 +53,10 @@ void ClassifyPass::createFloor(vk::Device& device)
     soft.createFloor(device);
 }
 
-void ClassifyPass::record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t width, uint32_t height, bool floor) const
+void ClassifyPass::record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t lightType, uint32_t width, uint32_t height,
+                          bool floor) const
 {
-    hard.bind(cmd, floor);
+    hard.bind(cmd, vk::Specialization{push.mode, lightType}, floor);
     hard.push(cmd, push);
     dispatchPixels(cmd, width, height);
 }

@@ -54,7 +54,9 @@ class ClassifyPass {
     void bind(vk::Device& device, const ClassifyTargets& targets);
     // One dispatch over a width x height image, then the barrier to the next compute pass.
     // floor: the null twins instead (shaders/floor.glsli), after createFloor.
-    void record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t width, uint32_t height, bool floor = false) const;
+    // lightType: PENUMBRA_LIGHT_* of frame.lights[push.lightIndex] (the pipeline is specialized for it and push.mode).
+    void record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t lightType, uint32_t width, uint32_t height,
+                bool floor = false) const;
     void recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t width, uint32_t height, bool floor = false) const;
     void createFloor(vk::Device& device);
 

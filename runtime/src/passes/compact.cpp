@@ -7,15 +7,15 @@ namespace penumbra::passes {
 
 void CompactPass::create(vk::Device& device)
 {
-    kernel.create(device, "compact.comp", {vk::kStorage, vk::kStorage}, sizeof(CompactPush));
+    kernel.create(device, "compact.comp", {vk::kStorage, vk::kStorage, vk::kStorage}, sizeof(CompactPush));
 }
 
 void CompactPass::destroy(vk::Device& device) { kernel.destroy(device); }
 
-void CompactPass::bind(vk::Device& device, VkBuffer marks, VkBuffer list)
+void CompactPass::bind(vk::Device& device, VkBuffer marks, VkBuffer list, VkBuffer stats)
 {
     rayList = list;
-    kernel.write(device, {vk::storageBuffer(marks), vk::storageBuffer(list)});
+    kernel.write(device, {vk::storageBuffer(marks), vk::storageBuffer(list), vk::storageBuffer(stats)});
 }
 
 void CompactPass::recordFloor(VkCommandBuffer cmd, uint32_t pixelCount) const

@@ -7,7 +7,7 @@
 
 namespace penumbra::passes {
 
-enum CompactBinding : uint32_t { kCompactMarks, kCompactRayList, kCompactBindingCount };
+enum CompactBinding : uint32_t { kCompactMarks, kCompactRayList, kCompactStats, kCompactBindingCount };
 
 struct CompactPush {
     uint32_t pixelCount;
@@ -19,9 +19,10 @@ class CompactPass {
   public:
     void create(vk::Device& device);
     void destroy(vk::Device& device);
-    void bind(vk::Device& device, VkBuffer marks, VkBuffer rayList);
+    void bind(vk::Device& device, VkBuffer marks, VkBuffer rayList, VkBuffer stats);
     // Clears the list's header, lists the marked pixels of pixelCount, writes
-    // the dispatch size; ends with the barrier to the trace (indirect).
+    // the dispatch size and adds the list's length to PENUMBRA_STAT_PIP; ends
+    // with the barrier to the trace (indirect).
     void record(VkCommandBuffer cmd, uint32_t pixelCount) const;
     // The null twin (shaders/floor.glsli): the marks read, one entry per marked pixel written; after createFloor.
     void recordFloor(VkCommandBuffer cmd, uint32_t pixelCount) const;

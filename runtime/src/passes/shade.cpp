@@ -21,9 +21,9 @@ void ShadePass::bind(vk::Device& device, const PixelTargets& pixels, VkImageView
     kernel.write(device, bindings);
 }
 
-void ShadePass::record(VkCommandBuffer cmd, const ShadePush& push, uint32_t width, uint32_t height, bool floor) const
+void ShadePass::record(VkCommandBuffer cmd, const ShadePush& push, uint32_t lightType, uint32_t width, uint32_t height, bool floor) const
 {
-    kernel.bind(cmd, floor);
+    kernel.bind(cmd, vk::Specialization{lightType, push.firstLight, push.debugPip}, floor);
     kernel.push(cmd, push);
     vkCmdDispatch(cmd, groupCount(width, PENUMBRA_SHADE_GROUP_SIZE), groupCount(height, PENUMBRA_SHADE_GROUP_SIZE), 1);
     vk::memoryBarrier(cmd, kCompute | kIndirect, kStorageRW | kIndirectRead, kCompute | kClear, kStorageRW | kTransferWrite);

@@ -25,7 +25,10 @@ class ShadePass {
     // Ends with the barrier that lets the next light's passes rewrite
     // visibility, marks and the ray list (also read as indirect arguments).
     // floor: the null twin instead (shaders/floor.glsli), after createFloor.
-    void record(VkCommandBuffer cmd, const ShadePush& push, uint32_t width, uint32_t height, bool floor = false) const;
+    // lightType: PENUMBRA_LIGHT_* of frame.lights[push.lightIndex]; the pipeline is
+    // specialized for it, push.firstLight and push.debugPip.
+    void record(VkCommandBuffer cmd, const ShadePush& push, uint32_t lightType, uint32_t width, uint32_t height,
+                bool floor = false) const;
     void createFloor(vk::Device& device) { kernel.createFloor(device); }
 
   private:

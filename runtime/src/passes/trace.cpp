@@ -29,11 +29,9 @@ static_assert(sizeof(ModelTableHeader) == 64);
 
 struct ModelTableChunk {
     uint32_t firstCluster;
-    uint32_t vertexBase;
-    uint32_t indexBase;
-    uint32_t reserved;
-    VkDeviceAddress vertices;
-    VkDeviceAddress indices;
+    uint32_t reserved[3];
+    VkDeviceAddress vertices; // the chunk's vertex buffer address minus 8 x its first vertex (mod 2^64)
+    VkDeviceAddress indices;  // the chunk's strip buffer address minus its first strip byte (mod 2^64)
 };
 static_assert(sizeof(ModelTableChunk) == 32);
 
@@ -42,7 +40,9 @@ static_assert(sizeof(ModelTableChunk) == 32);
 void TracePass::create(vk::Device& device)
 {
     using namespace vk;
-    kernel.create(device, "trace.comp", {kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage}, sizeof(TracePush));
+    kernel.create(device, "trace.comp",
+                  {kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kTexels, kTexels, kTexels, kTexels},
+                  sizeof(TracePush));
 }
 
 void TracePass::destroy(vk::Device& device)
@@ -51,6 +51,8 @@ void TracePass::destroy(vk::Device& device)
     kernel.destroy(device);
     tableAddress = 0;
     rayList = VK_NULL_HANDLE;
+    texels = {};
+    texelsComplete = false;
 }
 
 void TracePass::bindModel(vk::Device& device, const GpuGeometry& geometry)
@@ -65,9 +67,12 @@ void TracePass::bindModel(vk::Device& device, const GpuGeometry& geometry)
 
     ModelTableHeader header{};
     for (int axis = 0; axis < 3; ++axis) {
-        header.boundsMin[axis] = geometry.bounds.min[axis];
-        header.boundsMax[axis] = geometry.bounds.max[axis];
+        header.boundsMin[axis] = boundsMin[axis] = geometry.bounds.min[axis];
+        header.boundsMax[axis] = boundsMax[axis] = geometry.bounds.max[axis];
     }
+    texels = geometry.texels;
+    texelsComplete = geometry.texelsComplete;
+    writeSet(device);
     header.nodeChunkShift = geometry.nodeChunkShift;
     header.nodeChunkCount = uint32_t(nodeChunkCount);
     header.geometryChunkCount = uint32_t(geometry.chunks.size());
@@ -81,10 +86,9 @@ void TracePass::bindModel(vk::Device& device, const GpuGeometry& geometry)
         const GpuGeometry::Chunk& chunk = geometry.chunks[i];
         ModelTableChunk entry{};
         entry.firstCluster = chunk.firstCluster;
-        entry.vertexBase = uint32_t(chunk.vertexBase); // ClusterRecord::firstVertex is 32-bit
-        entry.indexBase = uint32_t(chunk.indexBase);   // ClusterRecord::firstIndex is 32-bit
-        entry.vertices = vk::bufferAddress(device, chunk.vertices);
-        entry.indices = vk::bufferAddress(device, chunk.indices);
+        // ClusterRecord::firstVertex and firstIndex are 64-bit: the shader adds them to these bases.
+        entry.vertices = vk::bufferAddress(device, chunk.vertices) - chunk.vertexBase * sizeof(model::QuantizedVertex);
+        entry.indices = vk::bufferAddress(device, chunk.indices) - chunk.indexBase;
         std::memcpy(table.data() + chunksOffset + i * sizeof(entry), &entry, sizeof(entry));
     }
     vk::destroyBuffer(device, modelTable);
@@ -94,9 +98,20 @@ void TracePass::bindModel(vk::Device& device, const GpuGeometry& geometry)
 
 void TracePass::bind(vk::Device& device, const TraceTargets& t)
 {
-    kernel.write(device, {vk::storageImage(t.position), vk::storageImage(t.normal), vk::storageImage(t.visibility),
-                          vk::uniformBuffer(t.frame), vk::storageBuffer(t.rayList), vk::storageBuffer(t.stats)});
+    targets = t;
     rayList = t.rayList;
+    writeSet(device);
+}
+
+void TracePass::writeSet(vk::Device& device) const
+{
+    if (!rayList || !texels.nodes)
+        return; // both the targets and the model are needed
+    const TraceTargets& t = targets;
+    kernel.write(device, {vk::storageImage(t.position), vk::storageImage(t.normal), vk::storageImage(t.visibility),
+                          vk::uniformBuffer(t.frame), vk::storageBuffer(t.rayList), vk::storageBuffer(t.stats),
+                          vk::texelBuffer(texels.nodes), vk::texelBuffer(texels.clusters), vk::texelBuffer(texels.vertices),
+                          vk::texelBuffer(texels.strips)});
 }
 
 void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, uint32_t samples) const
@@ -106,8 +121,11 @@ void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, float originOff
     if (lightIndex >= PENUMBRA_MAX_LIGHTS)
         fail("ray tracer", "light index " + std::to_string(lightIndex) + " out of range (at most " +
                                std::to_string(PENUMBRA_MAX_LIGHTS) + " lights)");
-    kernel.bind(cmd);
-    kernel.push(cmd, TracePush{tableAddress, lightIndex, originOffset, samples, 0});
+    kernel.bind(cmd, vk::Specialization{texelsComplete ? 1u : 0u});
+    TracePush push{tableAddress, lightIndex, originOffset, samples, {}, {}, {}};
+    std::copy(boundsMin, boundsMin + 4, push.boundsMin);
+    std::copy(boundsMax, boundsMax + 4, push.boundsMax);
+    kernel.push(cmd, push);
     vkCmdDispatchIndirect(cmd, rayList, sizeof(uint32_t)); // dispatch[3] follows the count
 }
 

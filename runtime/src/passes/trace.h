@@ -11,7 +11,11 @@
 
 namespace penumbra::passes {
 
-enum TraceBinding : uint32_t { kTracePosition, kTraceNormal, kTraceVisibility, kTraceFrame, kTraceRayList, kTraceStats, kTraceBindingCount };
+enum TraceBinding : uint32_t {
+    kTracePosition, kTraceNormal, kTraceVisibility, kTraceFrame, kTraceRayList, kTraceStats,
+    kTraceNodes, kTraceClusters, kTraceVertices, kTraceStrips, // GpuGeometry::texels
+    kTraceBindingCount
+};
 
 struct TraceTargets {
     VkImageView position = VK_NULL_HANDLE;   // rgba32f G-buffer world position (GENERAL)
@@ -27,9 +31,11 @@ struct TracePush {
     uint32_t lightIndex;
     float originOffset;
     uint32_t samples; // area lights: light samples per pixel; 0: hard shadows
-    uint32_t pad;
+    uint32_t pad[3];
+    float boundsMin[4]; // the root node's box
+    float boundsMax[4];
 };
-static_assert(sizeof(TracePush) == 24);
+static_assert(sizeof(TracePush) == 64);
 
 class TracePass {
   public:
@@ -50,9 +56,16 @@ class TracePass {
     VkDeviceAddress modelTableAddress() const { return tableAddress; }
 
   private:
+    // Writes the descriptor set once both the targets and the model are known.
+    void writeSet(vk::Device& device) const;
+
     vk::ComputeKernel kernel;
+    TraceTargets targets;
     vk::Buffer modelTable;          // device addresses of the model's buffers (see trace.cpp)
     VkDeviceAddress tableAddress = 0;
+    GpuGeometry::TexelViews texels;  // the model's texel views, bound in bind()
+    bool texelsComplete = false;     // the tracer reads them (else by device address)
+    float boundsMin[4] = {}, boundsMax[4] = {};
     VkBuffer rayList = VK_NULL_HANDLE; // its header holds the indirect dispatch
 };
 

@@ -30,7 +30,7 @@ void ViewFitPass::recordFloor(VkCommandBuffer cmd, const vk::Device& device, con
 }
 
 void ViewFitPass::record(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, const vk::Buffer& receiverGrids,
-                         uint32_t fitMask, uint32_t gridMask, const std::vector<uint32_t>& gridLayers, uint32_t width,
+                         uint32_t fitMask, uint32_t gridMask, uint32_t pointMask, uint32_t directionalMask, const std::vector<uint32_t>& gridLayers, uint32_t width,
                          uint32_t height) const
 {
     auto gridRegion = [&](uint32_t light) { // the grids of light `light`: one per layer
@@ -41,7 +41,7 @@ void ViewFitPass::record(VkCommandBuffer cmd, const vk::Device& device, const vk
         if (gridMask & (1u << i))
             vkCmdFillBuffer(cmd, receiverGrids.buffer, gridRegion(i).first, gridRegion(i).second, 0u);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
-    kernel.bind(cmd);
+    kernel.bind(cmd, vk::Specialization{fitMask, gridMask, pointMask, directionalMask});
     kernel.push(cmd, ViewFitPush{vk::bufferAddress(device, viewBounds), vk::bufferAddress(device, receiverGrids), fitMask, gridMask});
     const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * 4; // view_fit.comp.glsl: VIEW_BOUNDS_BLOCK pixels per invocation
     vkCmdDispatch(cmd, groupCount(width, tile), groupCount(height, tile), 1);

@@ -41,7 +41,8 @@ class ViewFitPass {
     // the grids of gridLayers[l] layers of each light l in gridMask. Ends with
     // the barrier to the host read.
     void record(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, const vk::Buffer& receiverGrids,
-                uint32_t fitMask, uint32_t gridMask, const std::vector<uint32_t>& gridLayers, uint32_t width, uint32_t height) const;
+                uint32_t fitMask, uint32_t gridMask, uint32_t pointMask, uint32_t directionalMask, const std::vector<uint32_t>& gridLayers,
+                uint32_t width, uint32_t height) const;
     // The null twin (shaders/floor.glsli): every G-buffer point read, the bounds left as they are; after createFloor.
     void recordFloor(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, uint32_t width, uint32_t height) const;
     void createFloor(vk::Device& device) { kernel.createFloor(device); }
