@@ -11,10 +11,11 @@
 //            [--oracle] [--config NAME]...
 // A configuration is a method (sm, srt, frt, rh) with rh options after a
 // colon, comma-separated: sorted, unsorted, auto, spheres, precise, ea, noea,
-// 2p, no2p; e.g. --config frt --config rh:auto,ea --config rh:unsorted.
+// 2p, no2p, closed, open; e.g. --config frt --config rh:auto,ea --config rh:unsorted.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <sstream>
@@ -65,6 +66,8 @@ Config parseConfig(const std::string& text, uint32_t size)
         else if (option == "spheres" || option == "precise") c.settings.coneTest = parseConeTest(option);
         else if (option == "ea") c.settings.rhEarlyAccept = true;
         else if (option == "noea") c.settings.rhEarlyAccept = false;
+        else if (option == "closed") c.settings.rhClosedMeshes = true;
+        else if (option == "open") c.settings.rhClosedMeshes = false;
         else if (option == "2p") c.settings.rhTwoPass = true;
         else if (option == "no2p") c.settings.rhTwoPass = false;
         else throw Error("bench_rh: unknown rh option '" + option + "' in " + text);
@@ -174,6 +177,14 @@ int main(int argc, char** argv)
                             differing += reference[i] != r.warm.visibility[i];
                         }
                     std::printf("  differ %zu of %zu", differing, compared);
+                    if (std::getenv("BENCH_RH_DIFF"))
+                        for (size_t i = 0; i < reference.size(); ++i)
+                            if (reference[i] >= 0.0f && reference[i] != r.warm.visibility[i]) {
+                                const float* p = &r.warm.positions[4 * i];
+                                const float* n = &r.warm.normals[4 * i];
+                                std::printf("\n    pixel %zu: oracle %.0f, got %.0f at (%.5f %.5f %.5f) normal (%.3f %.3f %.3f)", i, reference[i],
+                                            r.warm.visibility[i], p[0], p[1], p[2], n[0], n[1], n[2]);
+                            }
                 }
                 std::printf("\n     ");
                 for (const auto& [name, ms] : r.passes)
@@ -181,11 +192,11 @@ int main(int argc, char** argv)
                 std::printf("\n");
                 if (configs[c].settings.shadows == ShadowMethod::RayHierarchy)
                     std::printf("      rays %llu, cone tests %llu, ray tests %llu, casters %llu, batches %u, rounds %u, peak pairs %llu KiB, "
-                                "sorted %u of %u, incoherence %.2f, accepted nodes %llu\n",
+                                "sorted %u of %u, incoherence %.2f, accepted nodes %llu, closed culling %u\n",
                                 (unsigned long long)r.last.rays, (unsigned long long)r.last.nodesVisited,
                                 (unsigned long long)r.last.triangleTests, (unsigned long long)r.last.rhCasters, r.last.rhBatches,
                                 r.last.rhRounds, (unsigned long long)(r.last.rhPeakPairBytes >> 10), r.last.rhSortedLights,
-                                r.last.rhLights, r.last.rhIncoherence, (unsigned long long)r.last.rhAcceptedNodes);
+                                r.last.rhLights, r.last.rhIncoherence, (unsigned long long)r.last.rhAcceptedNodes, r.last.rhClosedCulled);
             }
             std::fflush(stdout);
         }

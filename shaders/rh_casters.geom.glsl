@@ -35,7 +35,8 @@ layout(push_constant) uniform RhCastersPush {
     uint capacity;   // triangles the list holds
     uint select;     // PENUMBRA_RH_CASTERS_ALL, _LARGE (first pass), _SMALL (second pass)
     uint pointLight; // 1: the faces refined per triangle
-    uint pad0;
+    uint spotLight;  // 1: a spot light (the light at lightLarge.xyz); else with pointLight 0, directional: toLight
+    vec4 toLight;    // directional lights: the unit vector toward the light
 } push;
 
 void main()
@@ -52,6 +53,23 @@ void main()
         if (large != (push.select == PENUMBRA_RH_CASTERS_LARGE))
             return;
     }
+    // A point light's faces: the cluster's; a triangle whose corners all fall on one face lies inside
+    // that face's pyramid (convex) and shadows no other face's rays.
+    uint faces = clusterFaces[cluster[0]];
+    // Section 3.6: a closed cluster (bit 8, when culling is exact: rh.h) casts only its
+    // light-back-facing triangles (and none edge-on); the receivers' own triangles face the light.
+    if ((faces & 256u) != 0u) {
+        vec3 normal = cross(v1 - v0, v2 - v0);
+        vec3 toLight = push.pointLight != 0u || push.spotLight != 0u ? push.lightLarge.xyz - v0 : push.toLight.xyz;
+        if (dot(normal, toLight) >= 0.0)
+            return;
+    }
+    faces &= 63u;
+    if (push.pointLight != 0u) {
+        vec3 light = push.lightLarge.xyz;
+        uint f0 = cubeFace(v0 - light), f1 = cubeFace(v1 - light), f2 = cubeFace(v2 - light);
+        faces &= f0 == f1 && f1 == f2 ? 1u << f0 : 63u;
+    }
     uint slot = atomicAdd(state.triangleCount, 1u);
     if (slot >= push.capacity) {
         atomicOr(state.overflow, 2u);
@@ -59,13 +77,5 @@ void main()
     }
     trianglesA[slot] = u64vec4(pack64(floatBitsToUint(v0.xy)), pack64(floatBitsToUint(vec2(v0.z, v1.x))), pack64(floatBitsToUint(v1.yz)),
                                pack64(floatBitsToUint(v2.xy)));
-    // A point light's faces: the cluster's; a triangle whose corners all fall on one face lies inside
-    // that face's pyramid (convex) and shadows no other face's rays.
-    uint faces = clusterFaces[cluster[0]];
-    if (push.pointLight != 0u) {
-        vec3 light = push.lightLarge.xyz;
-        uint f0 = cubeFace(v0 - light), f1 = cubeFace(v1 - light), f2 = cubeFace(v2 - light);
-        faces &= f0 == f1 && f1 == f2 ? 1u << f0 : 63u;
-    }
     trianglesB[slot] = uvec2(floatBitsToUint(v2.z), faces);
 }

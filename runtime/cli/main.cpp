@@ -58,6 +58,7 @@ struct RenderArgs {
     std::string rhSort = "auto";
     std::string rhTwoPass = "off";
     std::string rhEarlyAccept = "on";
+    std::string rhClosedMeshes = "off";
 };
 
 struct PreprocessArgs {
@@ -185,6 +186,7 @@ int runRender(const RenderArgs& args)
     settings.rhSort = parseRhSort(args.rhSort);
     settings.rhTwoPass = args.rhTwoPass == "on";
     settings.rhEarlyAccept = args.rhEarlyAccept == "on";
+    settings.rhClosedMeshes = args.rhClosedMeshes == "on";
     settings.cull = parseCullMode(args.cull);
     settings.fitShadowMapsToView = args.shadowFit == "view";
     settings.shadowMapSize = args.shadowMapSize;
@@ -580,6 +582,7 @@ int main(int argc, char** argv)
     renderCommand->add_option("--samples", render.samples, "Area lights, srt/frt: light samples per pixel (soft shadows)")->capture_default_str()->check(CLI::Range(4, 256));
     renderCommand->add_option("--cone-test", render.coneTest, "rh: the cone/triangle test: precise (Olsson and Assarsson 2011, section 3.2) or spheres (bounding spheres, for comparison)")->capture_default_str();
     renderCommand->add_option("--rh-sort", render.rhSort, "rh: order the rays by direction before building the cone hierarchy (section 3.5): on, off (by pixel), or auto (per light layer and frame: sort where the pixels' rays are incoherent)")->capture_default_str()->check(CLI::IsMember({"on", "off", "auto"}));
+    renderCommand->add_option("--rh-closed-meshes", render.rhClosedMeshes, "rh: clusters the preprocessor marked closed cast only their light-back-facing triangles (section 3.6; not while the camera is inside a closed mesh the light is outside of); a receiver within one ray offset of a closed surface may lose its shadow (README): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--rh-early-accept", render.rhEarlyAccept, "rh: a cone that a triangle covers shadows all its rays without descending (section 3.3): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--rh-two-pass", render.rhTwoPass, "rh: the large casters first, then the hierarchy rebuilt without the rays they shadowed, then the others (section 3.4): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--penumbra-maps", render.penumbraMaps, "Area lights, srt: shadow maps whose edges mark the penumbra: 1 (centre) or 5 (centre and corners)")->capture_default_str()->check(CLI::IsMember({1, 5}));

@@ -424,8 +424,15 @@ struct Renderer::Impl::FrameScript {
             options.sort = settings.rhSort;
             options.twoPass = settings.rhTwoPass;
             options.earlyAccept = settings.rhEarlyAccept;
-            r.rh.recordLight(cmd, light, uint32_t(l.positionType.w), lights[light].position, rayOffset, options, r.geometry,
-                             *r.shadowCulling.model, clusters, [this] { timer.mark(cmd, PassId::RhBuild); },
+            // Section 3.6: closed clusters cast only light-back-facing triangles, where that is exact (rh.h).
+            const bool directional = lights[light].type == LightType::Directional;
+            options.closedCulling = settings.rhClosedMeshes && r.model &&
+                                    passes::closedCullingExact(*r.model, view.eye,
+                                                               directional ? -glm::normalize(lights[light].direction) : lights[light].position,
+                                                               directional);
+            r.rh.recordLight(cmd, light, lights[light], rayOffset, options, r.geometry, *r.shadowCulling.model, clusters,
+                             [this](uint32_t cluster) { return (r.model->clusters[cluster].flags & model::kClusterClosed) != 0; },
+                             [this] { timer.mark(cmd, PassId::RhBuild); },
                              [this] {
                                  r.submitAndWait(cmd, "rh_traverse");
                                  beginCommands();
@@ -592,6 +599,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         out.rhSortedLights = rh.sortedLights;
         out.rhAcceptedNodes = rh.accepted;
         out.rhIncoherence = rh.incoherence;
+        out.rhClosedCulled = rh.closedCulled;
     }
     out.device = r.device.info;
     for (uint32_t pass = 0; pass < uint32_t(PassId::Count); ++pass)

@@ -16,6 +16,7 @@
 #include "penumbra/generate.h"
 #include "penumbra/oracle.h"
 #include "penumbra/penumbra.h"
+#include "penumbra/preprocess.h"
 #include "test_scenes.h"
 
 namespace penumbra {
@@ -26,6 +27,8 @@ struct Options {
     RhSort sort = RhSort::Auto;
     bool twoPass = false;
     bool earlyAccept = true;
+    bool closedMeshes = false;
+    bool separateClosed = false; // preprocessed so that closed components get clusters of their own (kClusterClosed)
 };
 
 struct Result {
@@ -37,7 +40,7 @@ struct Result {
 std::string describe(const Options& o)
 {
     return std::string(coneTestName(o.test)) + ", order " + rhSortName(o.sort) + (o.twoPass ? ", two-pass" : "") +
-           (o.earlyAccept ? ", early accept" : "");
+           (o.earlyAccept ? ", early accept" : "") + (o.closedMeshes ? ", closed meshes" : "");
 }
 
 // rh (with `options`) and frt against the oracle on rh's G-buffer; only the
@@ -46,7 +49,9 @@ Result compareWithOracle(const Mesh& mesh, const Camera& camera, const Light& li
                          const std::function<bool(glm::vec3)>& compared = {})
 {
     Renderer renderer;
-    renderer.loadModel(mesh);
+    PreprocessOptions preprocess;
+    preprocess.separateClosed = options.separateClosed;
+    renderer.loadModel(buildCompressedModel(mesh, preprocess));
     renderer.setCamera(camera);
     renderer.setLights({light});
     RenderSettings settings;
@@ -57,6 +62,7 @@ Result compareWithOracle(const Mesh& mesh, const Camera& camera, const Light& li
     settings.rhSort = options.sort;
     settings.rhTwoPass = options.twoPass;
     settings.rhEarlyAccept = options.earlyAccept;
+    settings.rhClosedMeshes = options.closedMeshes;
     Frame rh = renderer.render(settings);
     settings.shadows = ShadowMethod::FullRayTrace;
     Frame frt = renderer.render(settings);
@@ -71,12 +77,12 @@ Result compareWithOracle(const Mesh& mesh, const Camera& camera, const Light& li
                 oracle[i] = -1.0f; // not compared
     Result result{test::compareVisibility(oracle, rh.visibility), test::compareVisibility(oracle, frt.visibility), rh.stats, rh.visibility};
     std::printf("rh (%s): %zu of %zu light-facing pixels differ from the oracle (frt: %zu); %llu rays (%s, incoherence %.1f), %llu casters, "
-                "%llu cone tests, %llu ray tests, %llu accepted, %u batches, %u rounds, peak records %llu KiB\n",
+                "%llu cone tests, %llu ray tests, %llu accepted, %u batches, %u rounds, peak records %llu KiB, closed culling %u\n",
                 describe(options).c_str(), result.rh.differing, result.rh.compared, result.frt.differing, (unsigned long long)rh.stats.rays,
                 rh.stats.rhSortedLights ? "sorted" : "by pixel", rh.stats.rhIncoherence, (unsigned long long)rh.stats.rhCasters,
                 (unsigned long long)rh.stats.nodesVisited, (unsigned long long)rh.stats.triangleTests,
                 (unsigned long long)rh.stats.rhAcceptedNodes, rh.stats.rhBatches, rh.stats.rhRounds,
-                (unsigned long long)(rh.stats.rhPeakPairBytes >> 10));
+                (unsigned long long)(rh.stats.rhPeakPairBytes >> 10), rh.stats.rhClosedCulled);
     bool traversed = false;
     for (const PassTiming& pass : rh.stats.passes)
         traversed |= pass.name == "rh_traverse";
@@ -198,6 +204,49 @@ TEST(ConeRayHierarchies, AutoOrderSortsOnlyIncoherentViews)
     EXPECT_EQ(coherent.stats.rhSortedLights, 0u) << "incoherence " << coherent.stats.rhIncoherence;
     EXPECT_LT(coherent.stats.rhIncoherence, interior.stats.rhIncoherence);
     EXPECT_LE(coherent.rh.fraction(), 1e-4);
+}
+
+TEST(ConeRayHierarchies, ClosedMeshesCastOnlyTheirLightBackFacingTriangles)
+{
+    // Section 3.6. A closed cube over a floor (apart): a ray through the cube enters it through a
+    // light-back-facing triangle, so the cube's light-facing ones can go: the same pixels, fewer casters.
+    const Mesh cube = test::cubeOverFloor(0.3f);
+    Camera camera;
+    camera.position = {2.5f, 6.0f, 4.0f};
+    camera.target = {0.0f, 0.0f, 0.0f};
+    Light point;
+    point.type = LightType::Point;
+    point.position = {0.1f, 5.0f, -0.2f};
+    point.intensity = 60.0f;
+    Options culled, all;
+    culled.closedMeshes = true;
+    culled.separateClosed = all.separateClosed = true;
+    for (const Light& light : {point, sunFrom({0.3f, -1.0f, 0.2f})}) {
+        Result r = compareWithOracle(cube, camera, light, 256, culled);
+        Result reference = compareWithOracle(cube, camera, light, 256, all);
+        EXPECT_EQ(r.stats.rhClosedCulled, 1u);
+        EXPECT_LT(r.stats.rhCasters, reference.stats.rhCasters);
+        EXPECT_EQ(r.visibility, reference.visibility) << "culling the closed cube's light-facing triangles changed pixels";
+        EXPECT_LE(r.rh.fraction(), 1e-4);
+    }
+    // A closed, outward-facing room with the camera inside: under a sun the floor's rays leave the room
+    // through light-facing triangles only. The segment from the eye toward the sun crosses one along its
+    // winding, so the frame casts them all (rh.h, closedCullingExact): every pixel inside stays in shadow.
+    Mesh room;
+    test::addBox(room, {-5, 0, -5}, {5, 4, 5});
+    test::addBox(room, {-1, 0, -1}, {1, 1, 1});
+    Camera inside;
+    inside.position = {3.5f, 3.0f, 3.5f};
+    inside.target = {0.0f, 0.0f, 0.0f};
+    Result sun = compareWithOracle(room, inside, sunFrom({0.3f, -1.0f, 0.2f}), 128, culled);
+    EXPECT_EQ(sun.stats.rhClosedCulled, 0u);
+    EXPECT_EQ(sun.rh.differing, 0u);
+    // A point light inside the same room: the eye and the light on one side of every closed surface, culled, exact.
+    Light lamp = point;
+    lamp.position = {-2.0f, 3.0f, 1.0f};
+    Result inner = compareWithOracle(room, inside, lamp, 128, culled);
+    EXPECT_EQ(inner.stats.rhClosedCulled, 1u);
+    EXPECT_LE(inner.rh.fraction(), 1e-4) << "rh differs from the oracle on " << inner.rh.differing << " of " << inner.rh.compared;
 }
 
 TEST(ConeRayHierarchies, SpotLightMatchesTheOracleInsideItsCone)

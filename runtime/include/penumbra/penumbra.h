@@ -125,6 +125,9 @@ struct RenderSettings {
     RhSort rhSort = RhSort::Auto;          // rh: the rays ordered by direction (section 3.5), by pixel, or chosen per frame
     bool rhTwoPass = false;                // rh: large casters first, then the hierarchy rebuilt without the rays they shadowed (3.4)
     bool rhEarlyAccept = true;             // rh: a cone a triangle covers shadows its rays without descending (3.3)
+    // rh: clusters marked closed cast only light-back-facing triangles (3.6); off by default: a receiver
+    // within one ray offset of a closed surface may start its ray inside it and lose its shadow (README, rh).
+    bool rhClosedMeshes = false;
     // Fit the shadow maps of directional and area lights to what the camera
     // sees (the G-buffer's bounds in each map, read back before the shadow
     // pass) instead of the whole model: finer texels, and frustum culling
@@ -199,6 +202,7 @@ struct FrameStats {
     uint32_t rhLights = 0, rhSortedLights = 0; // hierarchies built (one per light), and those over rays sorted by direction
     uint64_t rhAcceptedNodes = 0;              // nodes found covered by a triangle and accepted whole (early accept, section 3.3)
     double rhIncoherence = 0;                  // --rh-sort auto: the last light's measured screen-space incoherence (README, rh)
+    uint32_t rhClosedCulled = 0;               // lights whose closed clusters cast only light-back-facing triangles (3.6)
     uint64_t penumbraPixels = 0;  // pixels whose visibility of an area light is strictly between 0 and 1 (summed over lights)
     double penumbraFraction = 0;  // penumbraPixels / (coveredPixels * area lights)
     uint32_t lightSamples = 0;    // samples per pixel of area lights (0: no area light)

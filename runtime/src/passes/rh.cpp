@@ -6,8 +6,11 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include <glm/geometric.hpp>
+
 #include "config.h"
 #include "passes/pass.h"
+#include "penumbra/model_format.h"
 
 namespace penumbra::passes {
 
@@ -17,6 +20,7 @@ constexpr VkBufferUsageFlags kStorageDst = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | 
 constexpr VkAccessFlags2 kUniformRead = VK_ACCESS_2_UNIFORM_READ_BIT;
 constexpr uint32_t kScanBlock = 2048; // rh_scan.comp's RH_SCAN_BLOCK
 constexpr VkPipelineStageFlags2 kGeometry = VK_PIPELINE_STAGE_2_GEOMETRY_SHADER_BIT;
+constexpr uint32_t kClosedBit = 1u << 8; // rh_casters.geom: the cluster casts only light-back-facing triangles
 
 std::vector<VkDescriptorType> castersBindingTypes() { return {vk::kStorage, vk::kStorage, vk::kStorage, vk::kStorage}; }
 
@@ -44,6 +48,59 @@ void recordScan(VkCommandBuffer cmd, const vk::ComputeKernel& scan, uint32_t cou
 }
 
 } // namespace
+
+bool closedCullingExact(const CompressedModel& model, const glm::vec3& eye, const glm::vec3& light, bool directional)
+{
+    // The segment (ray) in double precision; `light` is the direction toward a directional light.
+    const glm::dvec3 origin(eye);
+    const glm::dvec3 direction = directional ? glm::dvec3(light) : glm::dvec3(light) - origin;
+    const double tMax = directional ? std::numeric_limits<double>::infinity() : 1.0;
+    for (const model::ClusterRecord& cluster : model.clusters) {
+        if (!(cluster.flags & model::kClusterClosed))
+            continue;
+        // The cluster's box (its quantization range), a little wider.
+        double enter = 0.0, leave = tMax;
+        for (int a = 0; a < 3; ++a) {
+            const double lo = double(cluster.boxMin[a]), hi = lo + double(cluster.step[a]) * 65535.0;
+            const double pad = 1e-6 * (std::abs(lo) + std::abs(hi)) + 1e-12;
+            if (direction[a] == 0.0) {
+                if (origin[a] < lo - pad || origin[a] > hi + pad)
+                    leave = -1.0;
+                continue;
+            }
+            double t0 = (lo - pad - origin[a]) / direction[a], t1 = (hi + pad - origin[a]) / direction[a];
+            if (t0 > t1)
+                std::swap(t0, t1);
+            enter = std::max(enter, t0);
+            leave = std::min(leave, t1);
+        }
+        if (enter > leave)
+            continue;
+        const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
+        const uint8_t* strips = model.indices.data() + cluster.firstIndex;
+        bool along = false;
+        forEachStripTriangle(strips, strips + cluster.indexBytes, [&](uint32_t i, uint32_t j, uint32_t k) {
+            const glm::dvec3 a(decodePosition(cluster, vertices[i])), b(decodePosition(cluster, vertices[j])), c(decodePosition(cluster, vertices[k]));
+            const glm::dvec3 normal = glm::cross(b - a, c - a);
+            if (glm::dot(normal, direction) <= 0.0)
+                return; // crossed against the winding, or edge-on: never a failing crossing
+            // Moller-Trumbore, inclusive of edges (a crossing on an edge counts).
+            const glm::dvec3 e1 = b - a, e2 = c - a, p = glm::cross(direction, e2);
+            const double det = glm::dot(e1, p);
+            if (det == 0.0)
+                return;
+            const glm::dvec3 s = origin - a;
+            const double u = glm::dot(s, p) / det, eps = 1e-9;
+            const glm::dvec3 q = glm::cross(s, e1);
+            const double v = glm::dot(direction, q) / det, t = glm::dot(e2, q) / det;
+            if (u >= -eps && v >= -eps && u + v <= 1.0 + eps && t >= -eps && t <= tMax + eps)
+                along = true;
+        });
+        if (along)
+            return false;
+    }
+    return true;
+}
 
 void RhPass::create(vk::Device& device)
 {
@@ -192,12 +249,16 @@ void RhPass::beginFrame(VkCommandBuffer cmd)
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
 }
 
-void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type, const glm::vec3& lightPosition, float originOffset,
+void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& light, float originOffset,
                          const RhOptions& options, const GpuGeometry& geometry, const CullModel& model,
-                         const std::vector<std::vector<uint32_t>>& viewClusters, const Mark& built, const Submit& submit)
+                         const std::vector<std::vector<uint32_t>>& viewClusters, const std::function<bool(uint32_t)>& closed,
+                         const Mark& built, const Submit& submit)
 {
     if (!castersSet)
         fail("rh", "this device lacks geometry shaders or vertex-stage stores (needed to gather the casters)");
+    const uint32_t type = light.type == LightType::Point ? PENUMBRA_LIGHT_POINT : light.type == LightType::Spot ? PENUMBRA_LIGHT_SPOT
+                                                                                                                : PENUMBRA_LIGHT_DIRECTIONAL;
+    const glm::vec3 lightPosition = light.position;
     // The casters: every view's clusters, each once, with the faces whose views kept it (the
     // cube's layers +x, -x, +y, -y, +z, -z are the list's faces 0, 3, 1, 4, 2, 5: rh_rays.comp).
     static constexpr uint32_t kLayerFace[6] = {0, 3, 1, 4, 2, 5};
@@ -213,7 +274,8 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type
         casterTriangles += model.clusterTriangles[cluster];
     auto* faceBits = static_cast<uint32_t*>(clusterFaces.mapped);
     for (uint32_t cluster : clusters)
-        faceBits[cluster] = 0;
+        faceBits[cluster] = options.closedCulling && closed(cluster) ? kClosedBit : 0u;
+    stats.closedCulled += options.closedCulling ? 1 : 0;
     for (size_t view = 0; view < viewClusters.size(); ++view)
         for (uint32_t cluster : viewClusters[view])
             faceBits[cluster] |= type == PENUMBRA_LIGHT_POINT ? 1u << kLayerFace[std::min<size_t>(view, 5)] : 0x3Fu;
@@ -341,7 +403,8 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type
             vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters.layout, 0, 1, &castersSet, 0, nullptr);
             vk::setViewport(cmd, 1, 1);
             const RhCastersPush castersPush{glm::vec4(lightPosition, float(PENUMBRA_RH_LARGE_ANGLE)), kTriangleCapacity, select,
-                                            type == PENUMBRA_LIGHT_POINT ? 1u : 0u, 0};
+                                            type == PENUMBRA_LIGHT_POINT ? 1u : 0u, type == PENUMBRA_LIGHT_SPOT ? 1u : 0u,
+                                            glm::vec4(-glm::normalize(light.direction), 0.0f)};
             vkCmdPushConstants(cmd, casters.layout, VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(castersPush), &castersPush);
             drawClusters(cmd, geometry, model, clusters.data() + begin, end - begin);
             vkCmdEndRendering(cmd);

@@ -57,9 +57,10 @@ struct RhBuildPush {
 static_assert(sizeof(RhBuildPush) == 48);
 struct RhCastersPush {
     glm::vec4 lightLarge; // xyz light, w PENUMBRA_RH_LARGE_ANGLE
-    uint32_t capacity, select, pointLight, pad;
+    uint32_t capacity, select, pointLight, spotLight;
+    glm::vec4 toLight;    // directional lights
 };
-static_assert(sizeof(RhCastersPush) == 32);
+static_assert(sizeof(RhCastersPush) == 48);
 struct RhStepPush {
     uint32_t pairCapacity, triangleCapacity, pad[2];
 };
@@ -106,6 +107,7 @@ struct RhFrameStats {
     uint64_t rayTests = 0;      // exact ray/triangle tests at the leaves
     uint64_t accepted = 0;      // nodes found covered (early accept)
     uint64_t casters = 0;       // triangles sent through the hierarchies
+    uint32_t closedCulled = 0;  // lights whose closed clusters cast only light-back-facing triangles (section 3.6)
     uint32_t batches = 0;       // caster batches
     uint32_t rounds = 0;        // submissions of traversal steps
     uint32_t lights = 0;        // hierarchies built
@@ -121,7 +123,27 @@ struct RhOptions {
     RhSort sort = RhSort::Auto;
     bool twoPass = false;
     bool earlyAccept = true;
+    // Section 3.6: the clusters marked closed (model::kClusterClosed) cast
+    // only their light-back-facing triangles; closedClusterFlag(cluster) says which.
+    bool closedCulling = false;
 };
+
+// Section 3.6, front-face culling of closed meshes, and when it is exact. A
+// ray from a receiver to the light that passes through a closed, outward-
+// oriented component enters it through a light-back-facing triangle, which
+// is kept; it misses its shadow only when it starts inside the component and
+// the light is outside (it only leaves, through a light-front-facing one).
+// An inward-oriented component (consistently oriented too, the format allows
+// it) fails the other way round: the light inside, the receiver outside.
+// Receivers are inside a component only when the camera is (a camera outside
+// sees none of its inside). Along the segment from the eye to the light, a
+// failing component is crossed more often with the triangle's winding normal
+// along the segment than against it. So culling is exact when no closed
+// triangle is crossed that way (this test, on the host, over the closed
+// clusters whose boxes the segment meets); otherwise the light's closed
+// clusters cast every triangle this frame. `toLight`: for a directional
+// light, the segment is the ray from the eye toward it.
+bool closedCullingExact(const CompressedModel& model, const glm::vec3& eye, const glm::vec3& light, bool directional);
 
 class RhPass {
   public:
@@ -147,10 +169,12 @@ class RhPass {
     // cube faces, from +x, -x, +y, -y, +z, -z) in batches of at most
     // kTriangleCapacity triangles through it, each cluster once, carrying the
     // faces whose views kept it; after each batch `submit` is called until
-    // its traversal is done. `type`: PENUMBRA_LIGHT_POINT, _SPOT or _DIRECTIONAL.
-    void recordLight(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t type, const glm::vec3& lightPosition, float originOffset,
+    // its traversal is done. A point, spot or directional light.
+    // `closed`: per cluster, whether it is marked closed (with options.closedCulling).
+    void recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& light, float originOffset,
                      const RhOptions& options, const GpuGeometry& geometry, const CullModel& model,
-                     const std::vector<std::vector<uint32_t>>& viewClusters, const Mark& built, const Submit& submit);
+                     const std::vector<std::vector<uint32_t>>& viewClusters, const std::function<bool(uint32_t)>& closed,
+                     const Mark& built, const Submit& submit);
     // After the frame's fence.
     RhFrameStats frameStats() const;
 
