@@ -88,7 +88,7 @@ void main()
 #else
     vec3 light = frame.lights[push.lightIndex].positionType.xyz;
 #endif
-    uint tested = 0u, accepted = 0u, passing = 0u; // passing: bit k for child k
+    uint tested = 0u, accepted = 0u, passing = 0u, hits = 0u; // passing: bit k for child k
     // Inner node: its four children.
     PENUMBRA_SKIP_UNLESS(level > 0u)
     {
@@ -172,6 +172,7 @@ void main()
             if (pixels[k] != RH_NO_RAY && shadowed[pixels[k]] == 0u)
                 open |= 1u << k;
         tested = bitCount(open);
+        hits = 0u;
         int width = imageSize(gPosition).x;
         for (uint m = open; m != 0u; m &= m - 1u) {
             uint pixelIndex = pixels[findLSB(m)];
@@ -182,12 +183,15 @@ void main()
 #else
             bool lit = rhShadowRay(light, imageLoad(gPosition, pixel).xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray);
 #endif
-            if (lit && hitsTriangle(ray, shearVertex(ray, v0), shearVertex(ray, v1), shearVertex(ray, v2)))
+            if (lit && hitsTriangle(ray, shearVertex(ray, v0), shearVertex(ray, v1), shearVertex(ray, v2))) {
                 shadowed[pixelIndex] = 1u;
+                ++hits;
+            }
         }
     }
     uint subgroupTested = subgroupAdd(tested);
     uint subgroupAccepted = subgroupAdd(accepted);
+    uint subgroupHits = subgroupAdd(hits);
     if (subgroupElect()) {
         if (subgroupTested != 0u) {
             atomicAdd(state.depthTests[min(depth, PENUMBRA_RH_MAX_LEVELS - 1u)], subgroupTested);
@@ -196,6 +200,8 @@ void main()
             else
                 atomicAdd(state.pairsTested, uint64_t(subgroupTested));
         }
+        if (subgroupHits != 0u)
+            atomicAdd(state.rayHits, uint64_t(subgroupHits));
         if (subgroupAccepted != 0u) {
             atomicAdd(state.accepted, uint64_t(subgroupAccepted));
             atomicAdd(state.lightAccepted, subgroupAccepted);

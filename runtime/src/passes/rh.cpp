@@ -467,6 +467,7 @@ RhFrameStats RhPass::frameStats() const
     out.rays = s->raysListed;
     out.pairsTested = s->pairsTested;
     out.rayTests = s->rayTests;
+    out.rayHits = s->rayHits;
     out.accepted = s->accepted;
     out.sortedLights = s->sortedLights;
     out.incoherence = s->coherenceRays ? double(s->incoherence) / 256.0 / double(s->coherenceRays) : 0.0;
@@ -474,8 +475,8 @@ RhFrameStats RhPass::frameStats() const
     out.memoryBytes = rayList.size + nodes.size + trianglesA.size + trianglesB.size + records.size + state.size + tileCounts.size + keyCounts.size +
                       clusterFaces.size;
     if (std::getenv("PENUMBRA_RH_PROFILE")) {
-        std::fprintf(stderr, "rh profile (host ms): rays %.1f build %.1f casters %.1f traverse %.1f resolve %.1f; steps %u rounds %u; tests by depth:",
-                     profileMs[0], profileMs[1], profileMs[2], profileMs[3], profileMs[4], s->steps, stats.rounds);
+        std::fprintf(stderr, "rh profile (host ms): rays %.1f build %.1f casters %.1f traverse %.1f resolve %.1f; steps %u rounds %u; ray hits %llu; tests by depth:",
+                     profileMs[0], profileMs[1], profileMs[2], profileMs[3], profileMs[4], s->steps, stats.rounds, (unsigned long long)s->rayHits);
         for (uint32_t d = 0; d < PENUMBRA_RH_MAX_LEVELS && s->depthTests[d]; ++d)
             std::fprintf(stderr, " %u (%.0f ms)", s->depthTests[d], profileDepthMs[d]);
         std::fprintf(stderr, "\n");

@@ -83,7 +83,7 @@ struct RhState {
     uint32_t faceCount[8], faceShift[8];
     uint32_t builtLevels, alignmentLevel, treePad[2];
     uint32_t peakPairs, overflow, steps, raysListed, sortedLights, framePad0;
-    uint64_t pairsTested, rayTests, accepted, framePad1, framePad2;
+    uint64_t pairsTested, rayTests, accepted, rayHits, framePad2;
     uint32_t levelOffset[PENUMBRA_RH_MAX_LEVELS], levelCount[PENUMBRA_RH_MAX_LEVELS];
     uint32_t segBegin[PENUMBRA_RH_MAX_LEVELS], segEnd[PENUMBRA_RH_MAX_LEVELS], cursor[PENUMBRA_RH_MAX_LEVELS];
     uint32_t depthTests[PENUMBRA_RH_MAX_LEVELS];
@@ -105,6 +105,7 @@ struct RhFrameStats {
     uint64_t rays = 0;          // rays listed (every light, padding left out)
     uint64_t pairsTested = 0;   // cone (slab) tests: the paper's nodes visited
     uint64_t rayTests = 0;      // exact ray/triangle tests at the leaves
+    uint64_t rayHits = 0;       // ... that hit
     uint64_t accepted = 0;      // nodes found covered (early accept)
     uint64_t casters = 0;       // triangles sent through the hierarchies
     uint32_t closedCulled = 0;  // lights whose closed clusters cast only light-back-facing triangles (section 3.6)
