@@ -67,6 +67,7 @@ Config parseConfig(const std::string& text, uint32_t size)
         else if (option == "ea") c.settings.rhEarlyAccept = true;
         else if (option == "noea") c.settings.rhEarlyAccept = false;
         else if (option == "closed") c.settings.rhClosedMeshes = true;
+        else if (option == "nogrid") c.settings.rhCullBehindReceivers = false;
         else if (option == "open") c.settings.rhClosedMeshes = false;
         else if (option == "2p") c.settings.rhTwoPass = true;
         else if (option == "no2p") c.settings.rhTwoPass = false;

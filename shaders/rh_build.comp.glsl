@@ -22,7 +22,9 @@
 //  PENUMBRA_RH_BUILD_LEVEL: node i of level k bounds nodes 4i .. 4i + 3 of
 //    level k - 1;
 //  PENUMBRA_RH_BUILD_RESOLVE: early accept's rays: each ray under a covered
-//    node is in shadow.
+//    node is in shadow;
+//  PENUMBRA_RH_BUILD_GRID: level push.level of the receivers' depth grid,
+//    each cell the deepest of its four below.
 // A point or spot light's node (rh.glsli) is the cone from the light around
 // the directions to the rays' points, with the longest and the shortest
 // distance and the cube faces its rays fall on; its half-angle is grown by the rounding margin, and a cone
@@ -47,6 +49,7 @@ layout(set = 0, binding = 4, std430) buffer Nodes { u64vec4 nodes[]; };
 #define RH_STATE_BINDING 5
 RH_STATE_DECLARE();
 layout(set = 0, binding = 6, std430) buffer Shadowed { uint shadowed[]; };
+layout(set = 0, binding = 7, std430) buffer DepthGrid { uint depthGrid[]; }; // the receivers' depth grid (rh.glsli)
 
 layout(push_constant) uniform RhBuildPush {
     uint lightIndex;
@@ -158,6 +161,17 @@ void main()
         return;
     }
     uint node = gl_GlobalInvocationID.y * (gl_NumWorkGroups.x * PENUMBRA_RH_GROUP_SIZE) + gl_GlobalInvocationID.x;
+    if (push.mode == PENUMBRA_RH_BUILD_GRID) {
+        // Here `node` is a cell of level push.level (faces x side x side).
+        uint side = uint(PENUMBRA_RH_DEPTH_GRID) >> push.level;
+        if (node >= push.faces * side * side)
+            return;
+        uint face = node / (side * side), y = (node / side) % side, x = node % side;
+        uint below = gridLevelBase(push.faces, push.level - 1u) + (face * 2u * side + 2u * y) * 2u * side + 2u * x;
+        depthGrid[gridLevelBase(push.faces, push.level) + node] =
+            max(max(depthGrid[below], depthGrid[below + 1u]), max(depthGrid[below + 2u * side], depthGrid[below + 2u * side + 1u]));
+        return;
+    }
     uint levels = state.tree.x; // built
     int width = imageSize(gPosition).x;
     if (push.mode == PENUMBRA_RH_BUILD_RESOLVE) {

@@ -10,6 +10,7 @@
 // invocations are a 2x2 block). Modes (push.mode):
 //  PENUMBRA_RH_RAYS_COUNT: each tile's ray count, padded to a multiple of 4,
 //    at the tile's Morton index (rh_scan.comp turns the counts into offsets);
+//    the receivers' depth grid (rh.glsli);
 //    with push.measure, the tile's incoherence for the per-frame choice of
 //    order (below);
 //  PENUMBRA_RH_RAYS_KEYS: the rays per direction key and per face
@@ -55,6 +56,7 @@ layout(set = 0, binding = 3, std430) writeonly buffer Rays { uint rayPixels[]; }
 RH_STATE_DECLARE();
 layout(set = 0, binding = 5, std430) buffer TileOffsets { uint tileOffsets[]; }; // per tile at its Morton index: count, then offset
 layout(set = 0, binding = 6, std430) buffer KeySlots { uint keySlots[]; };       // per key: rays, then (scan) next slot
+layout(set = 0, binding = 7, std430) buffer DepthGrid { uint depthGrid[]; };     // the receivers' depth grid (rh.glsli)
 
 layout(push_constant) uniform RhRaysPush {
     uint lightIndex;
@@ -62,7 +64,8 @@ layout(push_constant) uniform RhRaysPush {
     float originOffset;
     uint order;     // keys: 2^order x 2^order cells per face
     uint measure;   // PENUMBRA_RH_RAYS_COUNT: 1 measures the incoherence
-    uint pad0, pad1, pad2;
+    uint gridFaces; // PENUMBRA_RH_RAYS_COUNT: the depth grid's faces (0: none, spot lights)
+    uint pad0, pad1;
 } push;
 
 shared uint subgroupTotals[64];
@@ -204,6 +207,24 @@ void main()
     uint padded = (total + 3u) & ~3u;
     uint tile = mortonIndex(gl_WorkGroupID.xy);
     if (push.mode == PENUMBRA_RH_RAYS_COUNT) {
+        // The receivers' depth grid: the deepest ray per cell (rh.glsli).
+        PENUMBRA_SKIP_UNLESS(listed && push.gridFaces != 0u)
+        {
+            uint face = 0u;
+            vec2 coordinates;
+            float depth;
+            if (type == PENUMBRA_LIGHT_POINT) {
+                vec3 d = p - light;
+                face = cubeFace(d);
+                coordinates = cubeFaceCoordinates(d, face);
+                depth = length(d);
+            } else {
+                coordinates = (frame.lights[push.lightIndex].viewProj[0] * vec4(origin, 1.0)).xy;
+                depth = -dot(origin, toLight);
+            }
+            uvec2 cell = uvec2(clamp((coordinates * 0.5 + 0.5) * float(PENUMBRA_RH_DEPTH_GRID), vec2(0.0), vec2(float(PENUMBRA_RH_DEPTH_GRID) - 1.0)));
+            atomicMax(depthGrid[(face * uint(PENUMBRA_RH_DEPTH_GRID) + cell.y) * uint(PENUMBRA_RH_DEPTH_GRID) + cell.x], orderedDepth(depth));
+        }
         if (local == 0u) {
             tileOffsets[tile] = padded;
             if (total != 0u)

@@ -424,6 +424,7 @@ struct Renderer::Impl::FrameScript {
             options.sort = settings.rhSort;
             options.twoPass = settings.rhTwoPass;
             options.earlyAccept = settings.rhEarlyAccept;
+            options.cullBehindReceivers = settings.rhCullBehindReceivers;
             // Section 3.6: closed clusters cast only light-back-facing triangles, where that is exact (rh.h).
             const bool directional = lights[light].type == LightType::Directional;
             options.closedCulling = settings.rhClosedMeshes && r.model &&

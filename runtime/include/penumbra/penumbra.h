@@ -128,6 +128,7 @@ struct RenderSettings {
     // rh: clusters marked closed cast only light-back-facing triangles (3.6); off by default: a receiver
     // within one ray offset of a closed surface may start its ray inside it and lose its shadow (README, rh).
     bool rhClosedMeshes = false;
+    bool rhCullBehindReceivers = true;     // rh: casters deeper than every receiver they could shadow left out (exact; README, rh)
     // Fit the shadow maps of directional and area lights to what the camera
     // sees (the G-buffer's bounds in each map, read back before the shadow
     // pass) instead of the whole model: finer texels, and frustum culling

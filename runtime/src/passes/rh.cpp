@@ -21,8 +21,18 @@ constexpr VkAccessFlags2 kUniformRead = VK_ACCESS_2_UNIFORM_READ_BIT;
 constexpr uint32_t kScanBlock = 2048; // rh_scan.comp's RH_SCAN_BLOCK
 constexpr VkPipelineStageFlags2 kGeometry = VK_PIPELINE_STAGE_2_GEOMETRY_SHADER_BIT;
 constexpr uint32_t kClosedBit = 1u << 8; // rh_casters.geom: the cluster casts only light-back-facing triangles
+constexpr uint32_t RH_GRID_NONE_HOST = 0; // rh.glsli's RH_GRID_NONE
 
-std::vector<VkDescriptorType> castersBindingTypes() { return {vk::kStorage, vk::kStorage, vk::kStorage, vk::kStorage}; }
+std::vector<VkDescriptorType> castersBindingTypes() { return {vk::kStorage, vk::kStorage, vk::kStorage, vk::kStorage, vk::kStorage, vk::kUniform}; }
+
+// Cells of the receivers' depth grid of `faces` faces, all pyramid levels.
+uint32_t gridCells(uint32_t faces)
+{
+    uint32_t cells = 0;
+    for (uint32_t level = 0; level < PENUMBRA_RH_DEPTH_LEVELS; ++level)
+        cells += faces * (PENUMBRA_RH_DEPTH_GRID >> level) * (PENUMBRA_RH_DEPTH_GRID >> level);
+    return cells;
+}
 
 // Ray list entries for a width x height image: every pixel, plus the padding: up to 3 per 8x8 tile
 // (by pixel), or up to 5 faces' alignment, each at most a 24th of the rays (sorted; rh_build.comp).
@@ -105,10 +115,11 @@ bool closedCullingExact(const CompressedModel& model, const glm::vec3& eye, cons
 void RhPass::create(vk::Device& device)
 {
     using namespace vk;
-    rays.create(device, "rh_rays.comp", {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage}, sizeof(RhRaysPush));
+    rays.create(device, "rh_rays.comp", {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage, kStorage},
+                sizeof(RhRaysPush));
     scanTiles.create(device, "rh_scan.comp", {kStorage}, sizeof(RhScanPush));
     scanKeys.create(device, "rh_scan.comp", {kStorage}, sizeof(RhScanPush));
-    const std::vector<VkDescriptorType> buildBindings = {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage};
+    const std::vector<VkDescriptorType> buildBindings = {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage, kStorage};
     build.create(device, "rh_build.comp", buildBindings, sizeof(RhBuildPush));
     buildParallel.create(device, "rh_build.comp.parallel", buildBindings, sizeof(RhBuildPush));
     step.create(device, "rh_step.comp", {kStorage}, sizeof(RhStepPush));
@@ -141,7 +152,7 @@ void RhPass::destroy(vk::Device& device)
     castersPool = VK_NULL_HANDLE;
     castersSetLayout = VK_NULL_HANDLE;
     castersSet = VK_NULL_HANDLE;
-    for (vk::Buffer* buffer : {&rayList, &nodes, &trianglesA, &trianglesB, &records, &state, &tileCounts, &keyCounts, &clusterFaces})
+    for (vk::Buffer* buffer : {&rayList, &nodes, &trianglesA, &trianglesB, &records, &state, &tileCounts, &keyCounts, &clusterFaces, &depthGrid})
         vk::destroyBuffer(device, *buffer);
     maxRays = maxNodes = mortonTiles = keyCapacity = 0;
 }
@@ -176,6 +187,7 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
         records = vk::createBuffer(device, VkDeviceSize(kPairCapacity) * 8, kStorageDst, vk::MemoryUse::DeviceLocal);
         trianglesA = vk::createBuffer(device, VkDeviceSize(kTriangleCapacity) * 32, kStorageDst, vk::MemoryUse::DeviceLocal);
         trianglesB = vk::createBuffer(device, VkDeviceSize(kTriangleCapacity) * 8, kStorageDst, vk::MemoryUse::DeviceLocal);
+        depthGrid = vk::createBuffer(device, VkDeviceSize(gridCells(6)) * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
         state = vk::createBuffer(device, sizeof(RhState),
                                  kStorageDst | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, vk::MemoryUse::Readback);
     }
@@ -186,7 +198,8 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
     }
     if (castersSet)
         vk::writeSet(device, castersSet, {vk::storageBuffer(state.buffer), vk::storageBuffer(trianglesA.buffer),
-                                          vk::storageBuffer(trianglesB.buffer), vk::storageBuffer(clusterFaces.buffer)});
+                                          vk::storageBuffer(trianglesB.buffer), vk::storageBuffer(clusterFaces.buffer),
+                                          vk::storageBuffer(depthGrid.buffer), vk::uniformBuffer(t.frame)});
     const uint32_t capacity = rayCapacity(t.width, t.height);
     if (capacity != maxRays) {
         for (vk::Buffer* buffer : {&rayList, &nodes, &tileCounts, &keyCounts})
@@ -213,12 +226,14 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
     }
     using namespace vk;
     rays.write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
-                        storageBuffer(state.buffer), storageBuffer(tileCounts.buffer), storageBuffer(keyCounts.buffer)});
+                        storageBuffer(state.buffer), storageBuffer(tileCounts.buffer), storageBuffer(keyCounts.buffer),
+                        storageBuffer(depthGrid.buffer)});
     scanTiles.write(device, {storageBuffer(tileCounts.buffer)});
     scanKeys.write(device, {storageBuffer(keyCounts.buffer)});
     for (const ComputeKernel* kernel : {&build, &buildParallel})
         kernel->write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
-                               storageBuffer(nodes.buffer), storageBuffer(state.buffer), storageBuffer(t.shadowed->buffer)});
+                               storageBuffer(nodes.buffer), storageBuffer(state.buffer), storageBuffer(t.shadowed->buffer),
+                               storageBuffer(depthGrid.buffer)});
     step.write(device, {storageBuffer(state.buffer)});
     for (const ComputeKernel* kernel : {&traverse, &traverseParallel})
         kernel->write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
@@ -307,6 +322,9 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     vk::memoryBarrier(cmd, kCompute | kIndirect | kGeometry, kStorageRW | kIndirectRead | kUniformRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, state.buffer, 0, offsetof(RhState, peakPairs), 0);
     vkCmdFillBuffer(cmd, tileCounts.buffer, 0, VK_WHOLE_SIZE, 0);
+    const uint32_t gridFaces = type == PENUMBRA_LIGHT_POINT ? 6 : type == PENUMBRA_LIGHT_DIRECTIONAL ? 1 : 0;
+    if (gridFaces)
+        vkCmdFillBuffer(cmd, depthGrid.buffer, 0, VkDeviceSize(gridCells(gridFaces)) * 4, RH_GRID_NONE_HOST);
     if (sortMode != PENUMBRA_RH_SORT_OFF) {
         vkCmdFillBuffer(cmd, keyCounts.buffer, 0, scanBytes(keys), 0);
         vkCmdFillBuffer(cmd, rayList.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu); // RH_NO_RAY between the faces
@@ -314,7 +332,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     auto raysPass = [&](uint32_t mode, bool indirect) {
         rays.bind(cmd);
-        rays.push(cmd, RhRaysPush{lightIndex, mode, originOffset, order, sortMode == PENUMBRA_RH_SORT_AUTO ? 1u : 0u, {}});
+        rays.push(cmd, RhRaysPush{lightIndex, mode, originOffset, order, sortMode == PENUMBRA_RH_SORT_AUTO ? 1u : 0u, gridFaces, {}});
         if (indirect)
             vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, keyDispatch));
         else
@@ -323,6 +341,12 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     };
     raysPass(PENUMBRA_RH_RAYS_COUNT, false);
     builder.bind(cmd);
+    for (uint32_t level = 1; gridFaces && level < PENUMBRA_RH_DEPTH_LEVELS; ++level) {
+        const uint32_t side = PENUMBRA_RH_DEPTH_GRID >> level;
+        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_GRID, level, 0, originOffset, 0, 0, 0, 0, gridFaces, 0, 0});
+        vkCmdDispatch(cmd, groupCount(gridFaces * side * side, PENUMBRA_RH_GROUP_SIZE), 1, 1);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+    }
     builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_DECIDE, 0, 0, originOffset, sortMode, tilesX, tilesY,
                                   groupCount(keys, kScanBlock), faces, uint32_t(std::min<uint64_t>(casterTriangles, UINT32_MAX)), 0});
     vkCmdDispatch(cmd, 1, 1, 1);
@@ -391,7 +415,8 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
                 batchTriangles += model.clusterTriangles[clusters[end++]];
             if (batchTriangles > kTriangleCapacity)
                 fail("rh", "a cluster of " + std::to_string(batchTriangles) + " triangles exceeds the caster list");
-            // Reset the batch's words: done .. rootCursor.
+            // Reset the batch's words: done .. rootCursor (the grid, written by compute, read by the casters).
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kGeometry, kStorageRead);
             vk::memoryBarrier(cmd, kCompute | kIndirect | kGeometry, kStorageRW | kIndirectRead | kUniformRead, kClear, kTransferWrite);
             vkCmdFillBuffer(cmd, state.buffer, offsetof(RhState, done), offsetof(RhState, sorted) - offsetof(RhState, done), 0);
             vk::memoryBarrier(cmd, kClear, kTransferWrite, kGeometry | kCompute, kStorageRW);
@@ -402,9 +427,15 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
             vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters[geometry.encoding]);
             vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters.layout, 0, 1, &castersSet, 0, nullptr);
             vk::setViewport(cmd, 1, 1);
-            const RhCastersPush castersPush{glm::vec4(lightPosition, float(PENUMBRA_RH_LARGE_ANGLE)), kTriangleCapacity, select,
-                                            type == PENUMBRA_LIGHT_POINT ? 1u : 0u, type == PENUMBRA_LIGHT_SPOT ? 1u : 0u,
-                                            glm::vec4(-glm::normalize(light.direction), 0.0f)};
+            const RhCastersPush castersPush{glm::vec4(lightPosition, float(PENUMBRA_RH_LARGE_ANGLE)),
+                                            glm::vec4(-glm::normalize(light.direction), originOffset),
+                                            kTriangleCapacity,
+                                            select,
+                                            type == PENUMBRA_LIGHT_POINT ? 1u : 0u,
+                                            type == PENUMBRA_LIGHT_SPOT ? 1u : 0u,
+                                            lightIndex,
+                                            options.cullBehindReceivers ? gridFaces : 0u,
+                                            {}};
             vkCmdPushConstants(cmd, casters.layout, VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(castersPush), &castersPush);
             drawClusters(cmd, geometry, model, clusters.data() + begin, end - begin);
             vkCmdEndRendering(cmd);

@@ -25,13 +25,17 @@
 namespace penumbra::passes {
 
 enum RhRaysBinding : uint32_t {
-    kRhRaysPosition, kRhRaysNormal, kRhRaysFrame, kRhRaysList, kRhRaysState, kRhRaysTileCounts, kRhRaysKeyCounts, kRhRaysBindingCount
+    kRhRaysPosition, kRhRaysNormal, kRhRaysFrame, kRhRaysList, kRhRaysState, kRhRaysTileCounts, kRhRaysKeyCounts, kRhRaysDepthGrid,
+    kRhRaysBindingCount
 };
 enum RhScanBinding : uint32_t { kRhScanCounts, kRhScanBindingCount };
 enum RhBuildBinding : uint32_t {
-    kRhBuildPosition, kRhBuildNormal, kRhBuildFrame, kRhBuildRays, kRhBuildNodes, kRhBuildState, kRhBuildShadowed, kRhBuildBindingCount
+    kRhBuildPosition, kRhBuildNormal, kRhBuildFrame, kRhBuildRays, kRhBuildNodes, kRhBuildState, kRhBuildShadowed, kRhBuildDepthGrid,
+    kRhBuildBindingCount
 };
-enum RhCastersBinding : uint32_t { kRhCastersState, kRhCastersTrianglesA, kRhCastersTrianglesB, kRhCastersClusterFaces, kRhCastersBindingCount };
+enum RhCastersBinding : uint32_t {
+    kRhCastersState, kRhCastersTrianglesA, kRhCastersTrianglesB, kRhCastersClusterFaces, kRhCastersDepthGrid, kRhCastersFrame, kRhCastersBindingCount
+};
 enum RhStepBinding : uint32_t { kRhStepState, kRhStepBindingCount };
 enum RhTraverseBinding : uint32_t {
     kRhTraversePosition, kRhTraverseNormal, kRhTraverseFrame, kRhTraverseRays, kRhTraverseNodes, kRhTraverseTrianglesA,
@@ -42,8 +46,9 @@ struct RhRaysPush {
     uint32_t lightIndex, mode;
     float originOffset;
     uint32_t order;   // keys: 2^order x 2^order cells per face
-    uint32_t measure; // the tiles' incoherence (the per-frame order)
-    uint32_t pad[3];
+    uint32_t measure;   // the tiles' incoherence (the per-frame order)
+    uint32_t gridFaces; // the receivers' depth grid (0: none)
+    uint32_t pad[2];
 };
 static_assert(sizeof(RhRaysPush) == 32);
 struct RhScanPush {
@@ -56,11 +61,11 @@ struct RhBuildPush {
 };
 static_assert(sizeof(RhBuildPush) == 48);
 struct RhCastersPush {
-    glm::vec4 lightLarge; // xyz light, w PENUMBRA_RH_LARGE_ANGLE
-    uint32_t capacity, select, pointLight, spotLight;
-    glm::vec4 toLight;    // directional lights
+    glm::vec4 lightLarge;    // xyz light, w PENUMBRA_RH_LARGE_ANGLE
+    glm::vec4 toLightOffset; // directional lights: toward the light; w: the rays' origin offset
+    uint32_t capacity, select, pointLight, spotLight, lightIndex, gridFaces, pad[2];
 };
-static_assert(sizeof(RhCastersPush) == 48);
+static_assert(sizeof(RhCastersPush) == 64);
 struct RhStepPush {
     uint32_t pairCapacity, triangleCapacity, pad[2];
 };
@@ -127,6 +132,8 @@ struct RhOptions {
     // Section 3.6: the clusters marked closed (model::kClusterClosed) cast
     // only their light-back-facing triangles; closedClusterFlag(cluster) says which.
     bool closedCulling = false;
+    // Casters behind every receiver they could shadow (the receivers' depth grid, rh.glsli) left out.
+    bool cullBehindReceivers = true;
 };
 
 // Section 3.6, front-face culling of closed meshes, and when it is exact. A
@@ -189,6 +196,7 @@ class RhPass {
     vk::RasterPipelines casters;
     vk::Buffer rayList, nodes, trianglesA, trianglesB, records, state, tileCounts, keyCounts;
     vk::Buffer clusterFaces; // per cluster: the faces whose views kept it (host-written per light)
+    vk::Buffer depthGrid;    // the receivers' depth grid (rh.glsli), 6 faces
     uint32_t mortonTiles = 0;  // tiles on the Morton curve over the image's tiles (a power-of-two square)
     uint32_t keyCapacity = 0;  // keys the key counts hold (before their block totals)
     RhTargets targets;
