@@ -31,8 +31,7 @@
 #define PENUMBRA_RH_SORT_COST 3.0       // rh --rh-sort auto: the sort's cost per ray, in cone tests' time
 #define PENUMBRA_RH_FACE_SPLIT 24u      // rh sorted point lights: each face starts on a subtree of at most 1/24 of the rays (rh_build.comp)
 #define PENUMBRA_RH_MAX_INCOHERENCE 4096.0 // rh: one tile's incoherence counts at most this much
-#define PENUMBRA_RH_DEPTH_GRID 64        // rh: cells a side of the receivers' depth grid per face (casters behind every receiver culled)
-#define PENUMBRA_RH_DEPTH_LEVELS 7       // its pyramid: 64, 32, ..., 1 cells a side
+#define PENUMBRA_RH_MAX_DEPTH_ORDER 9u   // rh: the receivers' depth grid per face: up to 2^9 cells a side (about 4 cells per ray, rh.cpp)
 #define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range
 #define PENUMBRA_CULL_GROUP_SIZE 64     // cull_predicates.comp: draw commands per workgroup
 #define PENUMBRA_CULL_GROUP_CLUSTERS 64 // occlusion culling: largest BVH subtree (clusters) without history queried with one box

@@ -57,7 +57,7 @@ layout(push_constant) uniform RhBuildPush {
     uint level;         // PENUMBRA_RH_BUILD_LEVEL: the level built (>= 1)
     uint skipShadowed;  // PENUMBRA_RH_BUILD_LEAVES: 1 leaves out the rays already shadowed
     float originOffset; // the rays' origin offset (directional lights: the origins are bounded)
-    uint sort;          // PENUMBRA_RH_BUILD_DECIDE: PENUMBRA_RH_SORT_*
+    uint sort;          // PENUMBRA_RH_BUILD_DECIDE: PENUMBRA_RH_SORT_*; PENUMBRA_RH_BUILD_GRID: the grid's order
     uint keyGroupsX;    // PENUMBRA_RH_BUILD_DECIDE: the key pass's workgroups (the image's tiles)
     uint keyGroupsY;
     uint scanGroups;    // PENUMBRA_RH_BUILD_DECIDE: the key scan's blocks
@@ -163,12 +163,13 @@ void main()
     uint node = gl_GlobalInvocationID.y * (gl_NumWorkGroups.x * PENUMBRA_RH_GROUP_SIZE) + gl_GlobalInvocationID.x;
     if (push.mode == PENUMBRA_RH_BUILD_GRID) {
         // Here `node` is a cell of level push.level (faces x side x side).
-        uint side = uint(PENUMBRA_RH_DEPTH_GRID) >> push.level;
+        uint order = push.sort; // here: the grid's order
+        uint side = 1u << (order - push.level);
         if (node >= push.faces * side * side)
             return;
         uint face = node / (side * side), y = (node / side) % side, x = node % side;
-        uint below = gridLevelBase(push.faces, push.level - 1u) + (face * 2u * side + 2u * y) * 2u * side + 2u * x;
-        depthGrid[gridLevelBase(push.faces, push.level) + node] =
+        uint below = gridLevelBase(push.faces, order, push.level - 1u) + (face * 2u * side + 2u * y) * 2u * side + 2u * x;
+        depthGrid[gridLevelBase(push.faces, order, push.level) + node] =
             max(max(depthGrid[below], depthGrid[below + 1u]), max(depthGrid[below + 2u * side], depthGrid[below + 2u * side + 1u]));
         return;
     }

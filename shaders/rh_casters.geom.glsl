@@ -44,20 +44,20 @@ layout(push_constant) uniform RhCastersPush {
     uint spotLight;     // 1: a spot light (at lightLarge.xyz); neither: a directional light
     uint lightIndex;
     uint gridFaces;     // the receivers' depth grid's faces (0: none, no culling behind the receivers)
-    uint pad0, pad1;
+    uint gridOrder;     // ... and its order (2^order cells a side)
+    uint pad0;
 } push;
 
 // The deepest receiver over the grid cells that [lo, hi] (face coordinates, [-1, 1]) covers: at most 2 x 2
 // cells of the pyramid level where the range spans at most one cell. -inf: none.
 float deepestReceiver(uint face, vec2 lo, vec2 hi)
 {
-    float grid = float(PENUMBRA_RH_DEPTH_GRID);
-    float span = max(hi.x - lo.x, hi.y - lo.y) * 0.5 * grid;
-    uint level = uint(clamp(ceil(log2(max(span, 1.0))), 0.0, float(PENUMBRA_RH_DEPTH_LEVELS - 1)));
-    uint side = uint(PENUMBRA_RH_DEPTH_GRID) >> level;
+    float span = max(hi.x - lo.x, hi.y - lo.y) * 0.5 * float(1u << push.gridOrder);
+    uint level = uint(clamp(ceil(log2(max(span, 1.0))), 0.0, float(push.gridOrder)));
+    uint side = 1u << (push.gridOrder - level);
     uvec2 first = uvec2(clamp((lo * 0.5 + 0.5) * float(side), vec2(0.0), vec2(float(side) - 1.0)));
     uvec2 last = uvec2(clamp((hi * 0.5 + 0.5) * float(side), vec2(0.0), vec2(float(side) - 1.0)));
-    uint base = gridLevelBase(push.gridFaces, level) + face * side * side;
+    uint base = gridLevelBase(push.gridFaces, push.gridOrder, level) + face * side * side;
     uint deepest = max(max(depthGrid[base + first.y * side + first.x], depthGrid[base + first.y * side + last.x]),
                        max(depthGrid[base + last.y * side + first.x], depthGrid[base + last.y * side + last.x]));
     return deepest == RH_GRID_NONE ? uintBitsToFloat(0xFF800000u) : depthFromOrdered(deepest);
@@ -112,7 +112,7 @@ void main()
                 vec2 c0 = cubeFaceCoordinates(w0, face), c1 = cubeFaceCoordinates(w1, face), c2 = cubeFaceCoordinates(w2, face);
                 // A direction within angle g of the triangle's moves its face coordinates by at most 3 tan-rates.
                 float spread = r / (nearest - 2.0 * r);
-                float dilation = spread < 1.0 ? 3.0 * asin(spread) * 1.001 + 2.0 / float(PENUMBRA_RH_DEPTH_GRID) : 100.0;
+                float dilation = spread < 1.0 ? 3.0 * asin(spread) * 1.001 + 2.0 / float(1u << push.gridOrder) : 100.0;
                 vec2 lo = min(min(c0, c1), c2) - dilation, hi = max(max(c0, c1), c2) + dilation;
                 if (all(greaterThanEqual(lo, vec2(-1.0))) && all(lessThanEqual(hi, vec2(1.0))))
                     behind = nearest > deepestReceiver(face, lo, hi) * 1.00001 + 1.01 * r;
@@ -121,7 +121,7 @@ void main()
             // Directional: rays go up from their origins, straight across the grid's cells.
             mat4 viewProj = frame.lights[push.lightIndex].viewProj[0];
             vec2 c0 = (viewProj * vec4(v0, 1.0)).xy, c1 = (viewProj * vec4(v1, 1.0)).xy, c2 = (viewProj * vec4(v2, 1.0)).xy;
-            float dilation = 2.0 / float(PENUMBRA_RH_DEPTH_GRID);
+            float dilation = 2.0 / float(1u << push.gridOrder);
             vec2 lo = min(min(c0, c1), c2) - dilation, hi = max(max(c0, c1), c2) + dilation;
             vec3 heights = vec3(dot(v0, push.toLightOffset.xyz), dot(v1, push.toLightOffset.xyz), dot(v2, push.toLightOffset.xyz));
             float top = max(max(heights.x, heights.y), heights.z);

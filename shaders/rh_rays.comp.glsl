@@ -65,7 +65,8 @@ layout(push_constant) uniform RhRaysPush {
     uint order;     // keys: 2^order x 2^order cells per face
     uint measure;   // PENUMBRA_RH_RAYS_COUNT: 1 measures the incoherence
     uint gridFaces; // PENUMBRA_RH_RAYS_COUNT: the depth grid's faces (0: none, spot lights)
-    uint pad0, pad1;
+    uint gridOrder; // ... and its order (2^order cells a side)
+    uint pad0;
 } push;
 
 shared uint subgroupTotals[64];
@@ -222,8 +223,9 @@ void main()
                 coordinates = (frame.lights[push.lightIndex].viewProj[0] * vec4(origin, 1.0)).xy;
                 depth = -dot(origin, toLight);
             }
-            uvec2 cell = uvec2(clamp((coordinates * 0.5 + 0.5) * float(PENUMBRA_RH_DEPTH_GRID), vec2(0.0), vec2(float(PENUMBRA_RH_DEPTH_GRID) - 1.0)));
-            atomicMax(depthGrid[(face * uint(PENUMBRA_RH_DEPTH_GRID) + cell.y) * uint(PENUMBRA_RH_DEPTH_GRID) + cell.x], orderedDepth(depth));
+            uint side = 1u << push.gridOrder;
+            uvec2 cell = uvec2(clamp((coordinates * 0.5 + 0.5) * float(side), vec2(0.0), vec2(float(side) - 1.0)));
+            atomicMax(depthGrid[(face * side + cell.y) * side + cell.x], orderedDepth(depth));
         }
         if (local == 0u) {
             tileOffsets[tile] = padded;

@@ -25,12 +25,12 @@ constexpr uint32_t RH_GRID_NONE_HOST = 0; // rh.glsli's RH_GRID_NONE
 
 std::vector<VkDescriptorType> castersBindingTypes() { return {vk::kStorage, vk::kStorage, vk::kStorage, vk::kStorage, vk::kStorage, vk::kUniform}; }
 
-// Cells of the receivers' depth grid of `faces` faces, all pyramid levels.
-uint32_t gridCells(uint32_t faces)
+// Cells of the receivers' depth grid of `faces` faces and 2^order cells a side, all pyramid levels.
+uint32_t gridCells(uint32_t faces, uint32_t order)
 {
     uint32_t cells = 0;
-    for (uint32_t level = 0; level < PENUMBRA_RH_DEPTH_LEVELS; ++level)
-        cells += faces * (PENUMBRA_RH_DEPTH_GRID >> level) * (PENUMBRA_RH_DEPTH_GRID >> level);
+    for (uint32_t level = 0; level <= order; ++level)
+        cells += faces << (2 * (order - level));
     return cells;
 }
 
@@ -187,7 +187,6 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
         records = vk::createBuffer(device, VkDeviceSize(kPairCapacity) * 8, kStorageDst, vk::MemoryUse::DeviceLocal);
         trianglesA = vk::createBuffer(device, VkDeviceSize(kTriangleCapacity) * 32, kStorageDst, vk::MemoryUse::DeviceLocal);
         trianglesB = vk::createBuffer(device, VkDeviceSize(kTriangleCapacity) * 8, kStorageDst, vk::MemoryUse::DeviceLocal);
-        depthGrid = vk::createBuffer(device, VkDeviceSize(gridCells(6)) * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
         state = vk::createBuffer(device, sizeof(RhState),
                                  kStorageDst | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, vk::MemoryUse::Readback);
     }
@@ -195,6 +194,11 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
         vk::destroyBuffer(device, clusterFaces);
         clusterFaces = vk::createBuffer(device, VkDeviceSize(std::max(t.clusters, 1u)) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                         vk::MemoryUse::Upload);
+    }
+    const uint32_t gridBytes = gridCells(6, gridOrder(6)) * 4;
+    if (depthGrid.size < gridBytes) {
+        vk::destroyBuffer(device, depthGrid);
+        depthGrid = vk::createBuffer(device, gridBytes, kStorageDst, vk::MemoryUse::DeviceLocal);
     }
     if (castersSet)
         vk::writeSet(device, castersSet, {vk::storageBuffer(state.buffer), vk::storageBuffer(trianglesA.buffer),
@@ -240,6 +244,15 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
                                storageBuffer(nodes.buffer), storageBuffer(trianglesA.buffer), storageBuffer(trianglesB.buffer),
                                storageBuffer(records.buffer), storageBuffer(t.shadowed->buffer), storageBuffer(state.buffer),
                                uniformBuffer(state.buffer)});
+}
+
+// The receivers' depth grid: about 4 cells per pixel's ray over the faces, at most
+// 2^PENUMBRA_RH_MAX_DEPTH_ORDER a side (interior 250k, 320^2, 256 cells a side: 187 k
+// casters left at 64, 141 k at 256, 128 k at 512).
+uint32_t RhPass::gridOrder(uint32_t faces) const
+{
+    const double cellsPerFace = 4.0 * double(targets.width) * double(targets.height) / double(faces);
+    return uint32_t(std::clamp(int(std::lround(std::log2(std::max(cellsPerFace, 1.0)) / 2.0)), 4, int(PENUMBRA_RH_MAX_DEPTH_ORDER)));
 }
 
 uint32_t RhPass::maxLevels() const
@@ -323,8 +336,9 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     vkCmdFillBuffer(cmd, state.buffer, 0, offsetof(RhState, peakPairs), 0);
     vkCmdFillBuffer(cmd, tileCounts.buffer, 0, VK_WHOLE_SIZE, 0);
     const uint32_t gridFaces = type == PENUMBRA_LIGHT_POINT ? 6 : type == PENUMBRA_LIGHT_DIRECTIONAL ? 1 : 0;
+    const uint32_t depthOrder = gridOrder(std::max(gridFaces, 1u));
     if (gridFaces)
-        vkCmdFillBuffer(cmd, depthGrid.buffer, 0, VkDeviceSize(gridCells(gridFaces)) * 4, RH_GRID_NONE_HOST);
+        vkCmdFillBuffer(cmd, depthGrid.buffer, 0, VkDeviceSize(gridCells(gridFaces, depthOrder)) * 4, RH_GRID_NONE_HOST);
     if (sortMode != PENUMBRA_RH_SORT_OFF) {
         vkCmdFillBuffer(cmd, keyCounts.buffer, 0, scanBytes(keys), 0);
         vkCmdFillBuffer(cmd, rayList.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu); // RH_NO_RAY between the faces
@@ -332,7 +346,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     auto raysPass = [&](uint32_t mode, bool indirect) {
         rays.bind(cmd);
-        rays.push(cmd, RhRaysPush{lightIndex, mode, originOffset, order, sortMode == PENUMBRA_RH_SORT_AUTO ? 1u : 0u, gridFaces, {}});
+        rays.push(cmd, RhRaysPush{lightIndex, mode, originOffset, order, sortMode == PENUMBRA_RH_SORT_AUTO ? 1u : 0u, gridFaces, depthOrder, 0});
         if (indirect)
             vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, keyDispatch));
         else
@@ -341,9 +355,9 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     };
     raysPass(PENUMBRA_RH_RAYS_COUNT, false);
     builder.bind(cmd);
-    for (uint32_t level = 1; gridFaces && level < PENUMBRA_RH_DEPTH_LEVELS; ++level) {
-        const uint32_t side = PENUMBRA_RH_DEPTH_GRID >> level;
-        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_GRID, level, 0, originOffset, 0, 0, 0, 0, gridFaces, 0, 0});
+    for (uint32_t level = 1; gridFaces && level <= depthOrder; ++level) {
+        const uint32_t side = 1u << (depthOrder - level);
+        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_GRID, level, 0, originOffset, depthOrder, 0, 0, 0, gridFaces, 0, 0});
         vkCmdDispatch(cmd, groupCount(gridFaces * side * side, PENUMBRA_RH_GROUP_SIZE), 1, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     }
@@ -435,7 +449,8 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
                                             type == PENUMBRA_LIGHT_SPOT ? 1u : 0u,
                                             lightIndex,
                                             options.cullBehindReceivers ? gridFaces : 0u,
-                                            {}};
+                                            depthOrder,
+                                            0};
             vkCmdPushConstants(cmd, casters.layout, VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(castersPush), &castersPush);
             drawClusters(cmd, geometry, model, clusters.data() + begin, end - begin);
             vkCmdEndRendering(cmd);

@@ -48,7 +48,8 @@ struct RhRaysPush {
     uint32_t order;   // keys: 2^order x 2^order cells per face
     uint32_t measure;   // the tiles' incoherence (the per-frame order)
     uint32_t gridFaces; // the receivers' depth grid (0: none)
-    uint32_t pad[2];
+    uint32_t gridOrder;
+    uint32_t pad;
 };
 static_assert(sizeof(RhRaysPush) == 32);
 struct RhScanPush {
@@ -63,7 +64,7 @@ static_assert(sizeof(RhBuildPush) == 48);
 struct RhCastersPush {
     glm::vec4 lightLarge;    // xyz light, w PENUMBRA_RH_LARGE_ANGLE
     glm::vec4 toLightOffset; // directional lights: toward the light; w: the rays' origin offset
-    uint32_t capacity, select, pointLight, spotLight, lightIndex, gridFaces, pad[2];
+    uint32_t capacity, select, pointLight, spotLight, lightIndex, gridFaces, gridOrder, pad;
 };
 static_assert(sizeof(RhCastersPush) == 64);
 struct RhStepPush {
@@ -189,6 +190,7 @@ class RhPass {
   private:
     uint32_t maxLevels() const;
     uint32_t sortOrder(uint32_t faces) const; // Hilbert order of the keys per face
+    uint32_t gridOrder(uint32_t faces) const; // the receivers' depth grid: 2^order cells a side
     vk::ComputeKernel rays, scanTiles, scanKeys, build, buildParallel, step, traverse, traverseParallel;
     VkDescriptorSetLayout castersSetLayout = VK_NULL_HANDLE;
     VkDescriptorPool castersPool = VK_NULL_HANDLE;
