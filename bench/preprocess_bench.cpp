@@ -2,6 +2,7 @@
 // `penumbra preprocess` does. Prints time, triangles/s, bytes per triangle per
 // section, and peak RSS against the input file size, plus one JSON line.
 //   bench_preprocess INPUT [--threads N] [--out MODEL.penumbra]
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -54,8 +55,13 @@ int main(int argc, char** argv)
         double clusters = model.clusters.size_bytes() / stored, nodes = model.nodes.size_bytes() / stored;
         double vertices = model.vertices.size_bytes() / stored, indices = model.indices.size_bytes() / stored;
 
-        std::printf("%s: %.0f triangles in, %.0f stored, %u clusters, %u nodes, depth %u\n", input.c_str(), triangles, stored,
-                    model.header.clusterCount, model.header.nodeCount, model.header.bvhDepth);
+        // 4-wide nodes (format version 4): every node but the root fills one slot, every leaf one more.
+        const double slotsPerNode = double(model.header.nodeCount - 1 + stats.leaves) / model.header.nodeCount;
+        std::printf("%s: %.0f triangles in, %.0f stored, %u clusters, %u nodes (%.2f children each), %llu leaves "
+                    "(%.1f triangles each), depth %u, %llu widened box coordinates\n",
+                    input.c_str(), triangles, stored, model.header.clusterCount, model.header.nodeCount, slotsPerNode,
+                    (unsigned long long)stats.leaves, stored / double(std::max<uint64_t>(stats.leaves, 1)), model.header.bvhDepth,
+                    (unsigned long long)stats.widenedBounds);
         std::printf("  time      import %.2f s + build %.2f s (filter %.2f incl. closed %.2f, tree %.2f, clusters %.2f, layout %.2f) + write %.2f s = %.2f s -> %.2f M tris/s\n",
                     seconds(t0, t1), seconds(t1, t2), stats.filterSeconds, stats.closedSeconds, stats.treeSeconds,
                     stats.clusterSeconds, stats.layoutSeconds, seconds(t2, t3), total, triangles / total * 1e-6);
@@ -67,9 +73,10 @@ int main(int argc, char** argv)
         std::printf("  error     max position error %.3g (model units)\n", double(model.header.maxPositionError));
         std::printf("{\"bench\":\"preprocess\",\"input\":\"%s\",\"triangles\":%.0f,\"seconds\":%.3f,\"mtris_per_s\":%.3f,"
                     "\"bytes_per_triangle\":%.3f,\"clusters_bpt\":%.3f,\"nodes_bpt\":%.3f,\"vertices_bpt\":%.3f,\"indices_bpt\":%.3f,"
-                    "\"peak_rss_mib\":%.1f,\"input_mib\":%.1f,\"threads\":%u}\n",
+                    "\"peak_rss_mib\":%.1f,\"input_mib\":%.1f,\"threads\":%u,\"nodes\":%u,\"leaves\":%llu,\"bvh_depth\":%u}\n",
                     input.c_str(), triangles, total, triangles / total * 1e-6, clusters + nodes + vertices + indices, clusters, nodes,
-                    vertices, indices, peakMiB, inputMiB, threads);
+                    vertices, indices, peakMiB, inputMiB, threads, model.header.nodeCount, (unsigned long long)stats.leaves,
+                    model.header.bvhDepth);
     } catch (const penumbra::Error& e) {
         std::fprintf(stderr, "bench_preprocess: error: %s\n", e.what());
         return 1;

@@ -22,7 +22,22 @@ layout(set = 0, binding = 2, std430) buffer Stats { uint64_t stats[]; };
 layout(push_constant) uniform CompactPush {
     uint pixelCount;
     uint phase;   // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
+    uint width;   // of the image (pixelCount = width x height)
+    uint pad;
 } push;
+
+// Invocation i visits the pixels in 8x8 tiles (row by row inside a tile), so
+// the rays of a SIMD register of the tracer come from one tile: neighbouring
+// points, coherent rays (the list keeps this order). Returns the pixel index,
+// or ~0u outside the image.
+uint tilePixel(uint i)
+{
+    uint tilesX = (push.width + 7u) >> 3;
+    uint tile = i >> 6, inside = i & 63u;
+    uint x = (tile % tilesX) * 8u + (inside & 7u), y = (tile / tilesX) * 8u + (inside >> 3);
+    uint height = push.pixelCount / max(push.width, 1u);
+    return x < push.width && y < height ? y * push.width + x : ~0u;
+}
 
 #ifdef PENUMBRA_FLOOR
 #include "floor.glsli"
@@ -51,8 +66,8 @@ void main()
         atomicAdd(stats[PENUMBRA_STAT_PIP], uint64_t(rays[0]));
         return;
     }
-    uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * PENUMBRA_COMPACT_GROUP_SIZE + gl_LocalInvocationID.x;
-    bool marked = i < push.pixelCount && marks[i] != 0u;
+    uint i = tilePixel((gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * PENUMBRA_COMPACT_GROUP_SIZE + gl_LocalInvocationID.x);
+    bool marked = i != ~0u && marks[i] != 0u;
     uvec4 ballot = subgroupBallot(marked);
     uint total = subgroupBallotBitCount(ballot);
     if (total == 0u)

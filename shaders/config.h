@@ -20,7 +20,7 @@
 #define PENUMBRA_THIN_TRIANGLES_GROUP_SIZE 64 // thin_triangles.comp: BVH nodes per workgroup, strip bytes decoded at once
 
 #define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: rays per workgroup
-#define PENUMBRA_TRACE_STACK_SIZE 64     // BVH traversal stack entries (>= model::kMaxBvhDepth)
+#define PENUMBRA_TRACE_STACK_SIZE 100    // BVH traversal stack entries (3 x model::kMaxBvhDepth + 4: 4-wide nodes)
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
 #define PENUMBRA_AFSM_SCAN_GROUP 256     // afsm_scan.comp: invocations per workgroup (16 counts each)
 #define PENUMBRA_AFSM_MAX_GRID 4096      // afsm: most grid cells per side (one level of block totals in the scan)
@@ -39,6 +39,7 @@
 #define PENUMBRA_CULL_RETEST_FRAMES 4   // occlusion culling: a visible cell's box is tested against the final depth every this many frames
 #define PENUMBRA_CULL_MIN_OCCLUDED 0.1  // occlusion culling: a view that occludes less of its frustum's clusters than this
 #define PENUMBRA_CULL_RETRY_FRAMES 16   // ... is culled by its frustum only for this many frames, then tried again
+#define PENUMBRA_CULL_MIN_TRIANGLES 65536 // occlusion culling: a view whose frustum holds fewer triangles is culled by its frustum only
 #define PENUMBRA_THIN_TEXELS 1.5         // thin-triangle pass: triangles narrower than this (texels) are rasterized conservatively
 #define PENUMBRA_MASK_GROUP_SIZE 8       // penumbra_mask.comp: workgroups of 8x8 texels of the coarser level
 #define PENUMBRA_MASK_TARGET_TEXELS 16.0 // penumbra splats are drawn at the mask level where they span at most this many texels
@@ -96,6 +97,12 @@
 // rh_traverse.comp.glsl: the cone/triangle test (RenderSettings::rhTest).
 #define PENUMBRA_RH_TEST_PRECISE 0u      // Olsson and Assarsson 2011, section 3.2: edge planes, tangent planes, the plane's range
 #define PENUMBRA_RH_TEST_SPHERES 1u      // the triangle's bounding sphere against the cone (Roger et al. 2007)
+// thin_triangles.comp.glsl phases (a specialization constant).
+#define PENUMBRA_THIN_LIST 0u            // decode the leaves near receivers, list the slivers
+#define PENUMBRA_THIN_DISPATCH 1u        // the fill's indirect dispatch from the list's length
+#define PENUMBRA_THIN_FILL 2u            // fill each listed sliver's conservative rectangle
+#define PENUMBRA_THIN_LIST_HEADER_UINTS 8 // thin list: count, dispatch[3], capacity, padding; then uvec2 entries
+#define PENUMBRA_THIN_LIST_MAX (1u << 24) // most slivers listed per light layer (the list is sized min(triangles, this))
 // compact.comp.glsl phases.
 #define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list
 #define PENUMBRA_COMPACT_DISPATCH 1u     // the tracer's indirect dispatch size from the list's count

@@ -27,12 +27,38 @@
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_8bit_storage : require
+#extension GL_EXT_shader_16bit_storage : require
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_ballot : require
 
 #include "config.h"
+// 1: the model is read through texel buffers (GpuGeometry::texelsComplete), 0: by device address.
+layout(constant_id = 0) const uint kTexelAccess = 0u;
+// 1: an area light's map, whose slivers also write their per-texel depths (push.localLayer).
+layout(constant_id = 1) const uint kLocalDepths = 0u;
+// PENUMBRA_THIN_LIST: decode the leaves and list the slivers; PENUMBRA_THIN_DISPATCH: the fill's
+// indirect dispatch from the list's length; PENUMBRA_THIN_FILL: fill each listed sliver's rectangle.
+layout(constant_id = 2) const uint kPhase = PENUMBRA_THIN_LIST;
+// 1: the vertices' texel view is R16_UINT, three texels a vertex (GpuGeometry::vertexTexelsSplit).
+layout(constant_id = 3) const uint kSplitVertexTexels = 0u;
+// The slivers of this view: count, the fill's indirect dispatch, then per sliver its cluster and
+// strip position (the byte of its third vertex, relative to the cluster's strips) | odd << 16.
+// Written by the host once: capacity (entries the list holds); cleared per view: count.
+layout(set = 0, binding = 5, std430) buffer ThinList
+{
+    uint thinCount;
+    uint thinDispatch[3];
+    uint thinCapacity;
+    uint thinPad[3];
+    uvec2 thinTriangles[];
+};
+layout(set = 0, binding = 1) uniform usamplerBuffer modelNodes;
+layout(set = 0, binding = 2) uniform usamplerBuffer modelClusters;
+layout(set = 0, binding = 3) uniform usamplerBuffer modelVertices;
+layout(set = 0, binding = 4) uniform usamplerBuffer modelStrips;
 #include "bvh_traversal.glsli"
+#include "bvh_texels.glsli"
 
 layout(local_size_x = PENUMBRA_THIN_TRIANGLES_GROUP_SIZE) in;
 
@@ -40,7 +66,7 @@ layout(set = 0, binding = 0, r32ui) uniform uimage2DArray thinMap;
 
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer LeafAltitudes
 {
-    float altitude[]; // per node: a leaf's smallest triangle altitude, model units
+    float altitude[]; // per child slot (4 x node + slot): a leaf's smallest triangle altitude, model units
 };
 
 layout(push_constant) uniform ThinDetectPush
@@ -105,21 +131,52 @@ float nearestDepthInSlab(EdgeDepth edges[3], float lo, float hi)
     return min(nearestOnEdge(edges[0], lo, hi), min(nearestOnEdge(edges[1], lo, hi), nearestOnEdge(edges[2], lo, hi)));
 }
 
-// Appends the conservative rectangle of triangle (v0, v1, v2) when it is thin.
-void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
+// A vertex in the light's view: texel coordinates (xy), NDC depth (z), and
+// w > 0 (1) or not (0), projected once per strip byte.
+vec4 projectVertex(vec3 v)
 {
-    vec4 clip[3] = vec4[3](push.viewProj * vec4(v0, 1.0), push.viewProj * vec4(v1, 1.0), push.viewProj * vec4(v2, 1.0));
-    if (clip[0].w <= 0.0 || clip[1].w <= 0.0 || clip[2].w <= 0.0)
-        return; // crosses the light's near plane: the shadow map clips it too
-    vec2 p[3];
-    float z[3];
-    float zMin = 1.0;
+    vec4 clip = push.viewProj * vec4(v, 1.0);
+    vec3 ndc = clip.xyz / clip.w;
+    return vec4((ndc.xy * 0.5 + 0.5) * push.mapSize, ndc.z, clip.w > 0.0 ? 1.0 : 0.0);
+}
+
+// True when triangle (v0, v1, v2) (projectVertex) is a sliver whose conservative rectangle is filled.
+bool isSliver(vec4 v0, vec4 v1, vec4 v2)
+{
+    if (v0.w == 0.0 || v1.w == 0.0 || v2.w == 0.0)
+        return false; // crosses the light's near plane: the shadow map clips it too
+    vec2 p[3] = vec2[3](v0.xy, v1.xy, v2.xy);
+    float zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
+    if (!(zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
+        return false;
+    float longest = -1.0;
+    int a = 0;
     for (int i = 0; i < 3; ++i) {
-        vec3 ndc = clip[i].xyz / clip[i].w;
-        p[i] = (ndc.xy * 0.5 + 0.5) * push.mapSize;
-        z[i] = ndc.z;
-        zMin = min(zMin, ndc.z);
+        float len = distance(p[i], p[(i + 1) % 3]);
+        if (len > longest) {
+            longest = len;
+            a = i;
+        }
     }
+    vec2 A = p[a], B = p[(a + 1) % 3], C = p[(a + 2) % 3];
+    float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
+    float height = longest > 0.0 ? twiceArea / longest : 0.0;
+    // Slivers only (long and narrow: wires, poles, bars). Triangles small in
+    // every direction belong to dense surfaces whose neighbours cover the
+    // texels; the depth-discontinuity test handles their silhouettes.
+    return !(height >= PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_TEXELS);
+}
+
+// Fills the conservative rectangle of triangle (v0, v1, v2) (projectVertex)
+// when it is thin: the texels x = first, first + step, ... of each row (the
+// lanes of a subgroup share one sliver's rows).
+void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step)
+{
+    if (v0.w == 0.0 || v1.w == 0.0 || v2.w == 0.0)
+        return; // crosses the light's near plane: the shadow map clips it too
+    vec2 p[3] = vec2[3](v0.xy, v1.xy, v2.xy);
+    float z[3] = float[3](v0.z, v1.z, v2.z);
+    float zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
     if (!(zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
         return;
     // Longest edge a -> b, third vertex c.
@@ -155,7 +212,7 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     // {A + d t + nrm u : t in [d0, d1], u in [n0, n1]}.
     ivec2 size = ivec2(push.mapSize);
     int yBegin = max(int(ceil(lo.y - 0.5)), 0), yEnd = min(int(floor(hi.y - 0.5)), size.y - 1);
-    const bool local = push.localLayer != 0xFFFFFFFFu;
+    const bool local = kLocalDepths != 0u;
     // The edges' depths along the longest edge: A at t = 0, B at longest, C at along.
     EdgeDepth edges[3];
     if (local)
@@ -168,13 +225,16 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
         int xBegin = max(int(ceil(xLo + A.x - 0.5)), 0), xEnd = min(int(floor(xHi + A.x - 0.5)), size.x - 1);
         // Two loops, so that the hard-shadow maps' fill stays as lean as it was.
         if (!local) {
-            for (int x = xBegin; x <= xEnd; ++x)
-                imageAtomicMin(thinMap, ivec3(x, y, int(push.layer)), floatBitsToUint(zMin));
+            for (int x = xBegin + first; x <= xEnd; x += step) {
+                ivec3 texel = ivec3(x, y, int(push.layer));
+                if (imageLoad(thinMap, texel).r > floatBitsToUint(zMin))
+                    imageAtomicMin(thinMap, texel, floatBitsToUint(zMin));
+            }
             continue;
         }
         // Area lights' slivers overlap (a grating's bars, a strip's neighbours): here skipping the
         // atomics that would change nothing pays (interior 512^2: about 350 -> 320 ms on lavapipe).
-        for (int x = xBegin; x <= xEnd; ++x) {
+        for (int x = xBegin + first; x <= xEnd; x += step) {
             ivec3 texel = ivec3(x, y, int(push.layer));
             if (imageLoad(thinMap, texel).r > floatBitsToUint(zMin))
                 imageAtomicMin(thinMap, texel, floatBitsToUint(zMin));
@@ -188,83 +248,164 @@ void emitIfThin(vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-shared uvec4 passingLeaves[PENUMBRA_THIN_TRIANGLES_GROUP_SIZE]; // the leaf nodes themselves
+shared uvec2 passingLeaves[4 * PENUMBRA_THIN_TRIANGLES_GROUP_SIZE]; // cluster, leaf reference (start | count << 16)
 shared uint passingCount;
+
+ClusterInfo clusterInfo(ModelTable table, uint cluster)
+{
+    return kTexelAccess != 0u ? clusterTexels(cluster) : loadCluster(table, cluster);
+}
 
 // A leaf whose every triangle is wider than the thin threshold in model space, at the smallest texel size
 // the leaf can see, holds no sliver unless seen edge-on; edge-on faces of closed objects are covered by
 // their neighbours in the shadow map, so such a leaf is skipped without decoding.
-bool mayHoldSlivers(ModelTable table, uint index, uvec4 leaf)
+bool mayHoldSlivers(ModelTable table, uint slot, uint clusterIndex)
 {
     if (push.leafAltitudes == 0ul)
         return true;
-    float altitude = LeafAltitudes(push.leafAltitudes).altitude[index];
+    float altitude = LeafAltitudes(push.leafAltitudes).altitude[slot];
     float texel = push.texelSize;
     if (push.light.w != 0.0) {
-        ClusterInfo cluster = loadCluster(table, leaf.z);
+        ClusterInfo cluster = clusterInfo(table, clusterIndex);
         vec3 boxMax = cluster.boxMin + 65535.0 * cluster.step;
         texel *= distance(clamp(push.light.xyz, cluster.boxMin, boxMax), push.light.xyz) * push.light.w;
     }
     return altitude < PENUMBRA_THIN_TEXELS * texel;
 }
 
-// Each workgroup takes PENUMBRA_THIN_TRIANGLES_GROUP_SIZE BVH nodes and keeps the leaves that may hold
-// slivers; each subgroup then decodes its share of them, one invocation per strip byte, so that the
-// triangles of a leaf are projected in parallel. A byte's place in its strip (which decides the
-// winding) comes from the last restart before it: an inclusive max-scan of restart positions.
+// The strip walk of one leaf (forEachStripTriangle, as the tracer's leaf
+// test): the last two projected vertices are kept, so each strip byte
+// decodes and projects one vertex.
+struct StripWalk {
+    uint i0, i1;
+    vec4 p0, p1;
+    uint position; // bytes of the current strip so far
+};
+
+// byte: the strip position of i2 relative to the cluster's strips.
+void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded)
+{
+    vec4 p2 = projectVertex(decoded);
+    bool restart = i2 == 0xFFu;
+    bool odd = ((w.position - 2u) & 1u) != 0u;
+    // Slivers are listed for the fill phase: on lavapipe a fill here would
+    // run (masked) for every triangle.
+    if (!restart && w.position >= 2u && w.i0 != w.i1 && w.i1 != i2 && w.i0 != i2 && isSliver(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2)) {
+        uint slot = atomicAdd(thinCount, 1u);
+        if (slot < thinCapacity)
+            thinTriangles[slot] = uvec2(cluster, byte | (odd ? 1u << 16 : 0u));
+    }
+    w.i0 = w.i1;
+    w.p0 = w.p1;
+    w.i1 = i2;
+    w.p1 = p2;
+    w.position = restart ? 0u : w.position + 1u;
+}
+
+void decodeLeaf(ModelTable table, GeometryChunks chunks, uvec2 leaf)
+{
+    ClusterInfo cluster = clusterInfo(table, leaf.x);
+    StripWalk w = StripWalk(0u, 0u, vec4(0.0), vec4(0.0), 0u);
+    if (kTexelAccess != 0u) {
+        // Strip bytes 16 a texel: an outer loop over the leaf's texels, an inner one over their bytes.
+        const uint begin = uint(cluster.firstIndex) + (leaf.y & 0xFFFFu), end = begin + (leaf.y >> 16);
+        for (uint block = begin >> 4; begin < end && block <= (end - 1u) >> 4; ++block) {
+            const uvec4 bytes = texelFetch(modelStrips, int(block));
+            const uint last = min(end, (block + 1u) << 4);
+            for (uint byteIndex = max(begin, block << 4); byteIndex < last; ++byteIndex) {
+                uint i2 = (bytes[(byteIndex >> 2) & 3u] >> ((byteIndex & 3u) << 3)) & 0xFFu;
+                uvec3 q = vertexTexel(uint(cluster.firstVertex) + min(i2, 254u));
+                precise vec3 scaled = vec3(q) * cluster.step;
+                precise vec3 decoded = cluster.boxMin + scaled;
+                stripByte(w, leaf.x, byteIndex - uint(cluster.firstIndex), i2, decoded);
+            }
+        }
+    } else {
+        LeafStrips strips = openLeaf(table, chunks, cluster, leaf.y);
+        for (uint k = 0u; k < strips.count; ++k) {
+            uint i2 = uint(strips.strips.bytes[k]);
+            stripByte(w, leaf.x, (leaf.y & 0xFFFFu) + k, i2, decodeVertex(loadVertex(strips.vertices, min(i2, 254u)), cluster.boxMin, cluster.step));
+        }
+    }
+}
+
+// The fill of listed sliver `index`: its three vertices decoded again.
+void fillListed(ModelTable table, uint index)
+{
+    uvec2 entry = thinTriangles[index];
+    ClusterInfo cluster = clusterInfo(table, entry.x);
+    uint byte = entry.y & 0xFFFFu;
+    bool odd = (entry.y >> 16) != 0u;
+    uvec3 local;
+    vec3 v[3];
+    if (kTexelAccess != 0u) {
+        uint first = uint(cluster.firstIndex) + byte - 2u;
+        for (uint k = 0u; k < 3u; ++k) {
+            uint b = first + k;
+            uvec4 bytes = texelFetch(modelStrips, int(b >> 4));
+            uint i = (bytes[(b >> 2) & 3u] >> ((b & 3u) << 3)) & 0xFFu;
+            uvec3 q = vertexTexel(uint(cluster.firstVertex) + i);
+            precise vec3 scaled = vec3(q) * cluster.step;
+            precise vec3 decoded = cluster.boxMin + scaled;
+            v[k] = decoded;
+        }
+    } else {
+        LeafStrips strips = openLeaf(table, geometryChunksOf(push.modelTable, table), cluster, byte - 2u);
+        for (uint k = 0u; k < 3u; ++k)
+            v[k] = decodeVertex(loadVertex(strips.vertices, uint(strips.strips.bytes[k])), cluster.boxMin, cluster.step);
+    }
+    vec4 p0 = projectVertex(v[0]), p1 = projectVertex(v[1]), p2 = projectVertex(v[2]);
+    emitIfThin(odd ? p1 : p0, odd ? p0 : p1, p2, 0, 1);
+}
+
+// PENUMBRA_THIN_LIST: each workgroup takes PENUMBRA_THIN_TRIANGLES_GROUP_SIZE BVH nodes and lists their
+// leaves that may hold slivers; then each invocation decodes whole leaves of the list, one after
+// another, and lists the slivers. PENUMBRA_THIN_FILL: one invocation per listed sliver.
 void main()
 {
+    ModelTable table = ModelTable(push.modelTable);
+    if (kPhase == PENUMBRA_THIN_DISPATCH) {
+        if (gl_LocalInvocationIndex != 0u)
+            return;
+        uint perGroup = PENUMBRA_THIN_TRIANGLES_GROUP_SIZE;
+        uint groups = (min(thinCount, thinCapacity) + perGroup - 1u) / perGroup;
+        uint x = min(groups, 65535u);
+        thinDispatch[0] = x;
+        thinDispatch[1] = x == 0u ? 1u : (groups + x - 1u) / x;
+        thinDispatch[2] = 1u;
+        return;
+    }
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    if (kPhase == PENUMBRA_THIN_FILL) {
+        uint index = group * PENUMBRA_THIN_TRIANGLES_GROUP_SIZE + gl_LocalInvocationIndex;
+        if (index < min(thinCount, thinCapacity))
+            fillListed(table, index);
+        return;
+    }
     const uint lane = gl_LocalInvocationIndex;
     if (lane == 0u)
         passingCount = 0u;
     barrier();
     // Groups may be laid out in 2D when the nodes exceed maxComputeWorkGroupCount[0].
-    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     uint index = group * PENUMBRA_THIN_TRIANGLES_GROUP_SIZE + lane;
-    ModelTable table = ModelTable(push.modelTable);
-    NodeChunks nodeChunks = NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift);
     if (index < push.nodeCount) {
-        uvec4 node = loadNode(nodeChunks, index);
-        // node.z: the leaf's cluster. A cluster whose footprint lies 2 texels or more from every
-        // camera pixel's point cannot write a texel that is read (receiver masks, culling.h).
-        if (((node.y >> 16) & 0xFFu) == PENUMBRA_NODE_LEAF &&
-            (push.clusterMask == 0ul || (ClusterMask(push.clusterMask).bits[node.z >> 5u] & (1u << (node.z & 31u))) != 0u) &&
-            mayHoldSlivers(table, index, node))
-            passingLeaves[atomicAdd(passingCount, 1u)] = node;
+        WideNode node;
+        if (kTexelAccess != 0u)
+            node = nodeTexels(index);
+        else
+            node = loadNode(NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift), index);
+        const uint cluster = nodeCluster(node);
+        // A cluster whose footprint lies 2 texels or more from every camera pixel's
+        // point cannot write a texel that is read (receiver masks, culling.h).
+        const bool near = cluster != PENUMBRA_NO_CLUSTER &&
+                          (push.clusterMask == 0ul || (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u);
+        for (uint slot = 0u; slot < 4u; ++slot)
+            if (near && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF && mayHoldSlivers(table, 4u * index + slot, cluster))
+                passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);
     }
     barrier();
     const uint leafCount = passingCount;
-    GeometryChunks chunks = geometryChunksOf(push.modelTable, table);
-    for (uint j = gl_SubgroupID; j < leafCount; j += gl_NumSubgroups) {
-        uvec4 leaf = passingLeaves[j];
-        ClusterInfo cluster = loadCluster(table, leaf.z);
-        // The strips, decoded as leafOccludes() in bvh_traversal.glsli does.
-        LeafStrips leafStrips = openLeaf(table, chunks, cluster, leaf);
-        ByteArray strips = leafStrips.strips;
-        // Active invocations of the subgroup, in order (all of them, unless the subgroup is partial).
-        uvec4 lanes = subgroupBallot(true);
-        uint width = subgroupBallotBitCount(lanes), slot = subgroupBallotExclusiveBitCount(lanes);
-        int lastRestart = -1; // of the bytes before this chunk
-        for (uint chunkStart = 0u; chunkStart < leafStrips.count; chunkStart += width) {
-            uint k = chunkStart + slot;
-            bool inside = k < leafStrips.count;
-            uint i2 = inside ? uint(strips.bytes[k]) : 0u;
-            int restart = inside && i2 == 0xFFu ? int(k) : -1;
-            int before = max(lastRestart, subgroupExclusiveMax(restart)); // last restart before k
-            lastRestart = max(lastRestart, subgroupMax(restart));
-            // Invocations leave this iteration together (no continue): the next one's subgroup
-            // operations need every invocation of the subgroup.
-            uint position = k - uint(before + 1); // bytes of this strip before k
-            if (inside && i2 != 0xFFu && position >= 2u) {
-                uint i0 = uint(strips.bytes[k - 2u]), i1 = uint(strips.bytes[k - 1u]);
-                if (i0 != i1 && i1 != i2 && i0 != i2) {
-                    vec3 p0 = decodeVertex(loadVertex(leafStrips.vertices, i0), cluster.boxMin, cluster.step);
-                    vec3 p1 = decodeVertex(loadVertex(leafStrips.vertices, i1), cluster.boxMin, cluster.step);
-                    vec3 p2 = decodeVertex(loadVertex(leafStrips.vertices, i2), cluster.boxMin, cluster.step);
-                    bool odd = ((position - 2u) & 1u) != 0u;
-                    emitIfThin(odd ? p1 : p0, odd ? p0 : p1, p2);
-                }
-            }
-        }
-    }
+    GeometryChunks chunks = kTexelAccess != 0u ? GeometryChunks(0ul) : geometryChunksOf(push.modelTable, table);
+    for (uint j = lane; j < leafCount; j += PENUMBRA_THIN_TRIANGLES_GROUP_SIZE)
+        decodeLeaf(table, chunks, passingLeaves[j]);
 }

@@ -7,6 +7,7 @@
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_8bit_storage : require
+#extension GL_EXT_shader_16bit_storage : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_GOOGLE_include_directive : require
@@ -15,12 +16,34 @@
 #include "config.h"
 // 1: the model is read through texel buffers (bvh_texels.glsli, GpuGeometry::texelsComplete); 0: by device address.
 layout(constant_id = 0) const uint kTexelAccess = 0u;
+// 1: the vertices' texel view is R16_UINT, three texels a vertex (GpuGeometry::vertexTexelsSplit).
+layout(constant_id = 1) const uint kSplitVertexTexels = 0u;
 layout(set = 0, binding = 6) uniform usamplerBuffer modelNodes;
 layout(set = 0, binding = 7) uniform usamplerBuffer modelClusters;
 layout(set = 0, binding = 8) uniform usamplerBuffer modelVertices;
 layout(set = 0, binding = 9) uniform usamplerBuffer modelStrips;
 #include "bvh_traversal.glsli"
 #include "bvh_texels.glsli"
+
+// The model's access for bvh_wide.glsli: texel fetches, or device addresses
+// through the model table (set up in main).
+ModelTable gTable;
+GeometryChunks gChunks;
+NodeChunks gNodeChunks;
+
+WideNode traversalNode(uint index)
+{
+    return kTexelAccess != 0u ? nodeTexels(index) : loadNode(gNodeChunks, index);
+}
+ClusterInfo traversalCluster(uint cluster)
+{
+    return kTexelAccess != 0u ? clusterTexels(cluster) : loadCluster(gTable, cluster);
+}
+bool traversalLeaf(ShadowRay ray, ClusterInfo cluster, uint leaf, inout TraceCounters counters)
+{
+    return kTexelAccess != 0u ? leafOccludesTexels(ray, cluster, leaf, counters) : leafOccludes(gTable, gChunks, ray, cluster, leaf, counters);
+}
+#include "bvh_wide.glsli"
 #include "shadow_common.glsli"
 #include "penumbra/light_sampling.h"
 
@@ -51,9 +74,7 @@ layout(push_constant) uniform Push
 
 bool occluded(ShadowRay ray, inout TraceCounters counters)
 {
-    if (kTexelAccess != 0u)
-        return modelOccludesTexels(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters);
-    return modelOccludes(push.modelTable, ray, counters);
+    return modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters);
 }
 
 // Soft shadows (area lights): the fraction of the pixel's light samples
@@ -120,6 +141,11 @@ float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout Tr
 
 void main()
 {
+    if (kTexelAccess == 0u) {
+        gTable = ModelTable(push.modelTable);
+        gChunks = geometryChunksOf(push.modelTable, gTable);
+        gNodeChunks = NodeChunks(gTable, gTable.nodeChunks[0], gTable.nodeChunkShift);
+    }
     // Groups may be laid out in 2D when the list exceeds maxComputeWorkGroupCount[0].
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     uint index = group * PENUMBRA_TRACE_GROUP_SIZE + gl_LocalInvocationIndex;

@@ -1,5 +1,7 @@
 // Pieces of the .penumbra model shared by the writer, reader, preprocessor,
 // runtime and tests: owning views, the scalar position decoder, node boxes.
+#include <cstring>
+
 #include <glm/common.hpp>
 
 #include "penumbra/model_format.h"
@@ -134,18 +136,22 @@ glm::vec3 decodePosition(const model::ClusterRecord& cluster, const model::Quant
     return {cluster.boxMin[0] + x, cluster.boxMin[1] + y, cluster.boxMin[2] + z};
 }
 
-void decodeChildBounds(const model::Node& child, const glm::vec3& parentMin, const glm::vec3& parentMax, glm::vec3& min,
-                       glm::vec3& max)
+float nodeStep(uint8_t exponent)
 {
-    const glm::vec3 extent = (parentMax - parentMin) * (1.0f / 255.0f);
+    const uint32_t bits = uint32_t(exponent) << 23;
+    float step;
+    std::memcpy(&step, &bits, sizeof(step));
+    return step;
+}
+
+void decodeChildBox(const model::Node& node, uint32_t c, glm::vec3& min, glm::vec3& max)
+{
+    // q * 2^k is exact: one rounding, in the add (an FMA gives the same result).
     for (int axis = 0; axis < 3; ++axis) {
-        min[axis] = parentMin[axis] + float(child.lo[axis]) * extent[axis];
-        max[axis] = parentMin[axis] + float(child.hi[axis]) * extent[axis];
+        const float step = nodeStep(node.exponent[axis]);
+        min[axis] = node.origin[axis] + float(node.lo[axis][c]) * step;
+        max[axis] = node.origin[axis] + float(node.hi[axis][c]) * step;
     }
-    // hi = 255 must reach the parent's max exactly despite rounding.
-    for (int axis = 0; axis < 3; ++axis)
-        if (child.hi[axis] == 255)
-            max[axis] = parentMax[axis];
 }
 
 } // namespace penumbra

@@ -246,9 +246,8 @@ void validateClusters(const CompressedModel& model, const std::string& subject, 
         if (cluster.node >= model.nodes.size())
             failCluster(c, "node " + str(cluster.node) + " out of range (" + str(uint64_t(model.nodes.size())) +
                                " nodes)");
-        const Node& node = model.nodes[cluster.node];
-        if (node.kind != uint8_t(NodeKind::Cluster) || node.second != c)
-            failCluster(c, "node " + str(cluster.node) + " is not this cluster's Cluster node");
+        if (model.nodes[cluster.node].cluster != c)
+            failCluster(c, "node " + str(cluster.node) + " is not this cluster's root node");
 
         // Strips: local indices < vertexCount separated by single restarts.
         const uint8_t* strip = indices + cluster.firstIndex;
@@ -282,8 +281,9 @@ void validateClusters(const CompressedModel& model, const std::string& subject, 
              "header says " + str(model.header.triangleCount) + " triangles but the clusters hold " + str(triangleSum));
 }
 
-// Per node: kind, child links (after the parent, in range, exactly one
-// parent each), bounds. Together these make the nodes a tree rooted at 0.
+// Per node: grid, child kinds and boxes, child links (after the node, in
+// range, exactly one slot each), clusters' roots named once and by their
+// records. Together these make the nodes a tree rooted at 0.
 void validateNodeLinks(const CompressedModel& model, const std::string& subject)
 {
     const size_t nodeCount = model.nodes.size();
@@ -293,103 +293,123 @@ void validateNodeLinks(const CompressedModel& model, const std::string& subject)
     std::vector<uint32_t> parent(nodeCount, kNone);
     for (size_t n = 0; n < nodeCount; ++n) {
         const Node& node = model.nodes[n];
-        for (int axis = 0; axis < 3; ++axis)
-            if (node.lo[axis] > node.hi[axis])
-                failNode(n, "bounds lo " + str(node.lo[axis]) + " > hi " + str(node.hi[axis]) + " on axis " +
-                                str(uint64_t(axis)));
-        switch (NodeKind(node.kind)) {
-        case NodeKind::Leaf:
-            if (node.childCount != 0)
-                failNode(n, "leaf with " + str(node.childCount) + " children");
-            continue;
-        case NodeKind::Cluster:
-            if (node.second >= model.clusters.size())
-                failNode(n, "cluster " + str(node.second) + " out of range (" + str(uint64_t(model.clusters.size())) +
-                                " clusters)");
-            if (model.clusters[node.second].node != n)
-                failNode(n,
-                         "cluster " + str(node.second) + " belongs to node " + str(model.clusters[node.second].node));
-            break;
-        case NodeKind::Interior:
-            break;
-        default:
-            failNode(n, "unknown kind " + str(node.kind));
+        if (!std::isfinite(node.origin[0]) || !std::isfinite(node.origin[1]) || !std::isfinite(node.origin[2]))
+            failNode(n, "non-finite grid origin");
+        for (int axis = 0; axis < 3; ++axis) {
+            if (node.exponent[axis] < 1 || node.exponent[axis] > 254)
+                failNode(n, "grid exponent " + str(node.exponent[axis]) + " outside 1..254 on axis " + str(uint64_t(axis)));
+            if (!std::isfinite(node.origin[axis] + 255.0f * nodeStep(node.exponent[axis])))
+                failNode(n, "grid overflows on axis " + str(uint64_t(axis)));
         }
-        if (node.childCount < 1 || node.childCount > 2)
-            failNode(n, str(node.childCount) + " children (interior and cluster nodes have 1 or 2)");
-        if (node.first <= n)
-            failNode(n, "child " + str(node.first) + " is not after its parent");
-        if (uint64_t(node.first) + node.childCount > nodeCount)
-            failNode(n, "child " + str(uint64_t(node.first) + node.childCount - 1) + " out of range (" +
-                            str(uint64_t(nodeCount)) + " nodes)");
-        for (uint32_t child = node.first; child < node.first + node.childCount; ++child) {
+        if (node.reserved != 0)
+            failNode(n, "reserved word is not zero");
+        const bool top = node.cluster == kNoCluster;
+        if (!top && node.cluster >= model.clusters.size())
+            failNode(n, "cluster " + str(node.cluster) + " out of range (" + str(uint64_t(model.clusters.size())) + " clusters)");
+        const uint32_t children = childCount(node);
+        if (children == 0)
+            failNode(n, "no children");
+        for (uint32_t c = 0; c < kNodeChildren; ++c) {
+            const ChildKind kind = childKind(node, c);
+            const std::string slot = "child " + str(c) + ": ";
+            if (c >= children) {
+                if (kind != ChildKind::Empty)
+                    failNode(n, slot + "follows an empty slot");
+                for (int axis = 0; axis < 3; ++axis)
+                    if (node.lo[axis][c] != 0 || node.hi[axis][c] != 0)
+                        failNode(n, slot + "empty slot with a box");
+                if (node.child[c] != 0)
+                    failNode(n, slot + "empty slot with a reference");
+                continue;
+            }
+            for (int axis = 0; axis < 3; ++axis)
+                if (node.lo[axis][c] > node.hi[axis][c])
+                    failNode(n, slot + "box lo " + str(node.lo[axis][c]) + " > hi " + str(node.hi[axis][c]) + " on axis " +
+                                    str(uint64_t(axis)));
+            if (kind == ChildKind::Leaf) {
+                if (top)
+                    failNode(n, slot + "a leaf in a node above the clusters");
+                continue; // ranges: validateTree
+            }
+            if (kind == ChildKind::Cluster && !top)
+                failNode(n, slot + "a cluster inside cluster " + str(node.cluster));
+            const uint32_t child = node.child[c];
+            if (child <= n)
+                failNode(n, slot + "node " + str(child) + " is not after its parent");
+            if (child >= nodeCount)
+                failNode(n, slot + "node " + str(child) + " out of range (" + str(uint64_t(nodeCount)) + " nodes)");
             if (parent[child] != kNone)
-                fail(subject, "node " + str(child) + " is referenced by two parents (nodes " + str(parent[child]) +
-                                  " and " + str(uint64_t(n)) + ")");
+                fail(subject, "node " + str(child) + " is referenced by two parents (nodes " + str(parent[child]) + " and " +
+                                  str(uint64_t(n)) + ")");
             parent[child] = uint32_t(n);
+            const uint32_t childCluster = model.nodes[child].cluster;
+            if (kind == ChildKind::Cluster) {
+                if (childCluster == kNoCluster || childCluster >= model.clusters.size() || model.clusters[childCluster].node != child)
+                    failNode(n, slot + "node " + str(child) + " is not the root node of the cluster it names");
+            } else if (childCluster != node.cluster) {
+                failNode(n, slot + "interior node " + str(child) + " lies in another part of the tree (cluster " +
+                                (childCluster == kNoCluster ? std::string("none") : str(childCluster)) + ")");
+            }
         }
     }
-    const Node& root = model.nodes[0];
-    for (int axis = 0; axis < 3; ++axis)
-        if (root.lo[axis] != 0 || root.hi[axis] != 255)
-            failNode(0, "root bounds must be lo 0, hi 255 (the header's box)");
+    if (model.nodes[0].cluster != kNoCluster)
+        failNode(0, "the root lies in cluster " + str(model.nodes[0].cluster) + " (it must be above the clusters)");
     for (size_t n = 1; n < nodeCount; ++n) {
         if (parent[n] != kNone)
             continue;
         const Node& node = model.nodes[n];
-        if (node.kind == uint8_t(NodeKind::Cluster))
-            fail(subject,
-                 "cluster " + str(node.second) + " (node " + str(uint64_t(n)) + ") is not reachable from the root");
+        if (node.cluster != kNoCluster && model.clusters[node.cluster].node == n)
+            fail(subject, "cluster " + str(node.cluster) + " (node " + str(uint64_t(n)) + ") is not reachable from the root");
         failNode(n, "not referenced by any parent (unreachable)");
     }
 }
 
-// Depth-first traversal from the root: clusters do not nest, every leaf lies
-// in the subtree of the Cluster node of its cluster and covers whole strips,
-// the leaves of a cluster cover its strips once, and the depth is as declared.
+// Depth-first traversal from the root: every leaf lies in the subtree of its
+// cluster's root and covers whole strips, the leaves of a cluster cover its
+// strips once, and the depth is as declared.
 void validateTree(const CompressedModel& model, const std::string& subject, uint32_t maxIndexBytes)
 {
     struct Entry {
         uint32_t node;
         uint32_t depth;
-        uint32_t cluster; // enclosing cluster or kNone
     };
-    // A binary tree of depth <= kMaxBvhDepth never holds more than depth + 1 pending entries.
-    std::array<Entry, 2 * kMaxBvhDepth + 2> stack;
+    // A tree of depth <= kMaxBvhDepth with 4 children a node never holds more
+    // than 3 x depth + 1 pending entries.
+    std::array<Entry, 3 * kMaxBvhDepth + 4> stack;
     size_t top = 0;
-    stack[top++] = {0, 1, kNone};
+    stack[top++] = {0, 1};
     std::vector<uint32_t> leafTriangles(model.clusters.size(), 0);
     std::vector<uint64_t> covered(maxIndexBytes / 64 + 1, 0); // strip bytes of the current cluster owned by a leaf
     auto failNode = [&subject](size_t n, const std::string& problem) {
         fail(subject, "node " + str(uint64_t(n)) + ": " + problem);
     };
-    uint32_t depth = 0;
+    uint32_t depth = 0, currentCluster = kNone;
     while (top > 0) {
         const Entry entry = stack[--top];
         const Node& node = model.nodes[entry.node];
+        if (entry.depth > kMaxBvhDepth)
+            fail(subject, "BVH deeper than " + str(kMaxBvhDepth) + " levels");
         depth = std::max(depth, entry.depth);
-        uint32_t cluster = entry.cluster;
-        if (node.kind == uint8_t(NodeKind::Cluster)) {
-            if (cluster != kNone)
-                failNode(entry.node, "cluster node inside the subtree of cluster " + str(cluster));
-            cluster = node.second;
-            // A cluster's subtree is traversed contiguously, so one bitmap serves all clusters.
+        const uint32_t cluster = node.cluster;
+        if (cluster != kNoCluster && cluster != currentCluster) {
+            // A cluster's subtree is traversed contiguously (its root first), so one bitmap serves all clusters.
+            if (model.clusters[cluster].node != entry.node)
+                failNode(entry.node, "reached inside cluster " + str(cluster) + " before its root");
+            currentCluster = cluster;
             std::fill_n(covered.begin(), model.clusters[cluster].indexBytes / 64 + 1, 0);
-        } else if (node.kind == uint8_t(NodeKind::Leaf)) {
-            if (cluster == kNone)
-                failNode(entry.node, "leaf outside any cluster");
-            if (node.first != cluster)
-                failNode(entry.node,
-                         "leaf names cluster " + str(node.first) + " but lies under cluster " + str(cluster));
+        }
+        const uint32_t children = childCount(node);
+        for (uint32_t c = 0; c < children; ++c) {
+            if (childKind(node, c) != ChildKind::Leaf)
+                continue;
             const ClusterRecord& record = model.clusters[cluster];
-            const uint32_t start = node.second & 0xFFFF, count = node.second >> 16;
+            const uint32_t start = node.child[c] & 0xFFFF, count = node.child[c] >> 16;
             const uint32_t end = start + count;
-            auto range = [&] { return "leaf range " + str(start) + ".." + str(end); }; // text only on failure
+            auto range = [&] { return "child " + str(c) + ": leaf range " + str(start) + ".." + str(end); }; // text only on failure
             if (count == 0)
-                failNode(entry.node, "empty leaf range");
+                failNode(entry.node, range() + " is empty");
             if (end > record.indexBytes)
-                failNode(entry.node, range() + " lies outside the " + str(record.indexBytes) +
-                                         " strip bytes of cluster " + str(cluster));
+                failNode(entry.node, range() + " lies outside the " + str(record.indexBytes) + " strip bytes of cluster " + str(cluster));
             const uint8_t* strip = model.indices.data() + record.firstIndex;
             if (start > 0 && strip[start - 1] != kStripRestart)
                 failNode(entry.node, range() + " does not begin at a strip start");
@@ -401,14 +421,14 @@ void validateTree(const CompressedModel& model, const std::string& subject, uint
             if (triangles == 0)
                 failNode(entry.node, range() + " holds no triangles");
             leafTriangles[cluster] += triangles;
-            continue;
         }
-        if (entry.depth >= kMaxBvhDepth)
-            fail(subject, "BVH deeper than " + str(kMaxBvhDepth) + " levels");
-        if (top + node.childCount > stack.size())
-            fail(subject, "internal error: BVH traversal stack overflow");
-        for (uint32_t k = node.childCount; k-- > 0;)
-            stack[top++] = {node.first + k, entry.depth + 1, cluster};
+        for (uint32_t c = children; c-- > 0;) {
+            if (childKind(node, c) == ChildKind::Leaf)
+                continue;
+            if (top == stack.size())
+                fail(subject, "BVH deeper than " + str(kMaxBvhDepth) + " levels");
+            stack[top++] = {node.child[c], entry.depth + 1};
+        }
     }
     if (depth != model.header.bvhDepth)
         fail(subject, "header says the BVH has " + str(model.header.bvhDepth) + " levels but it has " + str(depth));

@@ -1,13 +1,20 @@
-// The node array of the single BVH (Lauterbach et al. 2009, section 5.1; 8-bit
-// hierarchical bounds as in compressed BVHs, Mahovsky 2005): top-level nodes,
-// Cluster nodes and the cluster-internal nodes down to strip-range leaves in
-// one array, root first, the children of a node stored consecutively after it
-// in depth-first order. Each box is stored as 8-bit lo/hi relative to its
-// parent's DECODED box (decodeChildBounds), rounded outward and then checked
-// with the decoder itself: a coordinate whose decoded value misses the exact
-// box (float rounding) is widened by one step until it contains it.
+// The node array of the single BVH (Lauterbach et al. 2009, section 5.1) as a
+// 4-wide BVH with compressed child boxes (Ylitie, Karras, Laine 2017): the
+// binary top tree over the clusters and each cluster's binary tree down to
+// strip-range leaves are collapsed into nodes of up to four children, root
+// first, children after their node in depth-first order. A node's children
+// are its binary children with the largest-area interior ones replaced by
+// theirs while four slots allow it (a cluster's root is never merged into
+// the nodes above it: it stays a node of its own, named by a Cluster slot).
+// Each node quantizes its children's boxes to 8 bits on a grid of its own
+// (origin, power-of-two step per axis), rounded outward and then checked with
+// the decoder itself (decodeChildBox): a coordinate whose decoded value misses
+// the exact box is widened by one step until it holds it.
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <string>
 
 #include "penumbra/error.h"
@@ -17,143 +24,248 @@ namespace penumbra::preprocess_detail {
 
 namespace {
 
-// Encodes exact into node.lo/hi relative to the parent box; returns the decoded box.
-void encodeBounds(model::Node& node, const glm::vec3& parentMin, const glm::vec3& parentMax, const Box& exact,
-                  glm::vec3& decodedMin, glm::vec3& decodedMax, uint64_t& widened)
+// A node of the binary trees: a TopNode (cluster == kNone) or a cluster's LocalNode.
+struct BinaryRef {
+    uint32_t source;
+    uint32_t cluster; // built cluster, kNone for a TopNode
+};
+
+struct Trees {
+    const TopTree& tree;
+    const std::vector<Box>& topBoxes;
+    const std::vector<BuiltCluster>& clusters;
+
+    const Box& box(BinaryRef r) const { return r.cluster == kNone ? topBoxes[r.source] : clusters[r.cluster].nodes[r.source].box; }
+    model::ChildKind kind(BinaryRef r) const
+    {
+        if (r.cluster == kNone)
+            return tree.nodes[r.source].cluster == kNone ? model::ChildKind::Interior : model::ChildKind::Cluster;
+        return clusters[r.cluster].nodes[r.source].childCount == 0 ? model::ChildKind::Leaf : model::ChildKind::Interior;
+    }
+    uint32_t childCount(BinaryRef r) const
+    {
+        return r.cluster == kNone ? tree.nodes[r.source].childCount : clusters[r.cluster].nodes[r.source].childCount;
+    }
+    BinaryRef child(BinaryRef r, uint32_t c) const
+    {
+        if (r.cluster == kNone)
+            return {tree.nodes[r.source].child[c], kNone};
+        return {clusters[r.cluster].nodes[r.source].first + c, r.cluster};
+    }
+};
+
+float area(const Box& b)
 {
-    const glm::vec3 step = (parentMax - parentMin) * (1.0f / 255.0f);
-    for (int a = 0; a < 3; ++a) {
-        if (!(step[a] > 0.0f)) {
-            node.lo[a] = 0;
-            node.hi[a] = 255;
-            continue;
-        }
-        float lo = std::floor((exact.min[a] - parentMin[a]) / step[a]);
-        float hi = std::ceil((exact.max[a] - parentMin[a]) / step[a]);
-        node.lo[a] = uint8_t(std::clamp(lo, 0.0f, 255.0f));
-        node.hi[a] = uint8_t(std::clamp(hi, 0.0f, 255.0f));
-        if (node.hi[a] < node.lo[a])
-            node.hi[a] = node.lo[a];
-    }
-    for (;;) {
-        decodeChildBounds(node, parentMin, parentMax, decodedMin, decodedMax);
-        bool changed = false;
-        for (int a = 0; a < 3; ++a) {
-            if (decodedMin[a] > exact.min[a] && node.lo[a] > 0) {
-                node.lo[a]--;
-                changed = true;
-            }
-            if (decodedMax[a] < exact.max[a] && node.hi[a] < 255) {
-                node.hi[a]++;
-                changed = true;
-            }
-        }
-        if (!changed)
-            break;
-        widened++;
-    }
-    for (int a = 0; a < 3; ++a)
-        if (!(decodedMin[a] <= exact.min[a] && decodedMax[a] >= exact.max[a]))
-            fail("preprocess", "internal error: a node box escapes its parent's decoded box");
+    const glm::vec3 e = glm::max(b.max - b.min, glm::vec3(0.0f));
+    return e.x * e.y + e.y * e.z + e.z * e.x;
 }
 
-struct Item {
+// The exponent of the smallest power-of-two step whose 255 steps from origin reach max.
+uint8_t gridExponent(float origin, float max)
+{
+    const float extent = max - origin;
+    int exponent = 1;
+    if (extent > 0.0f) {
+        int e = 0;
+        std::frexp(extent / 255.0f, &e); // extent / 255 = m * 2^e, 0.5 <= m < 1: step 2^e suffices
+        exponent = std::clamp(e + 127, 1, 254);
+    }
+    while (exponent < 254 && !(origin + 255.0f * nodeStep(uint8_t(exponent)) >= max))
+        ++exponent;
+    return uint8_t(exponent);
+}
+
+// The node's grid on axis a over [min, max]: the origin at min and the step of
+// gridExponent. The format requires origin + 255 steps to be finite: where
+// that overflows (boxes beyond about 1e38), the origin moves down to
+// FLT_MAX - 255 steps, which still lies below min. Only a box wider than 255
+// x 2^120 (about 3.39e38) has no grid: the model is refused.
+void setGrid(model::Node& node, int a, float min, float max)
+{
+    for (uint32_t exponent = gridExponent(min, max);; ++exponent) {
+        const float reach = 255.0f * nodeStep(uint8_t(exponent)); // inf from exponent 248 on
+        if (!std::isfinite(reach)) {
+            char text[160];
+            std::snprintf(text, sizeof(text),
+                          "the model spans %.3g units on axis %d, more than a node's grid holds (255 x 2^120 = %.3g)",
+                          double(max) - double(min), a, double(255.0f * nodeStep(247)));
+            fail("preprocess", text);
+        }
+        const float origin = std::isfinite(min + reach) ? min : std::numeric_limits<float>::max() - reach;
+        if (origin <= min && origin + reach >= max) {
+            node.origin[a] = origin;
+            node.exponent[a] = uint8_t(exponent);
+            return;
+        }
+    }
+}
+
+// Child c's box on the node's grid, rounded outward and checked with the decoder.
+void encodeChildBox(model::Node& node, uint32_t c, const Box& exact, uint64_t& widened)
+{
+    for (int a = 0; a < 3; ++a) {
+        const float step = nodeStep(node.exponent[a]);
+        const float lo = std::floor((exact.min[a] - node.origin[a]) / step);
+        const float hi = std::ceil((exact.max[a] - node.origin[a]) / step);
+        node.lo[a][c] = uint8_t(std::clamp(lo, 0.0f, 255.0f));
+        node.hi[a][c] = uint8_t(std::clamp(hi, 0.0f, 255.0f));
+        if (node.hi[a][c] < node.lo[a][c])
+            node.hi[a][c] = node.lo[a][c];
+    }
+    for (;;) {
+        glm::vec3 min, max;
+        decodeChildBox(node, c, min, max);
+        bool changed = false;
+        for (int a = 0; a < 3; ++a) {
+            if (min[a] > exact.min[a] && node.lo[a][c] > 0) {
+                node.lo[a][c]--;
+                changed = true;
+            }
+            if (max[a] < exact.max[a] && node.hi[a][c] < 255) {
+                node.hi[a][c]++;
+                changed = true;
+            }
+        }
+        if (!changed) {
+            for (int a = 0; a < 3; ++a)
+                if (!(min[a] <= exact.min[a] && max[a] >= exact.max[a]))
+                    fail("preprocess", "internal error: a child box escapes its node's grid");
+            return;
+        }
+        widened++;
+    }
+}
+
+struct Pending {
     uint32_t index;   // final node
-    uint32_t source;  // TopNode, or local node of `cluster`
-    uint32_t cluster; // built cluster, kNone for a TopNode
-    bool leafOnly;    // the Leaf child of a single-leaf cluster
-    uint32_t level;
-    glm::vec3 parentMin, parentMax;
+    BinaryRef owner;  // the binary node it stands for (a cluster's root: its TopNode)
+    uint32_t depth;   // root = 1
 };
+
+// Lays out the wide nodes; byLevel: expand every interior child once (depth <=
+// half the binary depth plus the cluster boundaries) instead of by area.
+Layout layout(const Trees& t, bool byLevel)
+{
+    Layout out;
+    out.nodes.resize(1);
+    std::vector<Pending> stack{{0, {0, kNone}, 1}};
+    while (!stack.empty()) {
+        const Pending item = stack.back();
+        stack.pop_back();
+        out.depth = std::max(out.depth, item.depth);
+        model::Node node{};
+        node.cluster = model::kNoCluster;
+
+        // The binary children this node starts from.
+        std::array<BinaryRef, 4> children{};
+        uint32_t count = 0;
+        const bool clusterRoot = item.index != 0 && t.kind(item.owner) == model::ChildKind::Cluster;
+        if (item.index == 0 && t.kind(item.owner) == model::ChildKind::Cluster) {
+            children[count++] = item.owner; // a one-cluster model: the root holds the cluster's root
+        } else if (clusterRoot) {
+            const uint32_t built = t.tree.nodes[item.owner.source].cluster;
+            node.cluster = uint32_t(out.clusterOrder.size());
+            out.clusterOrder.push_back(built);
+            out.clusterNode.push_back(item.index);
+            const BinaryRef root{0, built};
+            if (t.childCount(root) == 0)
+                children[count++] = root; // a single-leaf cluster
+            else
+                for (uint32_t c = 0; c < t.childCount(root); ++c)
+                    children[count++] = t.child(root, c);
+        } else {
+            if (item.owner.cluster != kNone)
+                node.cluster = uint32_t(out.clusterOrder.size() - 1); // the cluster being laid out
+            for (uint32_t c = 0; c < t.childCount(item.owner); ++c)
+                children[count++] = t.child(item.owner, c);
+        }
+
+        // Interior children are replaced by their children while four slots allow it.
+        if (byLevel) {
+            std::array<BinaryRef, 4> expanded{};
+            uint32_t n = 0;
+            for (uint32_t c = 0; c < count; ++c) {
+                const BinaryRef r = children[c];
+                if (t.kind(r) == model::ChildKind::Interior && n + t.childCount(r) + (count - c - 1) <= 4)
+                    for (uint32_t k = 0; k < t.childCount(r); ++k)
+                        expanded[n++] = t.child(r, k);
+                else
+                    expanded[n++] = r;
+            }
+            children = expanded;
+            count = n;
+        } else {
+            for (;;) {
+                int best = -1;
+                float bestArea = -1.0f;
+                for (uint32_t c = 0; c < count; ++c) {
+                    const BinaryRef r = children[c];
+                    if (t.kind(r) != model::ChildKind::Interior || count - 1 + t.childCount(r) > 4)
+                        continue;
+                    const float a = area(t.box(r));
+                    if (a > bestArea) {
+                        best = int(c);
+                        bestArea = a;
+                    }
+                }
+                if (best < 0)
+                    break;
+                const BinaryRef r = children[size_t(best)];
+                const uint32_t k = t.childCount(r);
+                for (uint32_t c = count; c-- > uint32_t(best) + 1;)
+                    children[c + k - 1] = children[c];
+                for (uint32_t c = 0; c < k; ++c)
+                    children[size_t(best) + c] = t.child(r, c);
+                count += k - 1;
+            }
+        }
+
+        // The node's grid over the union of its children's boxes.
+        Box box = t.box(children[0]);
+        for (uint32_t c = 1; c < count; ++c)
+            box.grow(t.box(children[c]));
+        for (int a = 0; a < 3; ++a)
+            setGrid(node, a, box.min[a], box.max[a]);
+        for (uint32_t c = 0; c < count; ++c) {
+            const BinaryRef r = children[c];
+            const model::ChildKind kind = t.kind(r);
+            node.kinds |= uint8_t(uint32_t(kind) << (2 * c));
+            encodeChildBox(node, c, t.box(r), out.widened);
+            if (kind == model::ChildKind::Leaf) {
+                const LocalNode& leaf = t.clusters[r.cluster].nodes[r.source];
+                node.child[c] = leaf.leafStart | (leaf.leafBytes << 16);
+                out.leaves++;
+            }
+        }
+        // Child nodes get their indices now, in order; depth first, first child next.
+        for (uint32_t c = 0; c < count; ++c)
+            if (t.kind(children[c]) != model::ChildKind::Leaf) {
+                if (out.nodes.size() >= model::kMaxNodes) // the exact count (checkModelLimits estimated it)
+                    fail("preprocess", "the BVH needs more than " + std::to_string(model::kMaxNodes) +
+                                           " nodes, the format's limit (32-bit node indices); use larger --leaf-triangles");
+                node.child[c] = uint32_t(out.nodes.size());
+                out.nodes.emplace_back();
+            }
+        for (uint32_t c = count; c-- > 0;)
+            if (t.kind(children[c]) != model::ChildKind::Leaf)
+                stack.push_back({node.child[c], children[c], item.depth + 1});
+        out.nodes[item.index] = node;
+    }
+    return out;
+}
 
 } // namespace
 
 Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const std::vector<BuiltCluster>& clusters,
-                   const glm::vec3& rootMin, const glm::vec3& rootMax)
+                   const glm::vec3&, const glm::vec3&)
 {
-    Layout layout;
-    size_t total = tree.nodes.size();
-    for (const BuiltCluster& c : clusters)
-        total += c.nodes.size() - 1 + (c.nodes[0].childCount == 0 ? 1 : 0);
-    if (total > model::kMaxNodes)
-        fail("preprocess", "the BVH needs " + std::to_string(total) + " nodes, more than the format's limit of " +
-                               std::to_string(model::kMaxNodes) + " (32-bit node indices); use larger leaves (--leaf-triangles)");
-    layout.nodes.reserve(total);
-    layout.nodes.resize(1);
-    std::vector<uint32_t> finalCluster(clusters.size(), kNone);
-
-    std::vector<Item> stack{{0, 0, kNone, false, 1, rootMin, rootMax}};
-    while (!stack.empty()) {
-        const Item item = stack.back();
-        stack.pop_back();
-        model::Node node{};
-        glm::vec3 dmin, dmax;
-        const bool local = item.cluster != kNone;
-        const LocalNode* ln = local ? &clusters[item.cluster].nodes[item.source] : nullptr;
-        const Box& exact = local ? ln->box : topBoxes[item.source];
-        if (item.index == 0) {
-            for (int a = 0; a < 3; ++a) {
-                node.lo[a] = 0;
-                node.hi[a] = 255;
-            }
-            dmin = rootMin;
-            dmax = rootMax;
-        } else {
-            encodeBounds(node, item.parentMin, item.parentMax, exact, dmin, dmax, layout.widened);
-        }
-        layout.depth = std::max(layout.depth, item.level);
-
-        // Children: (source, cluster, leafOnly) triples.
-        Item children[2];
-        uint32_t childCount = 0;
-        auto child = [&](uint32_t source, uint32_t cluster, bool leafOnly) {
-            children[childCount++] = {0, source, cluster, leafOnly, item.level + 1, dmin, dmax};
-        };
-        if (!local) {
-            const TopNode& top = tree.nodes[item.source];
-            if (top.cluster == kNone) {
-                node.kind = uint8_t(model::NodeKind::Interior);
-                for (uint32_t c = 0; c < top.childCount; ++c)
-                    child(top.child[c], kNone, false);
-            } else {
-                const uint32_t index = uint32_t(layout.clusterOrder.size());
-                finalCluster[top.cluster] = index;
-                layout.clusterOrder.push_back(top.cluster);
-                layout.clusterNode.push_back(item.index);
-                node.kind = uint8_t(model::NodeKind::Cluster);
-                node.second = index;
-                const LocalNode& root = clusters[top.cluster].nodes[0];
-                if (root.childCount == 0) {
-                    child(0, top.cluster, true);
-                } else {
-                    for (uint32_t c = 0; c < root.childCount; ++c)
-                        child(root.first + c, top.cluster, false);
-                }
-            }
-        } else if (ln->childCount == 0 || item.leafOnly) {
-            node.kind = uint8_t(model::NodeKind::Leaf);
-            node.first = finalCluster[item.cluster];
-            node.second = ln->leafStart | (ln->leafBytes << 16);
-            layout.leaves++;
-        } else {
-            node.kind = uint8_t(model::NodeKind::Interior);
-            for (uint32_t c = 0; c < ln->childCount; ++c)
-                child(ln->first + c, item.cluster, false);
-        }
-        if (childCount > 0) {
-            node.first = uint32_t(layout.nodes.size());
-            node.childCount = uint8_t(childCount);
-            layout.nodes.resize(layout.nodes.size() + childCount);
-            for (uint32_t c = childCount; c-- > 0;) {
-                children[c].index = node.first + c;
-                stack.push_back(children[c]);
-            }
-        }
-        layout.nodes[item.index] = node;
-    }
-    if (layout.depth > model::kMaxBvhDepth)
-        fail("preprocess", "internal error: BVH depth " + std::to_string(layout.depth) + " exceeds the format limit");
-    return layout;
+    const Trees trees{tree, topBoxes, clusters};
+    Layout result = layout(trees, false);
+    if (result.depth > model::kMaxBvhDepth)
+        result = layout(trees, true);
+    if (result.depth > model::kMaxBvhDepth)
+        fail("preprocess", "internal error: BVH depth " + std::to_string(result.depth) + " exceeds the format limit");
+    return result;
 }
 
 } // namespace penumbra::preprocess_detail

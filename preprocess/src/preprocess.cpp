@@ -114,7 +114,9 @@ namespace {
 
 uint64_t estimatedNodes(uint64_t triangles, uint64_t leafTriangles)
 {
-    return triangles / leafTriangles * 4 + (triangles % leafTriangles != 0 ? 4 : 0) + 1;
+    // 4-wide nodes: at most one per binary interior node (fewer than the leaves)
+    // plus the clusters' roots; leaves at least half full: 2 per leafTriangles, rounded up.
+    return triangles / leafTriangles * 2 + (triangles % leafTriangles != 0 ? 2 : 0) + 1;
 }
 
 } // namespace
@@ -129,7 +131,7 @@ void checkModelLimits(uint64_t triangles, const PreprocessOptions& options, cons
         while (enough < model::kMaxClusterTriangles && estimatedNodes(triangles, enough) > model::kMaxNodes)
             ++enough;
         fail(subject, std::to_string(triangles) + " triangles may need about " + std::to_string(nodes) +
-                          " BVH nodes (4 per " + std::to_string(leaf) + "-triangle leaf), more than the format's " +
+                          " BVH nodes (2 per " + std::to_string(leaf) + " triangles), more than the format's " +
                           std::to_string(model::kMaxNodes) + " (32-bit node indices)" +
                           (estimatedNodes(triangles, enough) <= model::kMaxNodes
                                ? "; use --leaf-triangles " + std::to_string(enough) + " or more"

@@ -53,12 +53,17 @@ inline uint32_t ceilLog2(uint64_t n)
     return r;
 }
 
+// Levels of the binary trees the nodes are collapsed from: 4-wide nodes that
+// take two binary levels each (layoutNodes' fallback) stay within
+// kMaxBvhDepth, counting a level lost at each side of a cluster's root.
+inline constexpr uint32_t kMaxBinaryDepth = 2 * model::kMaxBvhDepth - 8;
+
 // True when a node at `depth` (root = 1) holding n triangles may take an
-// unbalanced (SAH) split and still finish within kMaxBvhDepth: after it, object
+// unbalanced (SAH) split and still finish within kMaxBinaryDepth: after it, object
 // median splits need ceil(log2(n)) more levels plus the Cluster->Leaf level.
 inline bool sahSplitAllowed(uint32_t depth, uint64_t n)
 {
-    return depth + ceilLog2(n) + 2 <= model::kMaxBvhDepth;
+    return depth + ceilLog2(n) + 2 <= kMaxBinaryDepth;
 }
 
 // ---- top-level tree (cluster_bvh.cpp) ------------------------------------------
@@ -165,15 +170,16 @@ std::vector<uint8_t> closedTriangles(const Mesh& mesh, unsigned threads, const u
 struct Layout {
     std::vector<model::Node> nodes;
     std::vector<uint32_t> clusterOrder; // final cluster index -> built cluster index
-    std::vector<uint32_t> clusterNode;  // final cluster index -> its Cluster node
+    std::vector<uint32_t> clusterNode;  // final cluster index -> its root node
     uint32_t depth = 0;
     uint64_t widened = 0;
     uint64_t leaves = 0;
 };
 
-// Lays the tree out (children consecutively after their parent, depth first)
-// and encodes every box in 8 bits relative to its parent's decoded box,
-// verified to contain the exact box. topBoxes: exact box per TopNode.
+// Collapses the binary trees into the 4-wide node array (node 0 the root,
+// children after their node, depth first) and encodes every child box in 8
+// bits on its node's grid, verified to contain the exact box. topBoxes:
+// exact box per TopNode. The root's own box is the header's (not stored).
 Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const std::vector<BuiltCluster>& clusters,
                    const glm::vec3& rootMin, const glm::vec3& rootMax);
 

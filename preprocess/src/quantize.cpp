@@ -65,7 +65,6 @@ void quantizeCluster(const Mesh& mesh, const uint32_t* vertices, uint32_t count,
         q.x = quantizeCoordinate(p.x, record.boxMin[0], record.step[0]);
         q.y = quantizeCoordinate(p.y, record.boxMin[1], record.step[1]);
         q.z = quantizeCoordinate(p.z, record.boxMin[2], record.step[2]);
-        q.w = 0;
         decoded[i] = decodePosition(record, q);
         glm::vec3 error = glm::abs(decoded[i] - p);
         maxError = std::max({maxError, error.x, error.y, error.z});

@@ -35,6 +35,7 @@ struct RenderArgs {
     std::vector<std::string> lights;
     std::string shadows = "sm";
     std::string cull = "all";
+    std::string rasterIndices = "auto";
     std::string shadowFit = "view";
     uint32_t shadowMapSize = 2048;
     uint32_t samples = RenderSettings{}.lightSamples;
@@ -85,6 +86,7 @@ struct BenchArgs {
     uint32_t softShadowMaps = 0; // 0: the suite's
     bool quiet = false;
     bool noPlots = false;
+    std::vector<std::string> methods, sections;
 };
 
 struct GenerateArgs {
@@ -188,6 +190,7 @@ int runRender(const RenderArgs& args)
     settings.rhEarlyAccept = args.rhEarlyAccept == "on";
     settings.rhClosedMeshes = args.rhClosedMeshes == "on";
     settings.cull = parseCullMode(args.cull);
+    const RasterIndices rasterIndices = parseRasterIndices(args.rasterIndices);
     settings.fitShadowMapsToView = args.shadowFit == "view";
     settings.shadowMapSize = args.shadowMapSize;
     settings.lightSamples = args.samples;
@@ -234,6 +237,7 @@ int runRender(const RenderArgs& args)
     RendererOptions options;
     options.device = args.device;
     options.validation = args.validation;
+    options.rasterIndices = rasterIndices;
     std::optional<Renderer> renderer(std::in_place, options);
 
     auto loadStart = std::chrono::steady_clock::now();
@@ -445,7 +449,19 @@ int runInfo(const std::string& path)
     std::printf("  vertices         %llu (%.3f per triangle)\n", (unsigned long long)h.vertexCount, double(h.vertexCount) / triangles);
     std::printf("  clusters         %u (avg %.0f triangles, %.0f vertices)\n", h.clusterCount, triangles / h.clusterCount,
                 double(h.vertexCount) / h.clusterCount);
-    std::printf("  BVH              %u nodes, depth %u\n", h.nodeCount, h.bvhDepth);
+    // The 4-wide BVH (format version 4): nodes above the clusters and inside them, leaf slots.
+    uint64_t topNodes = 0, slots = 0, leaves = 0;
+    for (const model::Node& node : model.nodes) {
+        const uint32_t children = model::childCount(node);
+        topNodes += node.cluster == model::kNoCluster ? 1 : 0;
+        slots += children;
+        for (uint32_t c = 0; c < children; ++c)
+            leaves += model::childKind(node, c) == model::ChildKind::Leaf ? 1 : 0;
+    }
+    std::printf("  BVH              %u nodes (%llu above the clusters), depth %u (at most %u), 4-wide: %.2f children per node\n",
+                h.nodeCount, (unsigned long long)topNodes, h.bvhDepth, model::kMaxBvhDepth, double(slots) / h.nodeCount);
+    std::printf("  leaves           %llu strip ranges (avg %.1f triangles)\n", (unsigned long long)leaves,
+                triangles / double(std::max<uint64_t>(leaves, 1)));
     std::printf("  bounds           (%g, %g, %g) - (%g, %g, %g)\n", double(h.boundsMin[0]), double(h.boundsMin[1]), double(h.boundsMin[2]),
                 double(h.boundsMax[0]), double(h.boundsMax[1]), double(h.boundsMax[2]));
     std::printf("  quantization     %u-bit positions per cluster box, max error %.3g; %u-bit node bounds\n", h.build.positionBits,
@@ -511,6 +527,8 @@ int runBench(const BenchArgs& args)
     if (args.softShadowMaps) options.softShadowMaps = args.softShadowMaps;
     options.progress = !args.quiet;
     options.plots = !args.noPlots;
+    options.methods = args.methods;
+    options.sections = args.sections;
     runSuite(options);
     return 0;
 }
@@ -550,6 +568,11 @@ int main(int argc, char** argv)
     renderCommand->add_option("--shadows", render.shadows, "Shadow method: " + shadowMethodsHelp())->capture_default_str();
     renderCommand->add_option("--cull", render.cull,
                               "Raster culling with the BVH: none, frustum, all (frustum + occlusion queries); same image in every mode")
+        ->capture_default_str();
+    renderCommand->add_option("--raster-indices", render.rasterIndices,
+                              "What the raster passes draw of the compressed model: auto (triangles on a CPU device, strips on a "
+                              "GPU), strips (the file's strips with primitive restart) or triangles (8-bit lists decoded at load); "
+                              "same image")
         ->capture_default_str();
     renderCommand->add_option("--shadow-fit", render.shadowFit,
                               "Directional and area lights' shadow maps cover: view (what the camera sees: finer texels, and the "
@@ -636,6 +659,13 @@ int main(int argc, char** argv)
     benchCommand->add_option("--soft-shadow-maps", bench.softShadowMaps, "Soft shadows, sm: shadow maps averaged over the light (default 4)")->check(CLI::Range(1, 6));
     benchCommand->add_flag("--quiet", bench.quiet, "No progress bar");
     benchCommand->add_flag("--no-plots", bench.noPlots, "Write plot data and gnuplot scripts without running gnuplot");
+    benchCommand->add_option("--methods", bench.methods, "Only these GPU methods (the oracle always runs), e.g. --methods sm,srt,frt")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"sm", "srt", "frt", "afsm", "rh"}));
+    benchCommand->add_option("--sections", bench.sections,
+                             "Only these sections: methods (hard), soft, point, rh_variants, scalability, light_size")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"methods", "soft", "point", "rh_variants", "scalability", "light_size"}));
 
     app.add_subcommand("devices", "List the Vulkan devices");
 

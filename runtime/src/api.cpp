@@ -35,6 +35,27 @@ CullMode parseCullMode(const std::string& name)
     fail("--cull " + name, "unknown mode (expected none, frustum or all)");
 }
 
+const char* rasterIndicesName(RasterIndices indices)
+{
+    switch (indices) {
+    case RasterIndices::Auto: return "auto";
+    case RasterIndices::Strips: return "strips";
+    case RasterIndices::Triangles: return "triangles";
+    }
+    return "unknown";
+}
+
+RasterIndices parseRasterIndices(const std::string& name)
+{
+    if (name == "auto")
+        return RasterIndices::Auto;
+    if (name == "strips")
+        return RasterIndices::Strips;
+    if (name == "triangles")
+        return RasterIndices::Triangles;
+    fail("--raster-indices " + name, "unknown form (expected auto, strips or triangles)");
+}
+
 float shadowRayOffset(const Bounds& bounds, float maxPositionError)
 {
     return std::max(1e-5f * glm::length(bounds.extent()), 4.0f * maxPositionError);

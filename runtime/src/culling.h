@@ -11,6 +11,10 @@
 //      phase-1 cells due for a retest (each every PENUMBRA_CULL_RETEST_FRAMES
 //      frames, staggered; kept visible in between) are queried against the
 //      final depth, which gives next frame's history.
+// With RenderSettings::adaptiveOcclusion, a view whose frustum holds fewer than
+// PENUMBRA_CULL_MIN_TRIANGLES triangles is planned by its frustum only (its
+// queries would cost more than they can save), and a view whose queries cull
+// little goes frustum-only for PENUMBRA_CULL_RETRY_FRAMES frames.
 // Exactness. A shadow map keeps the minimum depth whatever the order, so its
 // phase 2 draws only the clusters whose box passed. The G-buffer keeps the
 // last of equally deep fragments (LESS_OR_EQUAL), so without culling a pixel

@@ -453,6 +453,9 @@ void createDevice(Device& device, const RendererOptions& options)
     device.physical = choosePhysicalDevice(device.instance, options.device);
     device.maxModelBufferBytes = options.maxModelBufferBytes;
     vkGetPhysicalDeviceProperties(device.physical, &device.properties);
+    device.rasterIndices = options.rasterIndices != RasterIndices::Auto ? options.rasterIndices
+                           : device.properties.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU ? RasterIndices::Triangles
+                                                                                          : RasterIndices::Strips;
     vkGetPhysicalDeviceMemoryProperties(device.physical, &device.memory);
     graphicsComputeFamily(device.physical, device.queueFamily);
     {
@@ -464,7 +467,8 @@ void createDevice(Device& device, const RendererOptions& options)
     if (!hasDeviceExtension(device.physical, VK_EXT_INDEX_TYPE_UINT8_EXTENSION_NAME))
         fail("vulkan", device.info.name + " lacks VK_EXT_index_type_uint8 (8-bit strip indices)");
     VkPhysicalDeviceIndexTypeUint8FeaturesEXT uint8Features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_INDEX_TYPE_UINT8_FEATURES_EXT};
-    VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES, &uint8Features};
+    VkPhysicalDeviceVulkan11Features features11{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_FEATURES, &uint8Features};
+    VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES, &features11};
     VkPhysicalDeviceVulkan13Features features13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &features12};
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &features13};
     vkGetPhysicalDeviceFeatures2(device.physical, &supported);
@@ -476,10 +480,10 @@ void createDevice(Device& device, const RendererOptions& options)
     // The ray tracer reads the model through buffer device addresses (64-bit
     // pointers, 8-bit strip loads).
     if (!features12.bufferDeviceAddress || !supported.features.shaderInt64 || !features12.storageBuffer8BitAccess ||
-        !features12.shaderBufferInt64Atomics)
+        !features11.storageBuffer16BitAccess || !features12.shaderBufferInt64Atomics)
         fail("vulkan", device.info.name +
                            " lacks a feature the ray tracer needs (bufferDeviceAddress, shaderInt64, storageBuffer8BitAccess, "
-                           "shaderBufferInt64Atomics)");
+                           "storageBuffer16BitAccess, shaderBufferInt64Atomics)");
     device.vertexStores = supported.features.vertexPipelineStoresAndAtomics;
     VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
     VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &maintenance3};
@@ -488,7 +492,9 @@ void createDevice(Device& device, const RendererOptions& options)
 
     VkPhysicalDeviceIndexTypeUint8FeaturesEXT enableUint8{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_INDEX_TYPE_UINT8_FEATURES_EXT};
     enableUint8.indexTypeUint8 = VK_TRUE;
-    VkPhysicalDeviceVulkan12Features enable12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES, &enableUint8};
+    VkPhysicalDeviceVulkan11Features enable11{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_FEATURES, &enableUint8};
+    enable11.storageBuffer16BitAccess = VK_TRUE; // 6-byte vertices read by device address (three 16-bit loads)
+    VkPhysicalDeviceVulkan12Features enable12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES, &enable11};
     enable12.bufferDeviceAddress = VK_TRUE;
     enable12.shaderBufferInt64Atomics = VK_TRUE; // 64-bit frame counters (nodes visited overflow 32 bits at 4K)
     enable12.storageBuffer8BitAccess = VK_TRUE;

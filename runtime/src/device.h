@@ -50,6 +50,7 @@ struct Device {
     bool aliasFree = false;                      // geometryShader and fragmentStoresAndAtomics (afsm casters)
     bool rayHierarchy = false;                   // geometryShader and vertexPipelineStoresAndAtomics (rh casters)
     VkDeviceSize maxModelBufferBytes = 0;        // RendererOptions::maxModelBufferBytes
+    RasterIndices rasterIndices = RasterIndices::Strips; // RendererOptions::rasterIndices, Auto resolved by the device type
     std::atomic<uint32_t> validationMessages{0};
     double timeoutSeconds = 300.0;               // RendererOptions::deviceTimeoutSeconds
     FaultInjection fault;

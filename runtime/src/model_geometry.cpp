@@ -12,39 +12,67 @@ namespace penumbra {
 namespace {
 
 // Smallest altitude (twice the area over the longest edge) of each leaf's
-// decoded triangles: a triangle can be a sliver in a light's view only if it
-// is thin in model space or seen edge-on.
+// decoded triangles, at 4 x node + slot: a triangle can be a sliver in a
+// light's view only if it is thin in model space or seen edge-on. 0 for the
+// slots that are not leaves.
 std::vector<float> leafMinimumAltitudes(const CompressedModel& model)
 {
-    std::vector<float> altitudes(model.nodes.size(), 0.0f);
+    std::vector<float> altitudes(model.nodes.size() * model::kNodeChildren, 0.0f);
     auto work = [&](size_t begin, size_t end) {
         for (size_t n = begin; n < end; ++n) {
             const model::Node& node = model.nodes[n];
-            if (node.kind != uint8_t(model::NodeKind::Leaf))
-                continue;
-            const model::ClusterRecord& cluster = model.clusters[node.first];
-            const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.second & 0xFFFF);
-            const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
-            float smallest = std::numeric_limits<float>::max();
-            forEachStripTriangle(strips, strips + (node.second >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
-                glm::vec3 p0 = decodePosition(cluster, vertices[a]), p1 = decodePosition(cluster, vertices[b]),
-                          p2 = decodePosition(cluster, vertices[c]);
-                float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
-                float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
-                smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
-            });
-            altitudes[n] = smallest;
+            for (uint32_t slot = 0; slot < model::kNodeChildren; ++slot) {
+                if (model::childKind(node, slot) != model::ChildKind::Leaf)
+                    continue;
+                const model::ClusterRecord& cluster = model.clusters[node.cluster];
+                const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.child[slot] & 0xFFFF);
+                const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
+                float smallest = std::numeric_limits<float>::max();
+                forEachStripTriangle(strips, strips + (node.child[slot] >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
+                    glm::vec3 p0 = decodePosition(cluster, vertices[a]), p1 = decodePosition(cluster, vertices[b]),
+                              p2 = decodePosition(cluster, vertices[c]);
+                    float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
+                    float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
+                    smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
+                });
+                altitudes[n * model::kNodeChildren + slot] = smallest;
+            }
         }
     };
     unsigned threads = std::max(1u, std::thread::hardware_concurrency());
     std::vector<std::thread> pool;
-    size_t per = (altitudes.size() + threads - 1) / threads;
-    for (unsigned t = 1; t < threads && t * per < altitudes.size(); ++t)
-        pool.emplace_back(work, t * per, std::min(altitudes.size(), (t + 1) * per));
-    work(0, std::min(altitudes.size(), per));
+    const size_t nodes = model.nodes.size(), per = (nodes + threads - 1) / threads;
+    for (unsigned t = 1; t < threads && t * per < nodes; ++t)
+        pool.emplace_back(work, t * per, std::min(nodes, (t + 1) * per));
+    work(0, std::min(nodes, per));
     for (std::thread& thread : pool)
         thread.join();
     return altitudes;
+}
+
+// One cluster's strips as a triangle list (RasterIndices::Triangles): every
+// triangle with area in index terms, in strip order, its vertices in the
+// order Vulkan's strip topology gives them (triangle i of a strip is
+// i, i+1, i+2, an odd one i, i+2, i+1), so the images are the same bit for
+// bit. Triangles with a repeated index are left out: they cover no sample.
+void appendTriangles(const uint8_t* strips, uint32_t bytes, std::vector<uint8_t>& out)
+{
+    const uint8_t* p = strips;
+    const uint8_t* end = strips + bytes;
+    while (p < end) {
+        const uint8_t* stripEnd = p;
+        while (stripEnd < end && *stripEnd != model::kStripRestart)
+            ++stripEnd;
+        for (const uint8_t* q = p; q + 2 < stripEnd; ++q) {
+            if (q[0] == q[1] || q[1] == q[2] || q[0] == q[2])
+                continue;
+            const bool odd = (q - p) & 1;
+            out.push_back(q[0]);
+            out.push_back(odd ? q[2] : q[1]);
+            out.push_back(odd ? q[1] : q[2]);
+        }
+        p = stripEnd + 1;
+    }
 }
 
 constexpr VkDeviceSize kChunkBytes = 1ull << 30; // per buffer, also capped by maxMemoryAllocationSize
@@ -68,11 +96,15 @@ void createTexelViews(vk::Device& device, GpuGeometry& geometry)
     GpuGeometry::TexelViews& t = geometry.texels;
     t.nodes = createTexelView(device, geometry.nodeChunks[0], VK_FORMAT_R32G32B32A32_UINT, 16);
     t.clusters = createTexelView(device, geometry.clusters, VK_FORMAT_R32G32B32A32_UINT, 16);
-    t.vertices = createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16G16B16A16_UINT, 8);
+    VkFormatProperties vertexFormat{};
+    vkGetPhysicalDeviceFormatProperties(device.physical, VK_FORMAT_R16G16B16_UINT, &vertexFormat);
+    geometry.vertexTexelsSplit = !(vertexFormat.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT);
+    t.vertices = geometry.vertexTexelsSplit ? createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16_UINT, 2)
+                                            : createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16G16B16_UINT, 6);
     t.strips = createTexelView(device, geometry.chunks[0].indices, VK_FORMAT_R32G32B32A32_UINT, 16);
     geometry.texelsComplete = geometry.nodeChunks.size() == 1 && geometry.chunks.size() == 1 &&
                               geometry.nodeChunks[0].size / 16 <= maxTexels && geometry.clusters.size / 16 <= maxTexels &&
-                              geometry.chunks[0].vertices.size / 8 <= maxTexels && geometry.chunks[0].indices.size / 16 <= maxTexels;
+                              geometry.chunks[0].vertices.size / (geometry.vertexTexelsSplit ? 2 : 6) <= maxTexels && geometry.chunks[0].indices.size / 16 <= maxTexels;
 }
 
 VkDeviceSize chunkLimit(const vk::Device& device)
@@ -85,11 +117,13 @@ VkDeviceSize chunkLimit(const vk::Device& device)
 
 GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
 {
+    const RasterIndices rasterIndices = device.rasterIndices == RasterIndices::Triangles ? RasterIndices::Triangles : RasterIndices::Strips;
     const auto& h = model.header;
     if (model.clusters.empty())
         fail("model", "has no clusters");
     GpuGeometry geometry;
     geometry.encoding = GeometryEncoding::Compressed;
+    geometry.rasterIndices = rasterIndices;
     geometry.triangles = h.triangleCount;
     geometry.vertexCount = model.vertices.size();
     geometry.bounds.min = {h.boundsMin[0], h.boundsMin[1], h.boundsMin[2]};
@@ -97,19 +131,26 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
     geometry.maxPositionError = h.maxPositionError;
     geometry.nodeCount = uint32_t(model.nodes.size());
     try {
-        // Chunks of consecutive clusters whose vertices and strips each fit one allocation.
+        // Chunks of consecutive clusters whose vertices and strips (and raster indices) each fit one allocation.
         const VkDeviceSize limit = chunkLimit(device);
-        std::vector<VkDrawIndexedIndirectCommand> commands(model.clusters.size());
+        auto rasterBound = [&](const model::ClusterRecord& c) -> VkDeviceSize {
+            return rasterIndices == RasterIndices::Triangles ? 3 * VkDeviceSize(c.triangleCount) : 0;
+        };
+        std::vector<VkDrawIndexedIndirectCommand>& commands = geometry.commands;
+        commands.resize(model.clusters.size());
+        std::vector<uint8_t> raster;
         uint32_t first = 0;
         while (first < model.clusters.size()) {
             const model::ClusterRecord& start = model.clusters[first];
             uint32_t end = first;
+            VkDeviceSize rasterTotal = 0;
             while (end < model.clusters.size()) {
                 const model::ClusterRecord& c = model.clusters[end];
                 VkDeviceSize vertexBytes = (VkDeviceSize(c.firstVertex) + c.vertexCount - start.firstVertex) * sizeof(model::QuantizedVertex);
                 VkDeviceSize indexBytes = VkDeviceSize(c.firstIndex) + c.indexBytes - start.firstIndex;
-                if (end > first && (vertexBytes > limit || indexBytes > limit))
+                if (end > first && (vertexBytes > limit || indexBytes > limit || rasterTotal + rasterBound(c) > limit))
                     break;
+                rasterTotal += rasterBound(c);
                 ++end;
             }
             const model::ClusterRecord& last = model.clusters[end - 1];
@@ -130,11 +171,24 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
                 vk::createBufferWithData(device, model.indices.data() + start.firstIndex, indexBytes,
                                          VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, vk::Addressable::Yes,
                                          (indexBytes + 15) & ~VkDeviceSize(15));
+            raster.clear();
             for (uint32_t i = first; i < end; ++i) {
                 const model::ClusterRecord& c = model.clusters[i];
                 // Chunk-relative: below the chunk limit (<= 1 GiB), so 32 bits hold them.
-                commands[i] = {c.indexBytes, 1, uint32_t(c.firstIndex - start.firstIndex),
-                               int32_t(c.firstVertex - start.firstVertex), i};
+                const int32_t vertexOffset = int32_t(c.firstVertex - start.firstVertex);
+                if (rasterIndices == RasterIndices::Strips) {
+                    commands[i] = {c.indexBytes, 1, uint32_t(c.firstIndex - start.firstIndex), vertexOffset, i};
+                    continue;
+                }
+                const size_t at = raster.size();
+                appendTriangles(model.indices.data() + c.firstIndex, c.indexBytes, raster);
+                commands[i] = {uint32_t(raster.size() - at), 1, uint32_t(at), vertexOffset, i};
+            }
+            if (rasterIndices != RasterIndices::Strips) {
+                raster.resize(std::max<size_t>(raster.size(), 4), 0); // a buffer is never empty
+                geometry.chunks.back().rasterIndices =
+                    vk::createBufferWithData(device, raster.data(), raster.size(), VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+                geometry.rasterIndexBytes += raster.size();
             }
             first = end;
         }
@@ -165,7 +219,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         }
         geometry.albedo = vk::createBufferWithData(device, albedo.data(), albedo.size() * sizeof(uint32_t),
                                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
-        if (model.nodes.size() * sizeof(float) <= limit) {
+        if (model.nodes.size() * model::kNodeChildren * sizeof(float) <= limit) {
             std::vector<float> altitudes = leafMinimumAltitudes(model);
             geometry.leafAltitudes = vk::createBufferWithData(device, altitudes.data(), altitudes.size() * sizeof(float),
                                                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
@@ -177,7 +231,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
     geometry.deviceBytes = model.vertices.size_bytes() + model.indices.size_bytes() + model.clusters.size_bytes() +
                            model.nodes.size_bytes() + model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand) +
                            geometry.albedo.size +
-                           geometry.leafAltitudes.size;
+                           geometry.leafAltitudes.size + geometry.rasterIndexBytes;
     return geometry;
 }
 
@@ -216,6 +270,7 @@ void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
     for (GpuGeometry::Chunk& chunk : geometry.chunks) {
         vk::destroyBuffer(device, chunk.vertices);
         vk::destroyBuffer(device, chunk.indices);
+        vk::destroyBuffer(device, chunk.rasterIndices);
     }
     for (vk::Buffer& nodes : geometry.nodeChunks)
         vk::destroyBuffer(device, nodes);
@@ -226,7 +281,7 @@ void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
     geometry = {};
 }
 
-GeometryInputState geometryInputState(GeometryEncoding encoding)
+GeometryInputState geometryInputState(GeometryEncoding encoding, RasterIndices rasterIndices)
 {
     GeometryInputState state;
     if (encoding == GeometryEncoding::UncompressedReference) {
@@ -239,12 +294,26 @@ GeometryInputState geometryInputState(GeometryEncoding encoding)
     }
     state.bindings[0] = {0, sizeof(model::QuantizedVertex), VK_VERTEX_INPUT_RATE_VERTEX};
     state.bindings[1] = {1, sizeof(model::ClusterRecord), VK_VERTEX_INPUT_RATE_INSTANCE};
-    state.attributes[0] = {0, 0, VK_FORMAT_R16G16B16A16_UINT, 0};
+    // A 6-byte QuantizedVertex as R16G16_UINT (x, y) + R16_UINT (z): formats every device fetches.
+    state.attributes[0] = {0, 0, VK_FORMAT_R16G16_UINT, 0};
     state.attributes[1] = {1, 1, VK_FORMAT_R32G32B32_SFLOAT, offsetof(model::ClusterRecord, boxMin)};
     state.attributes[2] = {2, 1, VK_FORMAT_R32G32B32_SFLOAT, offsetof(model::ClusterRecord, step)};
+    state.attributes[3] = {3, 0, VK_FORMAT_R16_UINT, offsetof(model::QuantizedVertex, z)};
     state.bindingCount = 2;
-    state.attributeCount = 3;
+    state.attributeCount = 4;
+    if (rasterIndices == RasterIndices::Triangles) {
+        state.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+        state.primitiveRestart = VK_FALSE;
+    }
     return state;
+}
+
+void bindChunk(VkCommandBuffer cmd, const GpuGeometry& geometry, const GpuGeometry::Chunk& chunk)
+{
+    VkBuffer buffers[2] = {chunk.vertices.buffer, geometry.clusters.buffer};
+    VkDeviceSize offsets[2] = {0, 0};
+    vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
+    vkCmdBindIndexBuffer(cmd, chunk.rasterIndices.buffer ? chunk.rasterIndices.buffer : chunk.indices.buffer, 0, VK_INDEX_TYPE_UINT8_EXT);
 }
 
 void drawGeometry(VkCommandBuffer cmd, const GpuGeometry& geometry, const std::function<void(uint64_t vertexBase)>& beforeChunk)
@@ -259,10 +328,7 @@ void drawGeometry(VkCommandBuffer cmd, const GpuGeometry& geometry, const std::f
             vkCmdDrawIndexed(cmd, uint32_t(chunk.indexCount), 1, 0, 0, 0);
             continue;
         }
-        VkBuffer buffers[2] = {chunk.vertices.buffer, geometry.clusters.buffer};
-        VkDeviceSize offsets[2] = {0, 0};
-        vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
-        vkCmdBindIndexBuffer(cmd, chunk.indices.buffer, 0, VK_INDEX_TYPE_UINT8_EXT);
+        bindChunk(cmd, geometry, chunk);
         vkCmdDrawIndexedIndirect(cmd, geometry.indirect.buffer, VkDeviceSize(chunk.firstCluster) * sizeof(VkDrawIndexedIndirectCommand),
                                  chunk.clusterCount, sizeof(VkDrawIndexedIndirectCommand));
     }

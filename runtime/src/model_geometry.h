@@ -21,10 +21,12 @@ enum class GeometryEncoding {
     UncompressedReference,  // indexed float triangle list: benchmarks compare against it
 };
 
+
 struct GpuGeometry {
     struct Chunk {
         vk::Buffer vertices;      // QuantizedVertex[] (or float3[] for the reference)
         vk::Buffer indices;       // uint8 strips (or uint32 triangle list for the reference)
+        vk::Buffer rasterIndices; // RasterIndices::Triangles: uint8 triangle lists the raster passes draw (else empty: `indices`)
         uint32_t firstCluster = 0;
         uint32_t clusterCount = 0;
         uint64_t vertexBase = 0;  // global index of the chunk's first vertex
@@ -35,21 +37,27 @@ struct GpuGeometry {
     std::vector<Chunk> chunks;
     vk::Buffer clusters;          // ClusterRecord[] as per-instance vertex data (reference: one identity record)
     vk::Buffer indirect;          // VkDrawIndexedIndirectCommand per cluster
+    std::vector<VkDrawIndexedIndirectCommand> commands; // the same on the host (compressed only)
+    RasterIndices rasterIndices = RasterIndices::Strips; // Strips or Triangles (device.rasterIndices)
+    uint64_t rasterIndexBytes = 0;                       // bytes of the chunks' rasterIndices
     vk::Buffer albedo;            // uint per cluster: its material's linear RGB, 8 bits each (gbuffer.vert); compressed only
     // The BVH (model::Node[]) for the ray tracer, in chunks of 2^nodeChunkShift
     // nodes (node i is in nodeChunks[i >> nodeChunkShift]); compressed only.
     std::vector<vk::Buffer> nodeChunks;
-    // float per node: a Leaf's smallest triangle altitude (model units), 0 for
-    // other nodes. The thin-triangle pass skips leaves with no sliver. Empty
-    // when the array would not fit one buffer (then no leaf is skipped).
+    // float per child slot (4 x node + slot): a leaf's smallest triangle
+    // altitude (model units), 0 for other slots. The thin-triangle pass skips
+    // leaves with no sliver. Empty when the array would not fit one buffer
+    // (then no leaf is skipped).
     vk::Buffer leafAltitudes;
     uint32_t nodeChunkShift = 0;
     uint32_t nodeCount = 0;
     // The ray tracer's view of the model through uniform texel buffers: on
     // lavapipe a texel fetch is a branch-free gather, every other buffer load
     // not provably uniform a loop over the lanes (2.5-4x slower, measured).
-    // nodes and clusters: RGBA32UI (a Node is one texel, a ClusterRecord
-    // four); vertices: R16G16B16A16_UINT (one QuantizedVertex a texel);
+    // nodes and clusters: RGBA32UI (a Node and a ClusterRecord are four
+    // texels each); vertices: R16G16B16_UINT (one QuantizedVertex a texel)
+    // where the device takes that format in a texel buffer, else R16_UINT
+    // (three texels a vertex, vertexTexelsSplit);
     // strips: RGBA32UI (16 strip bytes a texel, the buffer padded to 16).
     // Made when the nodes, the vertices and the strips each lie in one buffer
     // within the device's texel-buffer limit (texelsComplete); the views
@@ -58,6 +66,7 @@ struct GpuGeometry {
         VkBufferView nodes = VK_NULL_HANDLE, clusters = VK_NULL_HANDLE, vertices = VK_NULL_HANDLE, strips = VK_NULL_HANDLE;
     } texels;
     bool texelsComplete = false;
+    bool vertexTexelsSplit = false; // vertices as R16_UINT texels (3 a vertex)
     float maxPositionError = 0;   // header.maxPositionError, model units
     uint64_t triangles = 0;
     uint64_t vertexCount = 0;
@@ -65,21 +74,25 @@ struct GpuGeometry {
     uint64_t deviceBytes = 0;     // bytes of all model buffers
 };
 
+// Raster passes draw device.rasterIndices (Strips or Triangles, RendererOptions).
 GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model);
 GpuGeometry uploadReference(vk::Device& device, const Mesh& mesh);
 void destroyGeometry(vk::Device& device, GpuGeometry& geometry);
 
-// Pipeline state of the encoding (vertex bindings/attributes, topology, restart).
+// Pipeline state of the encoding (vertex bindings/attributes, topology, restart);
+// rasterIndices: the compressed model's (device.rasterIndices).
 struct GeometryInputState {
     VkVertexInputBindingDescription bindings[2];
-    VkVertexInputAttributeDescription attributes[3];
+    VkVertexInputAttributeDescription attributes[4];
     uint32_t bindingCount = 0, attributeCount = 0;
     VkPrimitiveTopology topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_STRIP;
     VkBool32 primitiveRestart = VK_TRUE;
 };
-GeometryInputState geometryInputState(GeometryEncoding encoding);
+GeometryInputState geometryInputState(GeometryEncoding encoding, RasterIndices rasterIndices);
+// Binds the chunk's vertices (and the cluster records) and the index buffer the raster passes draw.
+void bindChunk(VkCommandBuffer cmd, const GpuGeometry& geometry, const GpuGeometry::Chunk& chunk);
 
-// Records the draws of the whole model; beforeChunk (optional) runs before each
+// Records the draws of the whole model (its per-cluster indirect commands); beforeChunk (optional) runs before each
 // chunk's draws with the chunk's global vertex base (e.g. to push constants).
 void drawGeometry(VkCommandBuffer cmd, const GpuGeometry& geometry, const std::function<void(uint64_t vertexBase)>& beforeChunk = {});
 

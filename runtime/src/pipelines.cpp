@@ -314,7 +314,7 @@ VkPipeline createGraphicsPipeline(Device& device, const GraphicsPipelineDesc& de
     assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
     GeometryInputState input{};
     if (desc.modelGeometry) {
-        input = geometryInputState(desc.encoding);
+        input = geometryInputState(desc.encoding, device.rasterIndices);
         vertexInput.vertexBindingDescriptionCount = input.bindingCount;
         vertexInput.pVertexBindingDescriptions = input.bindings;
         vertexInput.vertexAttributeDescriptionCount = input.attributeCount;

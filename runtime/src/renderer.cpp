@@ -387,10 +387,10 @@ struct Renderer::Impl::FrameScript {
             return;
         case Step::Compact:
             if (settings.measureFloors) {
-                r.compact.recordFloor(cmd, width() * height());
+                r.compact.recordFloor(cmd, width(), height());
                 timer.mark(cmd, PassId::CompactFloor);
             }
-            r.compact.record(cmd, width() * height());
+            r.compact.record(cmd, width(), height());
             timer.mark(cmd, PassId::Compact);
             return;
         case Step::Trace:

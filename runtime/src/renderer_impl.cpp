@@ -133,8 +133,10 @@ void Renderer::Impl::setGeometry(GpuGeometry uploaded)
     destroyGeometry(device, geometry);
     destroyGeometry(device, floorGeometry);
     geometry = std::move(uploaded);
-    if (geometry.encoding == GeometryEncoding::Compressed)
+    if (geometry.encoding == GeometryEncoding::Compressed) {
         trace.bindModel(device, geometry);
+        thinTriangles.bindModel(device, geometry);
+    }
 }
 
 void Renderer::Impl::submitAndWait(VkCommandBuffer cmd, const std::string& passes)

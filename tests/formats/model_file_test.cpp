@@ -13,10 +13,12 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <glm/common.hpp>
+#include <glm/vector_relational.hpp>
 
 #include "penumbra/error.h"
 #include "penumbra/model_format.h"
@@ -29,9 +31,14 @@ using namespace model;
 
 // ---------------------------------------------------------------------------
 // A tiny hand-made builder: each cluster is its positions plus its leaves,
-// each leaf a list of strips (local indices). Nodes: one cluster -> the root
-// is the Cluster node; two clusters -> an Interior root over two Cluster
-// nodes. Each Cluster node has its leaves (1 or 2) as children.
+// each leaf a list of strips (local indices). Nodes are numbered depth first
+// (pre-order), as the preprocessor lays them out: node 0 is the root above
+// the clusters and names the clusters' root nodes in Cluster slots (more than
+// four clusters get Interior nodes above them, the clusters split in four
+// parts a level); a cluster's root holds its leaves as Leaf slots or, when the
+// cluster lists groups, one Interior node per group holding those leaves.
+// Every node's child boxes lie on a grid of its own, rounded outward and
+// checked with decodeChildBox, as preprocess/src/node_layout.cpp does.
 
 struct TestLeaf {
     std::vector<std::vector<uint8_t>> strips;
@@ -39,6 +46,7 @@ struct TestLeaf {
 struct TestCluster {
     std::vector<glm::vec3> positions;
     std::vector<TestLeaf> leaves;
+    std::vector<std::vector<uint32_t>> groups; // leaf indices per Interior node; empty: the leaves are the root's slots
 };
 
 struct Box {
@@ -56,22 +64,141 @@ struct Box {
     }
 };
 
-// Child box relative to the parent's, rounded outward to 8 bits.
-void quantizeBounds(Node& node, const Box& child, const Box& parent)
+// One child slot of a node under construction.
+struct Slot {
+    ChildKind kind;
+    uint32_t child; // node index, or start | count << 16 for a leaf
+    Box box;        // exact box of the child's geometry
+};
+
+// The smallest grid exponent whose 255 steps from origin reach max.
+uint8_t gridExponent(float origin, float max)
 {
-    for (int axis = 0; axis < 3; ++axis) {
-        float extent = parent.max[axis] - parent.min[axis];
-        if (extent <= 0.0f) {
-            node.lo[axis] = 0;
-            node.hi[axis] = 255;
-            continue;
-        }
-        float lo = std::floor((child.min[axis] - parent.min[axis]) / extent * 255.0f);
-        float hi = std::ceil((child.max[axis] - parent.min[axis]) / extent * 255.0f);
-        node.lo[axis] = uint8_t(std::clamp(lo, 0.0f, 255.0f));
-        node.hi[axis] = uint8_t(std::clamp(hi, 0.0f, 255.0f));
-    }
+    uint32_t exponent = 1;
+    while (exponent < 254 && !(origin + 255.0f * nodeStep(uint8_t(exponent)) >= max))
+        ++exponent;
+    return uint8_t(exponent);
 }
+
+// Child c's box on the node's grid: floor/ceil, then widened by a step while
+// the decoder misses the exact box.
+void encodeChildBox(Node& node, uint32_t c, const Box& exact)
+{
+    for (int a = 0; a < 3; ++a) {
+        const float step = nodeStep(node.exponent[a]);
+        node.lo[a][c] = uint8_t(std::clamp(std::floor((exact.min[a] - node.origin[a]) / step), 0.0f, 255.0f));
+        node.hi[a][c] = uint8_t(std::clamp(std::ceil((exact.max[a] - node.origin[a]) / step), 0.0f, 255.0f));
+        node.hi[a][c] = std::max(node.hi[a][c], node.lo[a][c]);
+    }
+    for (bool changed = true; changed;) {
+        glm::vec3 min, max;
+        decodeChildBox(node, c, min, max);
+        changed = false;
+        for (int a = 0; a < 3; ++a) {
+            if (min[a] > exact.min[a] && node.lo[a][c] > 0)
+                node.lo[a][c]--, changed = true;
+            if (max[a] < exact.max[a] && node.hi[a][c] < 255)
+                node.hi[a][c]++, changed = true;
+        }
+    }
+    glm::vec3 min, max;
+    decodeChildBox(node, c, min, max);
+    if (glm::any(glm::greaterThan(min, exact.min)) || glm::any(glm::lessThan(max, exact.max)))
+        throw std::runtime_error("test builder: a child box escapes its node's grid");
+}
+
+// A node of `cluster` (kNoCluster above the clusters) over 1..4 slots, its grid over their boxes.
+Node gridNode(uint32_t cluster, const std::vector<Slot>& slots)
+{
+    if (slots.empty() || slots.size() > kNodeChildren)
+        throw std::runtime_error("test builder: a node has 1..4 children");
+    Node node{};
+    node.cluster = cluster;
+    Box all;
+    for (const Slot& slot : slots)
+        all.add(slot.box);
+    for (int a = 0; a < 3; ++a) {
+        node.origin[a] = all.min[a];
+        node.exponent[a] = gridExponent(all.min[a], all.max[a]);
+    }
+    for (uint32_t c = 0; c < slots.size(); ++c) {
+        node.kinds |= uint8_t(uint32_t(slots[c].kind) << (2 * c));
+        node.child[c] = slots[c].child;
+        encodeChildBox(node, c, slots[c].box);
+    }
+    return node;
+}
+
+Box unionOf(const std::vector<Slot>& slots)
+{
+    Box box;
+    for (const Slot& slot : slots)
+        box.add(slot.box);
+    return box;
+}
+
+// Builds the node array over clusters whose leaves (Leaf slots) and groups are
+// given; sets every record's node, the header's nodeCount and bvhDepth.
+class TreeBuilder {
+public:
+    TreeBuilder(CompressedModelData& data, const std::vector<std::vector<Slot>>& leaves,
+                const std::vector<std::vector<std::vector<uint32_t>>>& groups)
+        : data_(data), leaves_(leaves), groups_(groups)
+    {
+        data_.nodes.clear();
+        top(0, uint32_t(leaves_.size()), 1);
+        data_.header.nodeCount = uint32_t(data_.nodes.size());
+        data_.header.bvhDepth = depth_;
+    }
+
+private:
+    uint32_t allocate(uint32_t level)
+    {
+        depth_ = std::max(depth_, level);
+        data_.nodes.emplace_back();
+        return uint32_t(data_.nodes.size() - 1);
+    }
+
+    // A node above the clusters [first, first + count).
+    Slot top(uint32_t first, uint32_t count, uint32_t level)
+    {
+        const uint32_t index = allocate(level);
+        std::vector<Slot> slots;
+        const uint32_t parts = std::min(count, kNodeChildren);
+        for (uint32_t p = 0, begin = first; p < parts; ++p) {
+            const uint32_t size = count / parts + (p < count % parts ? 1 : 0);
+            slots.push_back(size == 1 ? cluster(begin, level + 1) : top(begin, size, level + 1));
+            begin += size;
+        }
+        data_.nodes[index] = gridNode(kNoCluster, slots);
+        return {ChildKind::Interior, index, unionOf(slots)};
+    }
+
+    // Cluster c's root node and the Interior nodes of its groups.
+    Slot cluster(uint32_t c, uint32_t level)
+    {
+        const uint32_t index = allocate(level);
+        data_.clusters[c].node = index;
+        std::vector<Slot> slots;
+        if (groups_[c].empty())
+            slots = leaves_[c];
+        for (const std::vector<uint32_t>& group : groups_[c]) {
+            const uint32_t node = allocate(level + 1);
+            std::vector<Slot> groupSlots;
+            for (uint32_t leaf : group)
+                groupSlots.push_back(leaves_[c][leaf]);
+            data_.nodes[node] = gridNode(c, groupSlots);
+            slots.push_back({ChildKind::Interior, node, unionOf(groupSlots)});
+        }
+        data_.nodes[index] = gridNode(c, slots);
+        return {ChildKind::Cluster, index, unionOf(slots)};
+    }
+
+    CompressedModelData& data_;
+    const std::vector<std::vector<Slot>>& leaves_;
+    const std::vector<std::vector<std::vector<uint32_t>>>& groups_;
+    uint32_t depth_ = 0;
+};
 
 std::shared_ptr<CompressedModelData> buildModel(const std::vector<TestCluster>& input)
 {
@@ -80,15 +207,9 @@ std::shared_ptr<CompressedModelData> buildModel(const std::vector<TestCluster>& 
     header.build = {255, 1024, 8, 16, kPositionBits, kNodeBoundsBits, 1.0f, 0};
 
     const uint32_t clusterCount = uint32_t(input.size());
-    const uint32_t firstClusterNode = clusterCount == 1 ? 0 : 1;
-    uint32_t nodeCount = firstClusterNode + clusterCount;
-    for (const TestCluster& c : input)
-        nodeCount += uint32_t(c.leaves.size());
-    data->nodes.resize(nodeCount);
-
-    std::vector<Box> clusterBoxes(clusterCount);
+    std::vector<std::vector<Slot>> leaves(clusterCount);
+    std::vector<std::vector<std::vector<uint32_t>>> groups(clusterCount);
     Box rootBox;
-    uint32_t nextLeafNode = firstClusterNode + clusterCount;
     uint64_t triangles = 0;
     for (uint32_t c = 0; c < clusterCount; ++c) {
         const TestCluster& in = input[c];
@@ -100,11 +221,9 @@ std::shared_ptr<CompressedModelData> buildModel(const std::vector<TestCluster>& 
             record.boxMin[axis] = box.min[axis];
             record.step[axis] = (box.max[axis] - box.min[axis]) / 65535.0f;
         }
-        record.firstVertex = uint32_t(data->vertices.size());
-        record.firstIndex = uint32_t(data->indices.size());
+        record.firstVertex = data->vertices.size();
+        record.firstIndex = data->indices.size();
         record.vertexCount = uint16_t(in.positions.size());
-        record.node = firstClusterNode + c;
-        Box decodedBox;
         for (const glm::vec3& p : in.positions) {
             QuantizedVertex q{};
             uint16_t* out[3] = {&q.x, &q.y, &q.z};
@@ -113,27 +232,18 @@ std::shared_ptr<CompressedModelData> buildModel(const std::vector<TestCluster>& 
                                  ? uint16_t(std::lround((p[axis] - record.boxMin[axis]) / record.step[axis]))
                                  : 0;
             data->vertices.push_back(q);
-            decodedBox.add(decodePosition(record, q));
         }
-        clusterBoxes[c] = decodedBox;
-        rootBox.add(decodedBox);
-
-        Node& clusterNode = data->nodes[record.node];
-        clusterNode.kind = uint8_t(NodeKind::Cluster);
-        clusterNode.childCount = uint8_t(in.leaves.size());
-        clusterNode.first = nextLeafNode;
-        clusterNode.second = c;
         uint32_t clusterTriangles = 0;
         for (const TestLeaf& leaf : in.leaves) {
             if (data->indices.size() > record.firstIndex)
                 data->indices.push_back(kStripRestart);
-            uint32_t start = uint32_t(data->indices.size()) - record.firstIndex;
+            const uint32_t start = uint32_t(data->indices.size() - record.firstIndex);
             for (size_t s = 0; s < leaf.strips.size(); ++s) {
                 if (s > 0)
                     data->indices.push_back(kStripRestart);
                 data->indices.insert(data->indices.end(), leaf.strips[s].begin(), leaf.strips[s].end());
             }
-            uint32_t end = uint32_t(data->indices.size()) - record.firstIndex;
+            const uint32_t end = uint32_t(data->indices.size() - record.firstIndex);
             const uint8_t* bytes = data->indices.data() + record.firstIndex;
             Box leafBox;
             forEachStripTriangle(bytes + start, bytes + end, [&](uint32_t a, uint32_t b, uint32_t cc) {
@@ -141,28 +251,17 @@ std::shared_ptr<CompressedModelData> buildModel(const std::vector<TestCluster>& 
                 for (uint32_t v : {a, b, cc})
                     leafBox.add(decodePosition(record, data->vertices[record.firstVertex + v]));
             });
-            Node& leafNode = data->nodes[nextLeafNode++];
-            leafNode.kind = uint8_t(NodeKind::Leaf);
-            leafNode.first = c;
-            leafNode.second = start | (end - start) << 16;
-            quantizeBounds(leafNode, leafBox, decodedBox);
+            leaves[c].push_back({ChildKind::Leaf, start | (end - start) << 16, leafBox});
+            rootBox.add(leafBox);
         }
-        record.indexBytes = uint32_t(data->indices.size()) - record.firstIndex;
+        record.indexBytes = uint32_t(data->indices.size() - record.firstIndex);
         record.triangleCount = uint16_t(clusterTriangles);
         triangles += clusterTriangles;
         data->clusters.push_back(record);
+        groups[c] = in.groups;
     }
-    Node& root = data->nodes[0];
-    if (clusterCount > 1) {
-        root.kind = uint8_t(NodeKind::Interior);
-        root.childCount = uint8_t(clusterCount);
-        root.first = 1;
-        for (uint32_t c = 0; c < clusterCount; ++c)
-            quantizeBounds(data->nodes[1 + c], clusterBoxes[c], rootBox);
-    }
+    TreeBuilder(*data, leaves, groups);
     for (int axis = 0; axis < 3; ++axis) {
-        root.lo[axis] = 0;
-        root.hi[axis] = 255;
         header.boundsMin[axis] = rootBox.min[axis];
         header.boundsMax[axis] = rootBox.max[axis];
     }
@@ -171,14 +270,13 @@ std::shared_ptr<CompressedModelData> buildModel(const std::vector<TestCluster>& 
     header.vertexCount = data->vertices.size();
     header.indexBytes = data->indices.size();
     header.clusterCount = clusterCount;
-    header.nodeCount = nodeCount;
-    header.bvhDepth = clusterCount == 1 ? 2 : 3;
     data->materials = {{{1.0f, 1.0f, 1.0f, 1.0f}}};
     header.materialCount = 1;
     return data;
 }
 
 // One cluster: a unit quad as the strip 0 1 2 3 (2 triangles), one leaf.
+// Nodes: 0 root [Cluster 1]; 1 cluster 0's root [Leaf 0..4].
 std::shared_ptr<CompressedModelData> quadModel()
 {
     TestCluster quad;
@@ -187,19 +285,72 @@ std::shared_ptr<CompressedModelData> quadModel()
     return buildModel({quad});
 }
 
-// Two clusters: a cube (6 faces as 4-index strips, 12 triangles, two leaves
-// of 3 faces) and a quad beside it.
-std::shared_ptr<CompressedModelData> cubeModel()
+TestCluster cubeCluster()
 {
     TestCluster cube;
     for (int i = 0; i < 8; ++i)
         cube.positions.push_back({float(i & 1), float((i >> 1) & 1), float((i >> 2) & 1)});
     cube.leaves = {TestLeaf{{{0, 2, 1, 3}, {4, 5, 6, 7}, {0, 1, 4, 5}}},
                    TestLeaf{{{2, 6, 3, 7}, {0, 4, 2, 6}, {1, 3, 5, 7}}}};
+    return cube;
+}
+
+TestCluster sideQuadCluster()
+{
     TestCluster quad;
     quad.positions = {{2, 0, 0}, {3, 0, 0}, {2, 1, 0.5f}, {3, 1, 0.5f}};
     quad.leaves = {TestLeaf{{{0, 1, 2, 3}}}};
-    return buildModel({cube, quad});
+    return quad;
+}
+
+// Two clusters: a cube (6 faces as 4-index strips, 12 triangles, two leaves
+// of 3 faces) and a quad beside it.
+// Nodes: 0 root [Cluster 1, Cluster 2]; 1 cluster 0's root [Leaf 0..14, Leaf 15..29];
+// 2 cluster 1's root [Leaf 0..4].
+std::shared_ptr<CompressedModelData> cubeModel()
+{
+    return buildModel({cubeCluster(), sideQuadCluster()});
+}
+
+// The cube model with an Interior level inside the cube's cluster.
+// Nodes: 0 root [Cluster 1, Cluster 4]; 1 cluster 0's root [Interior 2, Interior 3];
+// 2 [Leaf 0..14]; 3 [Leaf 15..29]; 4 cluster 1's root [Leaf 0..4].
+std::shared_ptr<CompressedModelData> nestedModel()
+{
+    TestCluster cube = cubeCluster();
+    cube.groups = {{0}, {1}};
+    return buildModel({cube, sideQuadCluster()});
+}
+
+// Six clusters (quads in a row): Interior nodes above the clusters' root nodes.
+// Nodes: 0 root [Interior 1, Interior 4, Cluster 7, Cluster 8]; 1 [Cluster 2, Cluster 3];
+// 4 [Cluster 5, Cluster 6]; clusters 0..5 at nodes 2, 3, 5, 6, 7, 8.
+std::shared_ptr<CompressedModelData> rowModel()
+{
+    std::vector<TestCluster> quads;
+    for (int i = 0; i < 6; ++i) {
+        TestCluster quad;
+        const float x = 1.5f * float(i);
+        quad.positions = {{x, 0, 0}, {x + 1, 0, 0}, {x, 1, 0.25f * float(i)}, {x + 1, 1, 0}};
+        quad.leaves = {TestLeaf{{{0, 1, 2, 3}}}};
+        quads.push_back(quad);
+    }
+    return buildModel(quads);
+}
+
+// Sets child slot c of a node (its box unchanged).
+void setSlot(Node& node, uint32_t c, ChildKind kind, uint32_t child)
+{
+    node.kinds = uint8_t((node.kinds & ~(3u << (2 * c))) | uint32_t(kind) << (2 * c));
+    node.child[c] = child;
+}
+
+// Empties child slot c of a node (kind, box and reference 0).
+void clearSlot(Node& node, uint32_t c)
+{
+    setSlot(node, c, ChildKind::Empty, 0);
+    for (int a = 0; a < 3; ++a)
+        node.lo[a][c] = node.hi[a][c] = 0;
 }
 
 CompressedModel view(const std::shared_ptr<CompressedModelData>& data)
@@ -292,9 +443,81 @@ std::string validCubeBytes()
 
 TEST(ModelFile, BuilderMakesValidModels)
 {
-    EXPECT_NO_THROW(validateModel(view(quadModel()), "quad"));
-    EXPECT_NO_THROW(validateModel(view(cubeModel()), "cube"));
+    for (auto make : {quadModel, cubeModel, nestedModel, rowModel})
+        EXPECT_EQ(errorOf([&] { validateModel(view(make()), "m"); }), "");
     EXPECT_EQ(cubeModel()->header.triangleCount, 14u);
+    // The layouts the tests below name nodes and slots of.
+    auto kinds = [](const Node& node) {
+        std::string text;
+        for (uint32_t c = 0; c < kNodeChildren; ++c)
+            text += "EICL"[uint32_t(childKind(node, c))];
+        return text;
+    };
+    auto cube = cubeModel();
+    ASSERT_EQ(cube->nodes.size(), 3u);
+    EXPECT_EQ(cube->header.bvhDepth, 2u);
+    EXPECT_EQ(kinds(cube->nodes[0]) + kinds(cube->nodes[1]) + kinds(cube->nodes[2]), "CCEE" "LLEE" "LEEE");
+    EXPECT_EQ(cube->nodes[0].cluster, kNoCluster);
+    EXPECT_EQ(cube->nodes[1].cluster, 0u);
+    EXPECT_EQ(cube->nodes[2].cluster, 1u);
+    EXPECT_EQ(cube->nodes[0].child[0], 1u);
+    EXPECT_EQ(cube->nodes[0].child[1], 2u);
+    EXPECT_EQ(cube->nodes[1].child[0], 0u | 14u << 16);
+    EXPECT_EQ(cube->nodes[1].child[1], 15u | 14u << 16);
+    EXPECT_EQ(cube->nodes[2].child[0], 0u | 4u << 16);
+    auto nested = nestedModel();
+    ASSERT_EQ(nested->nodes.size(), 5u);
+    EXPECT_EQ(nested->header.bvhDepth, 3u);
+    EXPECT_EQ(kinds(nested->nodes[1]) + kinds(nested->nodes[2]) + kinds(nested->nodes[3]), "IIEE" "LEEE" "LEEE");
+    EXPECT_EQ(nested->nodes[0].child[1], 4u);
+    EXPECT_EQ(nested->nodes[3].cluster, 0u);
+    auto row = rowModel();
+    ASSERT_EQ(row->nodes.size(), 9u);
+    EXPECT_EQ(row->header.bvhDepth, 3u);
+    EXPECT_EQ(kinds(row->nodes[0]) + kinds(row->nodes[1]), "IICC" "CCEE");
+    EXPECT_EQ(row->clusters[5].node, 8u);
+}
+
+// Every child box decodes to a box that holds its subtree's triangles, with
+// at most a step of slack on each side (the grid is the node's own).
+TEST(ModelFile, BuilderBoxesHoldTheirGeometry)
+{
+    for (auto make : {quadModel, cubeModel, nestedModel, rowModel}) {
+        auto data = make();
+        const CompressedModel model = view(data);
+        // Exact box of the geometry below slot c of node n (recursive; the models are tiny).
+        std::function<Box(uint32_t, uint32_t)> exact = [&](uint32_t n, uint32_t c) {
+            const Node& node = model.nodes[n];
+            Box box;
+            if (childKind(node, c) == ChildKind::Leaf) {
+                const ClusterRecord& cluster = model.clusters[node.cluster];
+                const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.child[c] & 0xFFFF);
+                forEachStripTriangle(strips, strips + (node.child[c] >> 16), [&](uint32_t a, uint32_t b, uint32_t d) {
+                    for (uint32_t v : {a, b, d})
+                        box.add(decodePosition(cluster, model.vertices[cluster.firstVertex + v]));
+                });
+                return box;
+            }
+            for (uint32_t k = 0; k < childCount(model.nodes[node.child[c]]); ++k)
+                box.add(exact(node.child[c], k));
+            return box;
+        };
+        for (uint32_t n = 0; n < model.nodes.size(); ++n) {
+            const Node& node = model.nodes[n];
+            for (uint32_t c = 0; c < childCount(node); ++c) {
+                const Box geometry = exact(n, c);
+                glm::vec3 min, max;
+                decodeChildBox(node, c, min, max);
+                for (int a = 0; a < 3; ++a) {
+                    const float step = nodeStep(node.exponent[a]);
+                    EXPECT_LE(min[a], geometry.min[a]) << "node " << n << " child " << c;
+                    EXPECT_GE(max[a], geometry.max[a]) << "node " << n << " child " << c;
+                    EXPECT_GT(min[a] + step, geometry.min[a]) << "node " << n << " child " << c;
+                    EXPECT_LT(max[a] - step, geometry.max[a]) << "node " << n << " child " << c;
+                }
+            }
+        }
+    }
 }
 
 TEST(ModelFile, RoundTripIsIdentical)
@@ -365,14 +588,20 @@ TEST(ModelFile, ClusterFlagsRoundTrip)
     EXPECT_EQ(model.clusters[1].firstIndex, uint64_t(model.clusters[0].indexBytes));
 }
 
-// A version-2 file (the seed corpus's cube before version 3, kept as it was
-// written) is refused with one line that says what to do.
-TEST(ModelFileBad, Version2FileSaysToPreprocessAgain)
+// Files of earlier versions (the seed corpus's cube as version 2 and as
+// version 3 wrote it, kept as they were written) are refused with one line
+// that says what to do.
+TEST(ModelFileBad, OlderVersionFilesSayToPreprocessAgain)
 {
-    const std::string path = (std::filesystem::path(__FILE__).parent_path() / "data" / "cube_version2.penumbra").string();
-    const std::string message = errorOf([&] { openModelFile(path); });
-    EXPECT_EQ(message, path + ": unsupported version 2 (this build reads version 3; run penumbra preprocess on the source "
-                              "model again)");
+    for (const char* version : {"2", "3"}) {
+        const std::string path = (std::filesystem::path(__FILE__).parent_path() / "data" /
+                                  (std::string("cube_version") + version + ".penumbra"))
+                                     .string();
+        ASSERT_TRUE(std::filesystem::exists(path)) << path;
+        const std::string message = errorOf([&] { openModelFile(path); });
+        EXPECT_EQ(message, path + ": unsupported version " + version +
+                               " (this build reads version 4; run penumbra preprocess on the source model again)");
+    }
 }
 
 TEST(ModelFile, MappingOutlivesTheFile)
@@ -481,9 +710,13 @@ TEST(ModelFileBad, FlippedByteInEachSection)
     // Padding is not covered by a checksum but must be zero.
     std::string bad = bytes;
     const SectionEntry& nodes = sectionOf(header, SectionType::Nodes);
-    bad[nodes.offset + nodes.size] = 1; // 96 bytes of nodes -> 32 bytes of padding follow
+    const SectionEntry& vertices = sectionOf(header, SectionType::Vertices);
+    bad[vertices.offset + vertices.size] = 1; // 96 bytes of vertices -> 32 bytes of padding follow
     EXPECT_ERROR_CONTAINS(openError("model_padding.penumbra", bad),
-                          "nonzero padding byte at offset " + std::to_string(nodes.offset + nodes.size));
+                          "nonzero padding byte at offset " + std::to_string(vertices.offset + vertices.size));
+    // Nodes are 64 bytes: no padding follows them, the vertices begin at once.
+    EXPECT_EQ(nodes.size, 3u * 64u);
+    EXPECT_EQ(nodes.offset + nodes.size, vertices.offset);
 }
 
 TEST(ModelFileBad, HeaderFields)
@@ -503,10 +736,15 @@ TEST(ModelFileBad, HeaderFields)
                           "model_magic.penumbra: not a Penumbra model file (bad magic)");
     EXPECT_ERROR_CONTAINS(openError("model_text.penumbra", "solid cube\n"), "not a Penumbra model file (bad magic)");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 7; }),
-                          "unsupported version 7 (this build reads version 3; run penumbra preprocess on the source model again)");
+                          "unsupported version 7 (this build reads version 4; run penumbra preprocess on the source model again)");
+    // A version-4 file with its version field set to 3 (header checksum repaired or not): the version is read first.
+    EXPECT_EQ(withHeader([](FileHeader& h) { h.version = 3; }),
+              tempPath("model_header.penumbra") +
+                  ": unsupported version 3 (this build reads version 4; run penumbra preprocess on the source model again)");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 3; }, false), "unsupported version 3 (this build reads version 4");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 2; }),
-                          "model_header.penumbra: unsupported version 2 (this build reads version 3; run penumbra preprocess on the source model again)");
-    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 1; }), "unsupported version 1 (this build reads version 3");
+                          "model_header.penumbra: unsupported version 2 (this build reads version 4; run penumbra preprocess on the source model again)");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.version = 1; }), "unsupported version 1 (this build reads version 4");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.headerSize = 320; }), "header size 320 is not 448");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.materialCount = 0; }), "header materialCount 0 is outside 1..16777216");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.cameraCount = 300; }), "header cameraCount 300 is above 256");
@@ -522,7 +760,8 @@ TEST(ModelFileBad, HeaderFields)
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.build.simplifyTarget = NAN; }),
                           "build parameter simplifyTarget nan is outside (0, 1]");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.reserved1[4] = 5; }), "reserved header field is not zero");
-    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.bvhDepth = 65; }), "header bvhDepth 65 is outside 1..64");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.bvhDepth = 33; }), "header bvhDepth 33 is outside 1..32");
+    EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.bvhDepth = 0; }), "header bvhDepth 0 is outside 1..32");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.boundsMin[1] = INFINITY; }), "non-finite model bounds");
 }
 
@@ -547,16 +786,16 @@ TEST(ModelFileBad, SectionTable)
                           "section table entry 2 has unknown type 9");
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.sections[3].type = h.sections[1].type; }),
                           "section Nodes appears twice in the section table");
-    EXPECT_ERROR_CONTAINS(withHeader([&](FileHeader& h) { entry(h, SectionType::Vertices).elementSize = 6; }),
-                          "section Vertices: element size 6, expected 8");
+    EXPECT_ERROR_CONTAINS(withHeader([&](FileHeader& h) { entry(h, SectionType::Vertices).elementSize = 8; }),
+                          "section Vertices: element size 8, expected 6");
     // Counts pointing outside the file.
     EXPECT_ERROR_CONTAINS(withHeader([](FileHeader& h) { h.vertexCount = uint64_t(1) << 62; }),
-                          "section Vertices: 96 bytes, but the header's count 4611686018427387904 needs");
+                          "section Vertices: 72 bytes, but the header's count 4611686018427387904 needs");
     EXPECT_ERROR_CONTAINS(withHeader([&](FileHeader& h) {
                               h.vertexCount = 1000;
-                              entry(h, SectionType::Vertices).size = 8000;
+                              entry(h, SectionType::Vertices).size = 6000;
                           }),
-                          "section Vertices: 8000 bytes at offset");
+                          "section Vertices: 6000 bytes at offset");
     // Offsets outside the file, misaligned, inside the header, overlapping.
     EXPECT_ERROR_CONTAINS(withHeader([&](FileHeader& h) { entry(h, SectionType::Indices).offset = uint64_t(1) << 40; }),
                           "section Indices: 33 bytes at offset 1099511627776 run past the end of the file");
@@ -760,10 +999,10 @@ TEST(ModelFileBad, HostileFileWithValidChecksums)
     bad = bytes;
     Node root;
     std::memcpy(&root, bad.data() + nodes.offset, sizeof(root));
-    root.first = 1000;
+    root.child[0] = 1000;
     std::memcpy(bad.data() + nodes.offset, &root, sizeof(root));
     fixChecksums(bad);
-    EXPECT_ERROR_CONTAINS(openError("model_hostile.penumbra", bad), "node 0: child 1001 out of range (6 nodes)");
+    EXPECT_ERROR_CONTAINS(openError("model_hostile.penumbra", bad), "node 0: child 0: node 1000 out of range (3 nodes)");
 }
 
 // ---------------------------------------------------------------------------
@@ -825,10 +1064,13 @@ TEST(ModelValidate, Clusters)
         cubeModel, [](CompressedModelData& d) { d.clusters[1].reserved = 1; }, "cluster 1: reserved field is not zero");
     expectInvalid(
         cubeModel, [](CompressedModelData& d) { d.clusters[1].node = 99; },
-        "cluster 1: node 99 out of range (6 nodes)");
+        "cluster 1: node 99 out of range (3 nodes)");
     expectInvalid(
         cubeModel, [](CompressedModelData& d) { d.clusters[1].node = 1; },
-        "cluster 1: node 1 is not this cluster's Cluster node");
+        "cluster 1: node 1 is not this cluster's root node");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.clusters[1].node = 0; },
+        "cluster 1: node 0 is not this cluster's root node");
     expectInvalid(
         cubeModel, [](CompressedModelData& d) { d.clusters[0].material = 1; }, "cluster 0: material 1 out of range (1 materials)");
     // Strip syntax: restart at the ends, double restarts.
@@ -851,71 +1093,168 @@ TEST(ModelValidate, Clusters)
 
 TEST(ModelValidate, NodeLinks)
 {
-    // Cube model nodes: 0 root (Interior, children 1 2); 1 Cluster 0 (leaves 3 4); 2 Cluster 1 (leaf 5).
-    auto data = cubeModel();
-    ASSERT_EQ(data->nodes.size(), 6u);
+    // Cube model (BuilderMakesValidModels): 0 root [Cluster 1, Cluster 2]; 1 cluster 0's root
+    // [Leaf 0..14, Leaf 15..29]; 2 cluster 1's root [Leaf 0..4].
+    // The grid: exponents 1..254, finite origin, 255 steps from it finite.
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[2].first = 6; }, "node 2: child 6 out of range (6 nodes)");
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].exponent[1] = 0; },
+        "node 1: grid exponent 0 outside 1..254 on axis 1");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[2].first = 1; }, "node 2: child 1 is not after its parent");
+        cubeModel, [](CompressedModelData& d) { d.nodes[2].exponent[2] = 255; },
+        "node 2: grid exponent 255 outside 1..254 on axis 2");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[2].first = 2; }, "node 2: child 2 is not after its parent");
+        cubeModel, [](CompressedModelData& d) { d.nodes[0].origin[2] = NAN; }, "node 0: non-finite grid origin");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[2].first = 4; },
-        "node 4 is referenced by two parents (nodes 1 and 2)");
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].origin[0] = -INFINITY; }, "node 1: non-finite grid origin");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[0].childCount = 3; },
-        "node 0: 3 children (interior and cluster nodes have 1 or 2)");
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].exponent[0] = 254; }, "node 1: grid overflows on axis 0");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[1].childCount = 0; }, "node 1: 0 children");
+        cubeModel,
+        [](CompressedModelData& d) {
+            d.nodes[2].origin[1] = 3.0e38f;
+            d.nodes[2].exponent[1] = 127 + 120; // 255 x 2^120 = 3.4e38: finite alone, not added to the origin
+        },
+        "node 2: grid overflows on axis 1");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[3].kind = 7; }, "node 3: unknown kind 7");
+        cubeModel, [](CompressedModelData& d) { d.nodes[2].reserved = 1; }, "node 2: reserved word is not zero");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[3].childCount = 1; }, "node 3: leaf with 1 children");
+        cubeModel, [](CompressedModelData& d) { d.nodes[0].cluster = 7; }, "node 0: cluster 7 out of range (2 clusters)");
+
+    // Slots: at least one child, the non-empty ones first, empty ones all zero, lo <= hi.
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[4].lo[1] = 200, d.nodes[4].hi[1] = 100; },
-        "node 4: bounds lo 200 > hi 100 on axis 1");
+        cubeModel, [](CompressedModelData& d) { clearSlot(d.nodes[2], 0); }, "node 2: no children");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[0].hi[2] = 254; }, "node 0: root bounds must be lo 0, hi 255");
-    // Cluster 1 unreachable: the root keeps only cluster 0.
+        cubeModel,
+        [](CompressedModelData& d) {
+            Node& node = d.nodes[1];
+            setSlot(node, 2, ChildKind::Leaf, node.child[1]);
+            for (int a = 0; a < 3; ++a)
+                node.lo[a][2] = node.lo[a][1], node.hi[a][2] = node.hi[a][1];
+            clearSlot(node, 1);
+        },
+        "node 1: child 2: follows an empty slot");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[0].childCount = 1; },
-        "cluster 1 (node 2) is not reachable from the root");
-    // Cluster node pointing at another cluster.
+        cubeModel, [](CompressedModelData& d) { d.nodes[2].hi[1][3] = 1; }, "node 2: child 3: empty slot with a box");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[2].second = 5; },
-        "cluster 1: node 2 is not this cluster's Cluster node");
+        cubeModel, [](CompressedModelData& d) { d.nodes[0].lo[0][2] = 4; }, "node 0: child 2: empty slot with a box");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.nodes[2].child[1] = 4; }, "node 2: child 1: empty slot with a reference");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].lo[1][0] = 200, d.nodes[1].hi[1][0] = 100; },
+        "node 1: child 0: box lo 200 > hi 100 on axis 1");
+
+    // Kinds by part of the tree: no leaves above the clusters, no Cluster slots inside one.
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { setSlot(d.nodes[0], 1, ChildKind::Leaf, 0u | 4u << 16); },
+        "node 0: child 1: a leaf in a node above the clusters");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { setSlot(d.nodes[1], 1, ChildKind::Cluster, 2); },
+        "node 1: child 1: a cluster inside cluster 0");
+
+    // References: after the node, in range, one parent each.
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.nodes[0].child[1] = 0; }, "node 0: child 1: node 0 is not after its parent");
+    expectInvalid(
+        nestedModel, [](CompressedModelData& d) { setSlot(d.nodes[2], 0, ChildKind::Interior, 1); },
+        "node 2: child 0: node 1 is not after its parent");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.nodes[0].child[1] = 3; }, "node 0: child 1: node 3 out of range (3 nodes)");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.nodes[0].child[1] = 0xFFFFFFFFu; },
+        "node 0: child 1: node 4294967295 out of range (3 nodes)");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { setSlot(d.nodes[1], 1, ChildKind::Interior, 2); },
+        "node 2 is referenced by two parents (nodes 0 and 1)");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.nodes[0].child[1] = 1; }, "node 1 is referenced by two parents (nodes 0 and 0)");
+
+    // A Cluster slot names a cluster's root node; an Interior slot a node of its own part of the tree.
+    expectInvalid(
+        nestedModel, [](CompressedModelData& d) { d.nodes[0].child[0] = 2; },
+        "node 0: child 0: node 2 is not the root node of the cluster it names");
+    expectInvalid(
+        rowModel, [](CompressedModelData& d) { setSlot(d.nodes[0], 0, ChildKind::Cluster, 1); },
+        "node 0: child 0: node 1 is not the root node of the cluster it names");
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { setSlot(d.nodes[0], 1, ChildKind::Interior, 2); },
+        "node 0: child 1: interior node 2 lies in another part of the tree (cluster 1)");
+    expectInvalid(
+        nestedModel, [](CompressedModelData& d) { d.nodes[3].cluster = 1; },
+        "node 1: child 1: interior node 3 lies in another part of the tree (cluster 1)");
+    expectInvalid(
+        nestedModel,
+        [](CompressedModelData& d) {
+            d.nodes.push_back(d.nodes[3]);
+            d.nodes[5].cluster = kNoCluster;
+            d.nodes[1].child[1] = 5;
+            d.header.nodeCount = 6;
+        },
+        "node 1: child 1: interior node 5 lies in another part of the tree (cluster none)");
+
+    // The root lies above the clusters: a one-cluster model whose cluster's root is node 0.
+    expectInvalid(
+        quadModel,
+        [](CompressedModelData& d) {
+            d.nodes = {d.nodes[1]};
+            d.clusters[0].node = 0;
+            d.header.nodeCount = 1;
+            d.header.bvhDepth = 1;
+        },
+        "node 0: the root lies in cluster 0 (it must be above the clusters)");
+
+    // Every node reachable: a cluster's root, an Interior node of a cluster, one above the clusters.
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { clearSlot(d.nodes[0], 1); }, "cluster 1 (node 2) is not reachable from the root");
+    expectInvalid(
+        nestedModel, [](CompressedModelData& d) { clearSlot(d.nodes[1], 1); }, "node 3: not referenced by any parent (unreachable)");
+    expectInvalid(
+        rowModel,
+        [](CompressedModelData& d) {
+            // The root names cluster 2's root (node 5) instead of node 4 [Cluster 5, Cluster 6]; node 4 keeps node 6.
+            setSlot(d.nodes[0], 1, ChildKind::Cluster, 5);
+            Node& node = d.nodes[4];
+            setSlot(node, 0, ChildKind::Cluster, 6);
+            for (int a = 0; a < 3; ++a)
+                node.lo[a][0] = node.lo[a][1], node.hi[a][0] = node.hi[a][1];
+            clearSlot(node, 1);
+        },
+        "node 4: not referenced by any parent (unreachable)");
 }
 
 TEST(ModelValidate, Leaves)
 {
     // Cube cluster: strips 0 2 1 3 | 4 5 6 7 | 0 1 4 5 || 2 6 3 7 | 0 4 2 6 | 1 3 5 7 (| = restart);
-    // leaf 3 covers bytes 0..14, leaf 4 bytes 15..29.
+    // node 1's child 0 covers bytes 0..14, child 1 bytes 15..29.
     auto data = cubeModel();
-    ASSERT_EQ(data->nodes[3].second, 0u | 14u << 16);
-    ASSERT_EQ(data->nodes[4].second, 15u | 14u << 16);
+    ASSERT_EQ(data->nodes[1].child[0], 0u | 14u << 16);
+    ASSERT_EQ(data->nodes[1].child[1], 15u | 14u << 16);
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[4].second = 15u | 20u << 16; },
-        "node 4: leaf range 15..35 lies outside the 29 strip bytes of cluster 0");
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].child[1] = 15u | 20u << 16; },
+        "node 1: child 1: leaf range 15..35 lies outside the 29 strip bytes of cluster 0");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[4].second = 16u | 13u << 16; },
-        "node 4: leaf range 16..29 does not begin at a strip start");
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].child[1] = 16u | 13u << 16; },
+        "node 1: child 1: leaf range 16..29 does not begin at a strip start");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[3].second = 0u | 13u << 16; },
-        "node 3: leaf range 0..13 does not end at a strip end");
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].child[0] = 0u | 13u << 16; },
+        "node 1: child 0: leaf range 0..13 does not end at a strip end");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[3].second = 0u | 0u << 16; }, "node 3: empty leaf range");
-    // Leaf 3 covering everything overlaps leaf 4 (traversal visits 3 first).
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].child[0] = 0u; }, "node 1: child 0: leaf range 0..0 is empty");
+    // Child 0 covering everything overlaps child 1 (slots are checked in order).
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[3].second = 0u | 29u << 16; },
-        "node 4: leaf range 15..29 overlaps another leaf of cluster 0");
-    // Leaf 3 covering only its first strip: the leaves hold 2 + 6 of 12 triangles.
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].child[0] = 0u | 29u << 16; },
+        "node 1: child 1: leaf range 15..29 overlaps another leaf of cluster 0");
+    // The same across nodes: the nested model's leaves lie in nodes 2 and 3.
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[3].second = 0u | 4u << 16; },
+        nestedModel, [](CompressedModelData& d) { d.nodes[3].child[0] = 0u | 14u << 16; },
+        "node 3: child 0: leaf range 0..14 overlaps another leaf of cluster 0");
+    // Child 0 covering only its first strip: the leaves hold 2 + 6 of 12 triangles.
+    expectInvalid(
+        cubeModel, [](CompressedModelData& d) { d.nodes[1].child[0] = 0u | 4u << 16; },
         "cluster 0: its leaves hold 8 triangles, the cluster 12");
+    // A leaf of the quad cluster's bytes in the cube cluster's node: ranges are the node's cluster's.
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.nodes[5].first = 0; },
-        "node 5: leaf names cluster 0 but lies under cluster 1");
+        cubeModel, [](CompressedModelData& d) { d.nodes[2].child[0] = 0u | 14u << 16; },
+        "node 2: child 0: leaf range 0..14 lies outside the 4 strip bytes of cluster 1");
     // A strip of degenerate triangles only.
     expectInvalid(
         quadModel,
@@ -923,72 +1262,31 @@ TEST(ModelValidate, Leaves)
             d.indices = {0, 1, 2, 3, kStripRestart, 1, 1, 2};
             d.header.indexBytes = 8;
             d.clusters[0].indexBytes = 8;
-            d.nodes.push_back(d.nodes[1]);
-            d.nodes[0].childCount = 2;
-            d.nodes[2].second = 5u | 3u << 16;
-            d.header.nodeCount = 3;
+            setSlot(d.nodes[1], 1, ChildKind::Leaf, 5u | 3u << 16);
+            for (int a = 0; a < 3; ++a)
+                d.nodes[1].lo[a][1] = d.nodes[1].lo[a][0], d.nodes[1].hi[a][1] = d.nodes[1].hi[a][0];
         },
-        "node 2: leaf range 5..8 holds no triangles");
-    // A leaf directly under an Interior root (outside any cluster):
-    // 0 Interior (1 2), 1 Cluster 0 (3), 2 Leaf, 3 Leaf.
-    expectInvalid(
-        quadModel,
-        [](CompressedModelData& d) {
-            Node leaf = d.nodes[1];
-            Node cluster = d.nodes[0];
-            cluster.first = 3;
-            Node root{};
-            root.kind = uint8_t(NodeKind::Interior);
-            root.childCount = 2;
-            root.first = 1;
-            root.hi[0] = root.hi[1] = root.hi[2] = 255;
-            d.nodes = {root, cluster, leaf, leaf};
-            d.clusters[0].node = 1;
-            d.header.nodeCount = 4;
-            d.header.bvhDepth = 3;
-        },
-        "node 2: leaf outside any cluster");
+        "node 1: child 1: leaf range 5..8 holds no triangles");
 }
 
-TEST(ModelValidate, ClusterInsideCluster)
-{
-    // Two-cluster model with the second cluster node hung under the first cluster.
-    auto make = [] {
-        TestCluster a;
-        a.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
-        a.leaves = {TestLeaf{{{0, 1, 2, 3}}}};
-        return buildModel({a, a});
-    };
-    auto data = make();
-    // Root 0 -> clusters 1, 2 (leaves 3, 4). Make the root's only child node 1
-    // and node 1's children nodes 2 (cluster 1) and 3 (its own leaf).
-    data->nodes[0].childCount = 1;
-    data->nodes[1].first = 2;
-    data->nodes[1].childCount = 2;
-    std::string message = errorOf([&] { validateModel(view(data), "m"); });
-    EXPECT_ERROR_CONTAINS(message, "node 2: cluster node inside the subtree of cluster 0");
-}
-
-// A chain of interior nodes: depth 64 is accepted, 65 rejected.
+// A chain of nodes above one cluster: `depth` levels, the quad's cluster root
+// the last; each node has one child.
 std::shared_ptr<CompressedModelData> chainModel(uint32_t depth)
 {
-    auto data = quadModel(); // nodes: 0 Cluster, 1 Leaf
+    auto data = quadModel(); // nodes: 0 root [Cluster 1], 1 cluster 0's root [Leaf]
     std::vector<Node> nodes;
-    const uint32_t interiorCount = depth - 2;
-    for (uint32_t i = 0; i < interiorCount; ++i) {
-        Node n{};
-        n.kind = uint8_t(NodeKind::Interior);
-        n.childCount = 1;
-        n.first = i + 1;
-        n.hi[0] = n.hi[1] = n.hi[2] = 255;
+    const Node root = data->nodes[0], clusterRoot = data->nodes[1];
+    for (uint32_t i = 0; i + 2 < depth; ++i) {
+        Node n = root;
+        setSlot(n, 0, ChildKind::Interior, i + 1);
         nodes.push_back(n);
     }
-    Node cluster = data->nodes[0];
-    cluster.first = interiorCount + 1;
-    nodes.push_back(cluster);
-    nodes.push_back(data->nodes[1]);
+    Node last = root;
+    last.child[0] = uint32_t(nodes.size() + 1);
+    nodes.push_back(last);
+    nodes.push_back(clusterRoot);
     data->nodes = nodes;
-    data->clusters[0].node = interiorCount;
+    data->clusters[0].node = uint32_t(nodes.size() - 1);
     data->header.nodeCount = uint32_t(nodes.size());
     data->header.bvhDepth = std::min(depth, kMaxBvhDepth);
     return data;
@@ -996,15 +1294,73 @@ std::shared_ptr<CompressedModelData> chainModel(uint32_t depth)
 
 TEST(ModelValidate, Depth)
 {
-    EXPECT_NO_THROW(validateModel(view(chainModel(64)), "m"));
-    EXPECT_ERROR_CONTAINS(errorOf([] { validateModel(view(chainModel(65)), "m"); }), "m: BVH deeper than 64 levels");
-    EXPECT_ERROR_CONTAINS(errorOf([] { validateModel(view(chainModel(1000)), "m"); }), "m: BVH deeper than 64 levels");
+    EXPECT_NO_THROW(validateModel(view(chainModel(2)), "m"));
+    EXPECT_NO_THROW(validateModel(view(chainModel(kMaxBvhDepth)), "m"));
+    EXPECT_ERROR_CONTAINS(errorOf([] { validateModel(view(chainModel(33)), "m"); }), "m: BVH deeper than 32 levels");
+    EXPECT_ERROR_CONTAINS(errorOf([] { validateModel(view(chainModel(1000)), "m"); }), "m: BVH deeper than 32 levels");
     expectInvalid(
-        cubeModel, [](CompressedModelData& d) { d.header.bvhDepth = 4; },
-        "header says the BVH has 4 levels but it has 3");
+        cubeModel, [](CompressedModelData& d) { d.header.bvhDepth = 3; }, "header says the BVH has 3 levels but it has 2");
+    expectInvalid(
+        nestedModel, [](CompressedModelData& d) { d.header.bvhDepth = 2; }, "header says the BVH has 2 levels but it has 3");
     // The file round trip of the deepest legal BVH.
-    CompressedModel model = openModelFile(writeModel("model_deep.penumbra", chainModel(64)));
-    EXPECT_EQ(model.header.bvhDepth, 64u);
+    CompressedModel model = openModelFile(writeModel("model_deep.penumbra", chainModel(kMaxBvhDepth)));
+    EXPECT_EQ(model.header.bvhDepth, 32u);
+}
+
+// A caterpillar of `levels` levels: path node k (level k + 1) holds an
+// Interior slot for path node k + 1 first and three clusters' roots after it,
+// the last path node four clusters' roots. A depth-first traversal then keeps
+// three pending entries per level, the most a 4-wide tree can: 3 x (levels -
+// 2) + 4 at once (readers may use fixed stacks of 3 x depth + 1 entries).
+std::shared_ptr<CompressedModelData> caterpillarModel(uint32_t levels)
+{
+    const uint32_t pathNodes = levels - 1, clusterCount = 3 * (pathNodes - 1) + 4;
+    std::vector<TestCluster> quads;
+    for (uint32_t i = 0; i < clusterCount; ++i) {
+        TestCluster quad;
+        const float x = float(i);
+        quad.positions = {{x, 0, 0}, {x + 1, 0, 0}, {x, 1, 0}, {x + 1, 1, 0}};
+        quad.leaves = {TestLeaf{{{0, 1, 2, 3}}}};
+        quads.push_back(quad);
+    }
+    auto data = buildModel(quads); // a balanced tree above the clusters, replaced below
+    std::vector<Node> nodes(pathNodes + clusterCount);
+    std::vector<Box> clusterBoxes;
+    for (uint32_t c = 0; c < clusterCount; ++c) {
+        ClusterRecord& record = data->clusters[c];
+        nodes[pathNodes + c] = data->nodes[record.node];
+        record.node = pathNodes + c;
+        glm::vec3 min, max;
+        decodeChildBox(nodes[pathNodes + c], 0, min, max); // holds the quad
+        Box box;
+        box.add(min);
+        box.add(max);
+        clusterBoxes.push_back(box);
+    }
+    Box below;
+    for (uint32_t k = pathNodes; k-- > 0;) {
+        std::vector<Slot> slots;
+        if (k + 1 < pathNodes)
+            slots.push_back({ChildKind::Interior, k + 1, below});
+        const uint32_t first = 3 * k, count = k + 1 < pathNodes ? 3 : 4;
+        for (uint32_t c = first; c < first + count; ++c)
+            slots.push_back({ChildKind::Cluster, pathNodes + c, clusterBoxes[c]});
+        nodes[k] = gridNode(kNoCluster, slots);
+        below = unionOf(slots);
+    }
+    data->nodes = nodes;
+    data->header.nodeCount = uint32_t(nodes.size());
+    data->header.bvhDepth = std::min(levels, kMaxBvhDepth);
+    return data;
+}
+
+TEST(ModelValidate, WideDeepTreeFitsTheTraversalStack)
+{
+    auto data = caterpillarModel(kMaxBvhDepth);
+    EXPECT_EQ(data->clusters.size(), 94u);
+    EXPECT_EQ(errorOf([&] { validateModel(view(data), "m"); }), "");
+    EXPECT_ERROR_CONTAINS(errorOf([] { validateModel(view(caterpillarModel(kMaxBvhDepth + 1)), "m"); }),
+                          "m: BVH deeper than 32 levels");
 }
 
 TEST(ModelValidate, HeaderBuildParameters)
@@ -1025,13 +1381,17 @@ TEST(ModelValidate, HeaderBuildParameters)
 
 // Writes the fuzzer's seed corpus (run by hand after a format change:
 // formats_tests --gtest_also_run_disabled_tests --gtest_filter='*FuzzSeeds*',
-// then copy tmp/fuzz_seed_*.penumbra to tests/fuzz/corpus/).
+// then copy tmp/fuzz_seed_<name>.penumbra to tests/fuzz/corpus/<name>.penumbra).
+// Leaf slots in a cluster's root (quad, cube), Interior nodes inside a cluster
+// (nested) and above the clusters (row).
 TEST(ModelFile, DISABLED_WriteFuzzSeeds)
 {
     writeModelFile(view(quadModel()), tempPath("fuzz_seed_quad.penumbra"));
     auto cube = cubeModel();
     cube->clusters[0].flags = kClusterClosed; // the cube is closed: a seed with the flag set
     writeModelFile(view(cube), tempPath("fuzz_seed_cube.penumbra"));
+    writeModelFile(view(nestedModel()), tempPath("fuzz_seed_nested.penumbra"));
+    writeModelFile(view(rowModel()), tempPath("fuzz_seed_row.penumbra"));
 }
 
 } // namespace
@@ -1041,9 +1401,9 @@ namespace penumbra::test {
 namespace {
 
 // A large synthetic model (2^k clusters of 128 vertices and 210 triangles in
-// 7 strips, 2 leaves each, a complete binary tree above the Cluster nodes in
-// heap order) to time writing and opening. PENUMBRA_MODEL_CLUSTER_BITS sets k
-// (default 19: ~720 MB).
+// 7 strips, 2 leaves each, a 4-wide tree above the clusters' root nodes) to
+// time writing and opening. PENUMBRA_MODEL_CLUSTER_BITS sets k (default 19:
+// ~740 MB).
 std::shared_ptr<CompressedModelData> largeModel(uint32_t clusterBits)
 {
     const uint32_t clusterCount = 1u << clusterBits;
@@ -1059,45 +1419,50 @@ std::shared_ptr<CompressedModelData> largeModel(uint32_t clusterBits)
         }
     }
     const uint32_t firstLeafBytes = 4 * stripLength + 3; // strips 0..3
-    const uint32_t upperNodes = 2 * clusterCount - 1;
+    const uint32_t leafRanges[2] = {0u | firstLeafBytes << 16,
+                                    (firstLeafBytes + 1) | (uint32_t(strips.size()) - firstLeafBytes - 1) << 16};
+    std::vector<QuantizedVertex> pattern(width * height);
+    for (uint32_t v = 0; v < width * height; ++v)
+        pattern[v] = {uint16_t(v % width * 4000), uint16_t(v / width * 8000), uint16_t(v * 37)};
+    // Each leaf's quantized box, the same in every cluster (decoding is monotonic in q).
+    std::array<std::array<QuantizedVertex, 2>, 2> leafBoxes;
+    for (int leaf = 0; leaf < 2; ++leaf) {
+        QuantizedVertex lo{0xFFFF, 0xFFFF, 0xFFFF}, hi{0, 0, 0};
+        const uint8_t* begin = strips.data() + (leafRanges[leaf] & 0xFFFF);
+        forEachStripTriangle(begin, begin + (leafRanges[leaf] >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
+            for (uint32_t v : {a, b, c}) {
+                lo = {std::min(lo.x, pattern[v].x), std::min(lo.y, pattern[v].y), std::min(lo.z, pattern[v].z)};
+                hi = {std::max(hi.x, pattern[v].x), std::max(hi.y, pattern[v].y), std::max(hi.z, pattern[v].z)};
+            }
+        });
+        leafBoxes[leaf] = {lo, hi};
+    }
     data->clusters.resize(clusterCount);
     data->vertices.resize(size_t(clusterCount) * width * height);
     data->indices.resize(size_t(clusterCount) * strips.size());
-    data->nodes.resize(upperNodes + 2 * size_t(clusterCount));
-    for (uint32_t n = 0; n < upperNodes - clusterCount; ++n) {
-        Node& node = data->nodes[n];
-        node.hi[0] = node.hi[1] = node.hi[2] = 255;
-        node.kind = uint8_t(NodeKind::Interior);
-        node.childCount = 2;
-        node.first = 2 * n + 1;
-    }
+    std::vector<std::vector<Slot>> leaves(clusterCount);
+    const std::vector<std::vector<std::vector<uint32_t>>> groups(clusterCount);
     for (uint32_t c = 0; c < clusterCount; ++c) {
         ClusterRecord& cluster = data->clusters[c];
         cluster = {{float(c), 0, 0},
                    {1.0f / 65535, 1.0f / 65535, 1.0f / 65535},
-                   c * width * height,
-                   uint32_t(c * strips.size()),
+                   uint64_t(c) * width * height,
+                   uint64_t(c) * strips.size(),
                    uint32_t(strips.size()),
                    uint16_t(width * height),
                    uint16_t((height - 1) * (stripLength - 2)),
-                   upperNodes - clusterCount + c,
+                   0, // node: set by TreeBuilder
                    0};
-        for (uint32_t v = 0; v < width * height; ++v)
-            data->vertices[cluster.firstVertex + v] = {uint16_t(v % width * 4000), uint16_t(v / width * 8000),
-                                                       uint16_t(v * 37), 0};
+        std::memcpy(data->vertices.data() + cluster.firstVertex, pattern.data(), pattern.size() * sizeof(QuantizedVertex));
         std::memcpy(data->indices.data() + cluster.firstIndex, strips.data(), strips.size());
-        Node& clusterNode = data->nodes[cluster.node];
-        clusterNode = {{0, 0, 0}, {255, 255, 255}, uint8_t(NodeKind::Cluster), 2, upperNodes + 2 * c, c};
-        data->nodes[upperNodes + 2 * c] = {{0, 0, 0}, {255, 255, 255},          uint8_t(NodeKind::Leaf), 0,
-                                           c,         0u | firstLeafBytes << 16};
-        data->nodes[upperNodes + 2 * c + 1] = {{0, 0, 0},
-                                               {255, 255, 255},
-                                               uint8_t(NodeKind::Leaf),
-                                               0,
-                                               c,
-                                               (firstLeafBytes + 1) | (uint32_t(strips.size()) - firstLeafBytes - 1)
-                                                                          << 16};
+        for (int leaf = 0; leaf < 2; ++leaf) {
+            Box box;
+            box.add(decodePosition(cluster, leafBoxes[leaf][0]));
+            box.add(decodePosition(cluster, leafBoxes[leaf][1]));
+            leaves[c].push_back({ChildKind::Leaf, leafRanges[leaf], box});
+        }
     }
+    TreeBuilder(*data, leaves, groups);
     FileHeader& header = data->header;
     header.build = {255, 1024, 128, 16, kPositionBits, kNodeBoundsBits, 1.0f, 0};
     header.triangleCount = uint64_t(clusterCount) * data->clusters[0].triangleCount;
@@ -1105,8 +1470,6 @@ std::shared_ptr<CompressedModelData> largeModel(uint32_t clusterBits)
     header.vertexCount = data->vertices.size();
     header.indexBytes = data->indices.size();
     header.clusterCount = clusterCount;
-    header.nodeCount = uint32_t(data->nodes.size());
-    header.bvhDepth = clusterBits + 2;
     header.boundsMin[0] = header.boundsMin[1] = header.boundsMin[2] = 0.0f;
     header.boundsMax[0] = float(clusterCount);
     header.boundsMax[1] = header.boundsMax[2] = 1.0f;
@@ -1117,7 +1480,9 @@ std::shared_ptr<CompressedModelData> largeModel(uint32_t clusterBits)
 
 TEST(ModelFile, LargeModelIsValid)
 {
-    EXPECT_NO_THROW(validateModel(makeCompressedModel(largeModel(4)), "large"));
+    auto data = largeModel(5);
+    EXPECT_EQ(errorOf([&] { validateModel(makeCompressedModel(data), "large"); }), "");
+    EXPECT_EQ(data->header.bvhDepth, 4u); // the root, 4 nodes of 8 clusters, 16 of 2, the clusters' roots
 }
 
 TEST(ModelFile, DISABLED_Throughput)

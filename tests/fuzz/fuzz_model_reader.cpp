@@ -41,7 +41,7 @@ void useModel(const CompressedModel& model)
             ++triangles;
         });
         check(triangles == cluster.triangleCount);
-        check(model.nodes[cluster.node].kind == uint8_t(NodeKind::Cluster));
+        check(model.nodes[cluster.node].cluster == uint32_t(&cluster - model.clusters.data()));
         check(cluster.material < model.materials.size());
         check((cluster.flags & ~kClusterFlagsMask) == 0 && cluster.reserved == 0);
         // 64-bit offsets: the whole range lies inside its section.
@@ -56,35 +56,30 @@ void useModel(const CompressedModel& model)
         check(uint32_t(light.type) <= uint32_t(LightType::Sphere));
         sum += light.intensity;
     }
-    // Fixed-size traversal stack, as the runtime uses.
-    struct Entry {
-        uint32_t node;
-        glm::vec3 min, max;
-    };
-    Entry stack[2 * kMaxBvhDepth + 2];
+    // Fixed-size traversal stack, as the runtime uses (3 x depth + 1 entries).
+    uint32_t stack[3 * kMaxBvhDepth + 4];
     size_t top = 0;
-    stack[top++] = {0, glm::vec3(model.header.boundsMin[0], model.header.boundsMin[1], model.header.boundsMin[2]),
-                    glm::vec3(model.header.boundsMax[0], model.header.boundsMax[1], model.header.boundsMax[2])};
+    stack[top++] = 0;
     uint64_t visited = 0;
     while (top > 0) {
-        const Entry entry = stack[--top];
-        const Node& node = model.nodes[entry.node];
+        const Node& node = model.nodes[stack[--top]];
         ++visited;
-        if (node.kind == uint8_t(NodeKind::Leaf)) {
-            const ClusterRecord& cluster = model.clusters[node.first];
-            const uint32_t start = node.second & 0xFFFF, count = node.second >> 16;
-            check(start + count <= cluster.indexBytes);
-            const uint8_t* strip = model.indices.data() + cluster.firstIndex;
-            forEachStripTriangle(strip + start, strip + start + count, [&](uint32_t a, uint32_t, uint32_t) {
-                sum += float(model.vertices[cluster.firstVertex + a].x);
-            });
-            continue;
-        }
-        for (uint32_t k = 0; k < node.childCount; ++k) {
+        for (uint32_t k = 0; k < childCount(node); ++k) {
+            glm::vec3 min, max;
+            decodeChildBox(node, k, min, max);
+            sum += min.x + max.y;
+            if (childKind(node, k) == ChildKind::Leaf) {
+                const ClusterRecord& cluster = model.clusters[node.cluster];
+                const uint32_t start = node.child[k] & 0xFFFF, count = node.child[k] >> 16;
+                check(start + count <= cluster.indexBytes);
+                const uint8_t* strip = model.indices.data() + cluster.firstIndex;
+                forEachStripTriangle(strip + start, strip + start + count, [&](uint32_t a, uint32_t, uint32_t) {
+                    sum += float(model.vertices[cluster.firstVertex + a].x);
+                });
+                continue;
+            }
             check(top < sizeof(stack) / sizeof(stack[0]));
-            Entry child{node.first + k, {}, {}};
-            decodeChildBounds(model.nodes[child.node], entry.min, entry.max, child.min, child.max);
-            stack[top++] = child;
+            stack[top++] = node.child[k];
         }
     }
     check(visited == model.nodes.size());

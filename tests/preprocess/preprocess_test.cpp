@@ -2,6 +2,7 @@
 // with the input (every triangle exactly once, winding kept, positions within
 // the reported error), the BVH invariants the rasterizer and ray tracer rely on,
 // degenerate and error cases, thread-count independence, and simplifyMesh.
+#include <gtest/gtest-spi.h>
 #include <gtest/gtest.h>
 
 #include <sys/resource.h>
@@ -105,24 +106,179 @@ void checkRoundTrip(const Mesh& mesh, const CompressedModel& model, const std::v
     EXPECT_GE(tolerance, measured);
 }
 
-struct Visit {
-    uint32_t node;
-    glm::vec3 min, max;
-    uint32_t depth;
-    uint32_t cluster; // enclosing cluster or ~0
+// Every structural invariant of the node array (format version 4: 4-wide
+// nodes, child boxes on each node's own grid) and the clusters. Walks the tree
+// from the root; each slot's decoded box must hold every triangle below it
+// and lie within two grid steps of their exact box on each side.
+class BvhChecker {
+public:
+    BvhChecker(const CompressedModel& model, const PreprocessOptions& options)
+        : model_(model), options_(options), nodeVisits_(model.nodes.size(), 0), clusterVisits_(model.clusters.size(), 0),
+          byteCovered_(model.indices.size(), 0)
+    {
+    }
+
+    void run()
+    {
+        const model::FileHeader& h = model_.header;
+        Box all;
+        ASSERT_NO_FATAL_FAILURE(visit(0, 1, model::kNoCluster, all));
+        // The root's own box is the header's.
+        for (int a = 0; a < 3; ++a) {
+            EXPECT_LE(h.boundsMin[a], all.min[a]);
+            EXPECT_GE(h.boundsMax[a], all.max[a]);
+        }
+        for (uint32_t i = 0; i < h.nodeCount; ++i)
+            ASSERT_EQ(nodeVisits_[i], 1u) << "node " << i << " unreachable";
+        for (uint32_t i = 0; i < h.clusterCount; ++i)
+            ASSERT_EQ(clusterVisits_[i], 1u) << "cluster " << i << " unreachable";
+        for (uint64_t i = 0; i < h.indexBytes; ++i)
+            if (model_.indices[i] != model::kStripRestart) {
+                ASSERT_EQ(byteCovered_[i], 1) << "index byte " << i << " in no leaf";
+            }
+        EXPECT_EQ(leafTriangles_, h.triangleCount);
+        EXPECT_EQ(interiorSlots_ + clusterSlots_ + 1, h.nodeCount); // one slot names each node but the root
+        EXPECT_EQ(maxDepth_, h.bvhDepth);
+        EXPECT_LE(h.bvhDepth, model::kMaxBvhDepth);
+    }
+
+private:
+    struct Box {
+        glm::vec3 min{INFINITY}, max{-INFINITY};
+        void add(const glm::vec3& p)
+        {
+            min = glm::min(min, p);
+            max = glm::max(max, p);
+        }
+        void add(const Box& b)
+        {
+            min = glm::min(min, b.min);
+            max = glm::max(max, b.max);
+        }
+    };
+
+    // Node n, reached at `depth` from a slot of part `cluster` (kNoCluster: above the clusters);
+    // grows `exact` by its triangles.
+    void visit(uint32_t n, uint32_t depth, uint32_t parentCluster, Box& exact)
+    {
+        ASSERT_LT(n, model_.nodes.size());
+        ASSERT_EQ(nodeVisits_[n]++, 0u) << "node " << n << " referenced twice";
+        ASSERT_LE(depth, model::kMaxBvhDepth);
+        maxDepth_ = std::max(maxDepth_, depth);
+        const model::Node& node = model_.nodes[n];
+        EXPECT_EQ(node.reserved, 0u);
+        if (n == 0) {
+            ASSERT_EQ(node.cluster, model::kNoCluster) << "the root lies above the clusters";
+        } else if (parentCluster == model::kNoCluster && node.cluster != model::kNoCluster) {
+            // A cluster's root, named by a Cluster slot (checked by the caller) and by its record.
+            ASSERT_LT(node.cluster, model_.clusters.size());
+            ASSERT_EQ(model_.clusters[node.cluster].node, n);
+            ASSERT_EQ(clusterVisits_[node.cluster]++, 0u);
+        } else {
+            ASSERT_EQ(node.cluster, parentCluster) << "node " << n << " changes part below an Interior slot";
+        }
+        const uint32_t children = model::childCount(node);
+        ASSERT_GE(children, 1u);
+        for (int a = 0; a < 3; ++a) {
+            ASSERT_GE(node.exponent[a], 1);
+            ASSERT_LE(node.exponent[a], 254);
+            ASSERT_TRUE(std::isfinite(node.origin[a] + 255.0f * nodeStep(node.exponent[a]))) << "node " << n << ": grid overflows";
+        }
+        Box nodeExact;
+        for (uint32_t c = 0; c < model::kNodeChildren; ++c) {
+            const model::ChildKind kind = model::childKind(node, c);
+            if (c >= children) {
+                ASSERT_EQ(kind, model::ChildKind::Empty) << "node " << n << ": a child after an empty slot";
+                ASSERT_EQ(node.child[c], 0u);
+                for (int a = 0; a < 3; ++a)
+                    ASSERT_TRUE(node.lo[a][c] == 0 && node.hi[a][c] == 0);
+                continue;
+            }
+            glm::vec3 min, max;
+            decodeChildBox(node, c, min, max);
+            Box slot;
+            if (kind == model::ChildKind::Leaf) {
+                ASSERT_NE(node.cluster, model::kNoCluster) << "node " << n << ": a leaf above the clusters";
+                ++leafSlots_;
+                ASSERT_NO_FATAL_FAILURE(leaf(node, node.child[c], slot));
+            } else {
+                ASSERT_GT(node.child[c], n) << "children must follow their node";
+                ASSERT_LT(node.child[c], model_.nodes.size());
+                if (kind == model::ChildKind::Cluster) {
+                    ASSERT_EQ(node.cluster, model::kNoCluster) << "node " << n << ": a cluster inside a cluster";
+                    ASSERT_NE(model_.nodes[node.child[c]].cluster, model::kNoCluster);
+                    ++clusterSlots_;
+                } else {
+                    ++interiorSlots_;
+                }
+                ASSERT_NO_FATAL_FAILURE(visit(node.child[c], depth + 1, node.cluster, slot));
+                if (kind == model::ChildKind::Interior) {
+                    ASSERT_EQ(model_.nodes[node.child[c]].cluster, node.cluster);
+                }
+            }
+            for (int a = 0; a < 3; ++a) {
+                ASSERT_LE(node.lo[a][c], node.hi[a][c]);
+                // Conservative: the decoded box holds the child's triangles ...
+                ASSERT_LE(min[a], slot.min[a]) << "node " << n << " child " << c << ": geometry outside its box";
+                ASSERT_GE(max[a], slot.max[a]) << "node " << n << " child " << c << ": geometry outside its box";
+                // ... and tight: within two steps of them (floor/ceil plus a widening).
+                const float step = nodeStep(node.exponent[a]);
+                const float slack = 2.0f * step + 1e-6f * std::max(std::fabs(slot.min[a]), std::fabs(slot.max[a]));
+                EXPECT_GE(min[a], slot.min[a] - slack) << "node " << n << " child " << c << " axis " << a << ": box too loose";
+                EXPECT_LE(max[a], slot.max[a] + slack) << "node " << n << " child " << c << " axis " << a << ": box too loose";
+            }
+            nodeExact.add(slot);
+        }
+        // The grid spans the children with 8 bits: no coarser than twice the smallest power of two that does.
+        for (int a = 0; a < 3; ++a) {
+            ASSERT_LE(node.origin[a], nodeExact.min[a]);
+            const float extent = nodeExact.max[a] - node.origin[a];
+            const float ulp = 1.2e-7f * std::max(std::fabs(node.origin[a]), std::fabs(nodeExact.max[a]));
+            if (node.exponent[a] > 1) {
+                EXPECT_LE(255.0f * nodeStep(node.exponent[a]), 4.0f * std::max(extent, ulp))
+                    << "node " << n << " axis " << a << ": grid coarser than needed";
+            }
+        }
+        exact.add(nodeExact);
+    }
+
+    // A leaf slot of `node`: a range of whole strips of its cluster, its triangles into `box`.
+    void leaf(const model::Node& node, uint32_t reference, Box& box)
+    {
+        const model::ClusterRecord& c = model_.clusters[node.cluster];
+        const uint32_t start = reference & 0xFFFF, count = reference >> 16;
+        ASSERT_GT(count, 0u);
+        ASSERT_LE(start + count, c.indexBytes);
+        const uint8_t* s = model_.indices.data() + c.firstIndex;
+        ASSERT_TRUE(start == 0 || s[start - 1] == model::kStripRestart);
+        ASSERT_TRUE(start + count == c.indexBytes || s[start + count] == model::kStripRestart);
+        for (uint32_t i = start; i < start + count; ++i)
+            ASSERT_EQ(byteCovered_[c.firstIndex + i]++, 0) << "byte in two leaves";
+        uint32_t triangles = 0;
+        forEachStripTriangle(s + start, s + start + count, [&](uint32_t a, uint32_t b, uint32_t d) {
+            ++triangles;
+            for (uint32_t i : {a, b, d})
+                box.add(decodePosition(c, model_.vertices[c.firstVertex + i]));
+        });
+        ASSERT_GE(triangles, 1u);
+        ASSERT_LE(triangles, options_.maxLeafTriangles);
+        leafTriangles_ += triangles;
+    }
+
+    const CompressedModel& model_;
+    const PreprocessOptions& options_;
+    std::vector<uint32_t> nodeVisits_, clusterVisits_;
+    std::vector<uint8_t> byteCovered_;
+    uint32_t maxDepth_ = 0;
+    uint64_t leafTriangles_ = 0, leafSlots_ = 0, interiorSlots_ = 0, clusterSlots_ = 0;
 };
 
-// Every structural invariant of the node array and the clusters.
 void checkBvh(const CompressedModel& model, const PreprocessOptions& options)
 {
     const model::FileHeader& h = model.header;
     ASSERT_EQ(h.nodeCount, model.nodes.size());
     ASSERT_EQ(h.clusterCount, model.clusters.size());
-    ASSERT_GE(h.nodeCount, 1u);
-    for (int a = 0; a < 3; ++a) {
-        EXPECT_EQ(model.nodes[0].lo[a], 0);
-        EXPECT_EQ(model.nodes[0].hi[a], 255);
-    }
+    ASSERT_GE(h.nodeCount, 2u); // the root above the clusters and at least one cluster's root
     for (const model::ClusterRecord& c : model.clusters) {
         ASSERT_GE(c.vertexCount, 3);
         ASSERT_LE(c.vertexCount, options.maxClusterVertices);
@@ -134,86 +290,9 @@ void checkBvh(const CompressedModel& model, const PreprocessOptions& options)
         ASSERT_NE(s[c.indexBytes - 1], model::kStripRestart);
         for (uint32_t i = 1; i < c.indexBytes; ++i)
             ASSERT_FALSE(s[i] == model::kStripRestart && s[i - 1] == model::kStripRestart);
-        for (uint32_t i = 0; i < c.vertexCount; ++i)
-            ASSERT_EQ(model.vertices[c.firstVertex + i].w, 0);
     }
-    std::vector<uint32_t> nodeVisits(h.nodeCount, 0), clusterVisits(h.clusterCount, 0);
-    std::vector<uint8_t> byteCovered(h.indexBytes, 0);
-    uint32_t maxDepth = 0;
-    uint64_t leafTriangles = 0;
-    std::vector<Visit> stack{{0, glm::make_vec3(h.boundsMin), glm::make_vec3(h.boundsMax), 1, ~0u}};
-    while (!stack.empty()) {
-        Visit v = stack.back();
-        stack.pop_back();
-        ASSERT_LT(v.node, h.nodeCount);
-        ASSERT_EQ(nodeVisits[v.node]++, 0u) << "node " << v.node << " referenced twice";
-        maxDepth = std::max(maxDepth, v.depth);
-        const model::Node& n = model.nodes[v.node];
-        auto kind = model::NodeKind(n.kind);
-        uint32_t cluster = v.cluster;
-        if (kind == model::NodeKind::Leaf) {
-            ASSERT_NE(v.cluster, ~0u) << "leaf outside a cluster";
-            ASSERT_EQ(n.first, v.cluster);
-            ASSERT_EQ(n.childCount, 0);
-            const model::ClusterRecord& c = model.clusters[n.first];
-            uint32_t start = n.second & 0xFFFF, count = n.second >> 16;
-            ASSERT_GT(count, 0u);
-            ASSERT_LE(start + count, c.indexBytes);
-            const uint8_t* s = model.indices.data() + c.firstIndex;
-            ASSERT_TRUE(start == 0 || s[start - 1] == model::kStripRestart);
-            ASSERT_TRUE(start + count == c.indexBytes || s[start + count] == model::kStripRestart);
-            for (uint32_t i = start; i < start + count; ++i)
-                ASSERT_EQ(byteCovered[c.firstIndex + i]++, 0) << "byte in two leaves";
-            uint32_t leafCount = 0;
-            forEachStripTriangle(s + start, s + start + count, [&](uint32_t a, uint32_t b, uint32_t d) {
-                leafCount++;
-                for (uint32_t i : {a, b, d}) {
-                    glm::vec3 p = decodePosition(c, model.vertices[c.firstVertex + i]);
-                    for (int ax = 0; ax < 3; ++ax) {
-                        ASSERT_GE(p[ax], v.min[ax]) << "vertex outside its leaf box";
-                        ASSERT_LE(p[ax], v.max[ax]) << "vertex outside its leaf box";
-                    }
-                }
-            });
-            ASSERT_LE(leafCount, options.maxLeafTriangles);
-            leafTriangles += leafCount;
-            continue;
-        }
-        if (kind == model::NodeKind::Cluster) {
-            ASSERT_EQ(v.cluster, ~0u) << "cluster inside a cluster";
-            ASSERT_LT(n.second, h.clusterCount);
-            ASSERT_EQ(clusterVisits[n.second]++, 0u);
-            ASSERT_EQ(model.clusters[n.second].node, v.node);
-            cluster = n.second;
-        } else {
-            ASSERT_EQ(kind, model::NodeKind::Interior);
-        }
-        ASSERT_GE(n.childCount, 1);
-        ASSERT_LE(n.childCount, 2);
-        ASSERT_GT(n.first, v.node) << "children must follow their parent";
-        for (uint32_t c = 0; c < n.childCount; ++c) {
-            const model::Node& child = model.nodes[n.first + c];
-            glm::vec3 cmin, cmax;
-            decodeChildBounds(child, v.min, v.max, cmin, cmax);
-            for (int ax = 0; ax < 3; ++ax) {
-                ASSERT_GE(cmin[ax], v.min[ax]);
-                ASSERT_LE(cmax[ax], v.max[ax]);
-                ASSERT_LE(cmin[ax], cmax[ax]);
-            }
-            stack.push_back({n.first + c, cmin, cmax, v.depth + 1, cluster});
-        }
-    }
-    for (uint32_t i = 0; i < h.nodeCount; ++i)
-        ASSERT_EQ(nodeVisits[i], 1u) << "node " << i << " unreachable";
-    for (uint32_t i = 0; i < h.clusterCount; ++i)
-        ASSERT_EQ(clusterVisits[i], 1u) << "cluster " << i << " unreachable";
-    for (uint64_t i = 0; i < h.indexBytes; ++i)
-        if (model.indices[i] != model::kStripRestart) {
-            ASSERT_EQ(byteCovered[i], 1) << "index byte " << i << " in no leaf";
-        }
-    EXPECT_EQ(leafTriangles, h.triangleCount);
-    EXPECT_EQ(maxDepth, h.bvhDepth);
-    EXPECT_LE(h.bvhDepth, model::kMaxBvhDepth);
+    BvhChecker checker(model, options);
+    ASSERT_NO_FATAL_FAILURE(checker.run());
 }
 
 void checkHeader(const CompressedModel& model, const Mesh& mesh, const PreprocessOptions& options)
@@ -275,6 +354,64 @@ TEST(Preprocess, LargeLimits)
     options.maxLeafTriangles = model::kMaxClusterTriangles;
     options.sahBins = 256;
     checkAll(generate("city", 30'000), options);
+}
+
+// The node checks above can fail: a leaf box that misses its triangles, a
+// box far looser than its grid allows, and a child node before its parent
+// are each reported.
+TEST(Preprocess, BvhCheckFindsBadNodes)
+{
+    const PreprocessOptions options;
+    const CompressedModel built = buildCompressedModel(generate("plant", 20'000), options);
+    ASSERT_NO_FATAL_FAILURE(checkBvh(built, options));
+    auto failuresOf = [&](auto&& mutate) {
+        auto data = std::make_shared<CompressedModelData>();
+        data->header = built.header;
+        data->clusters.assign(built.clusters.begin(), built.clusters.end());
+        data->nodes.assign(built.nodes.begin(), built.nodes.end());
+        data->vertices.assign(built.vertices.begin(), built.vertices.end());
+        data->indices.assign(built.indices.begin(), built.indices.end());
+        data->materials.assign(built.materials.begin(), built.materials.end());
+        mutate(data->nodes);
+        const CompressedModel model = makeCompressedModel(data);
+        testing::TestPartResultArray results;
+        {
+            testing::ScopedFakeTestPartResultReporter reporter(testing::ScopedFakeTestPartResultReporter::INTERCEPT_ONLY_CURRENT_THREAD,
+                                                               &results);
+            checkBvh(model, options);
+        }
+        std::string messages;
+        for (int i = 0; i < results.size(); ++i)
+            messages += std::string(results.GetTestPartResult(i).message()) + "\n";
+        return messages;
+    };
+    // Finds a slot of the given kind with an axis whose box spans at least `span` grid steps.
+    auto findSlot = [](std::vector<model::Node>& nodes, model::ChildKind kind, int span, uint32_t& c, int& axis) -> model::Node& {
+        for (model::Node& node : nodes)
+            for (c = 0; c < model::childCount(node); ++c)
+                for (axis = 0; axis < 3; ++axis)
+                    if (model::childKind(node, c) == kind && node.hi[axis][c] - node.lo[axis][c] >= span && node.lo[axis][c] >= 8)
+                        return node;
+        throw std::runtime_error("no such slot");
+    };
+    EXPECT_NE(failuresOf([&](std::vector<model::Node>& nodes) {
+                  uint32_t c;
+                  int a;
+                  model::Node& node = findSlot(nodes, model::ChildKind::Leaf, 8, c, a);
+                  node.hi[a][c] = node.lo[a][c];
+              }).find("geometry outside its box"),
+              std::string::npos);
+    EXPECT_NE(failuresOf([&](std::vector<model::Node>& nodes) {
+                  uint32_t c;
+                  int a;
+                  model::Node& node = findSlot(nodes, model::ChildKind::Interior, 8, c, a);
+                  node.lo[a][c] = 0;
+              }).find("box too loose"),
+              std::string::npos);
+    EXPECT_NE(failuresOf([&](std::vector<model::Node>& nodes) {
+                  nodes[0].child[0] = 0;
+              }).find("children must follow their node"),
+              std::string::npos);
 }
 
 TEST(Preprocess, SingleTriangle)
@@ -432,6 +569,35 @@ TEST(Preprocess, DepthLimit)
     options.maxClusterTriangles = 4;
     options.maxLeafTriangles = 1;
     checkAll(mesh, options);
+    // Deep trees inside the clusters as well: the largest clusters, one triangle per leaf.
+    options.maxClusterTriangles = model::kMaxClusterTriangles;
+    checkAll(mesh, options);
+}
+
+// Coordinates near the top of the float range. A node's grid must stay finite
+// 255 steps from its origin (the format's rule), so a node at 1e38..3e38 needs
+// an origin below its box; a model wider than any grid (255 x 2^120 units,
+// about 3.39e38, on one axis) is refused with one line.
+TEST(Preprocess, HugeCoordinates)
+{
+    Mesh mesh;
+    mesh.positions = {1e38f, 0, 0, 1e38f, 1, 0, 1e38f, 0, 1, 3e38f, 0, 0, 3e38f, 1, 0, 3e38f, 0, 1};
+    mesh.indices = {0, 1, 2, 3, 4, 5};
+    checkAll(mesh);
+    for (size_t i = 0; i < mesh.positions.size(); i += 3)
+        mesh.positions[i] = -mesh.positions[i];
+    std::swap(mesh.indices[1], mesh.indices[2]);
+    std::swap(mesh.indices[4], mesh.indices[5]);
+    checkAll(mesh);
+    for (size_t i = 0; i < mesh.positions.size(); i += 3)
+        mesh.positions[i] = mesh.positions[i] < -2e38f ? -1.7e38f : 1.7e38f;
+    std::string message;
+    try {
+        buildCompressedModel(mesh, {});
+    } catch (const Error& e) {
+        message = e.what();
+    }
+    EXPECT_EQ(message, "preprocess: the model spans 3.4e+38 units on axis 0, more than a node's grid holds (255 x 2^120 = 3.39e+38)");
 }
 
 TEST(Preprocess, Errors)
@@ -493,18 +659,18 @@ TEST(Preprocess, Errors)
 TEST(Preprocess, FormatLimitsCheckedBeforeTheBuild)
 {
     EXPECT_NO_THROW(checkModelLimits(5'000'000'000ull, {}));
-    EXPECT_NO_THROW(checkModelLimits(50'000'000'000ull, {}));
+    EXPECT_NO_THROW(checkModelLimits(30'000'000'000ull, {}));
     std::string message;
     try {
-        checkModelLimits(80'000'000'000ull, {}, "big.ply");
+        checkModelLimits(40'000'000'000ull, {}, "big.ply");
     } catch (const Error& e) {
         message = e.what();
     }
-    EXPECT_EQ(message, "big.ply: 80000000000 triangles may need about 6666666669 BVH nodes (4 per 48-triangle leaf), more "
-                       "than the format's 4294967295 (32-bit node indices); use --leaf-triangles 75 or more");
+    EXPECT_EQ(message, "big.ply: 40000000000 triangles may need about 4444444447 BVH nodes (2 per 18 triangles), more "
+                       "than the format's 4294967295 (32-bit node indices); use --leaf-triangles 19 or more");
     PreprocessOptions bigLeaves;
-    bigLeaves.maxLeafTriangles = 75;
-    EXPECT_NO_THROW(checkModelLimits(80'000'000'000ull, bigLeaves));
+    bigLeaves.maxLeafTriangles = 19;
+    EXPECT_NO_THROW(checkModelLimits(40'000'000'000ull, bigLeaves));
     EXPECT_THROW(checkModelLimits(10'000'000'000'000ull, bigLeaves), Error);
 }
 
@@ -602,7 +768,8 @@ TEST(Preprocess, DISABLED_Measure)
         std::printf("  bytes/tri: clusters %.3f nodes %.3f vertices %.3f indices %.3f total %.3f | clusters %llu "
                     "(%.1f tri, %.1f verts avg) leaves %llu (%.1f tri avg) nodes %llu depth %u fallback leaves %llu "
                     "widened %llu maxError %g\n",
-                    48.0 * double(s.clusters) / tri, 16.0 * double(s.nodes) / tri, 8.0 * double(s.vertices) / tri,
+                    double(sizeof(model::ClusterRecord)) * double(s.clusters) / tri,
+                    double(sizeof(model::Node)) * double(s.nodes) / tri, double(sizeof(model::QuantizedVertex)) * double(s.vertices) / tri,
                     double(s.indexBytes) / tri, s.bytesPerTriangle, (unsigned long long)s.clusters,
                     tri / double(s.clusters), double(s.vertices) / double(s.clusters), (unsigned long long)s.leaves,
                     tri / double(s.leaves), (unsigned long long)s.nodes, s.bvhDepth,

@@ -104,5 +104,67 @@ TEST(CompressedDraw, ImageMatchesUncompressedReference)
     }
 }
 
+// The raster passes draw either the file's strips (primitive restart) or the
+// triangle lists decoded from them at load (RasterIndices): the same triangles
+// in the same order with the same vertex order, so every pass that
+// rasterizes the model (camera, shadow map, afsm's casters) gives the same
+// image bit for bit, chunked or not.
+TEST(CompressedDraw, TriangleListsDrawTheSameImagesAsStrips)
+{
+    struct Case {
+        const char* scene;
+        ShadowMethod method;
+        uint64_t chunkBytes;
+    };
+    for (const Case& c : {Case{"scan", ShadowMethod::ShadowMap, 0}, Case{"plant", ShadowMethod::ShadowMap, 16 * 1024},
+                          Case{"plant", ShadowMethod::AliasFree, 0}}) {
+        GenerateOptions generate;
+        generate.triangles = 30'000;
+        Scene scene = generateScene(c.scene, generate);
+        Frame frames[2];
+        uint64_t deviceBytes[2] = {};
+        for (RasterIndices indices : {RasterIndices::Strips, RasterIndices::Triangles}) {
+            RendererOptions options;
+            options.maxModelBufferBytes = c.chunkBytes;
+            options.rasterIndices = indices;
+            Renderer renderer(options);
+            renderer.loadModel(scene.mesh);
+            renderer.setCamera(scene.cameras.at(0));
+            renderer.setLights(scene.lights);
+            RenderSettings settings;
+            settings.width = settings.height = 256;
+            settings.shadows = c.method;
+            settings.readbackGBuffer = true;
+            const int k = indices == RasterIndices::Triangles;
+            renderer.render(settings); // and a second frame: the occlusion culling's history decides its draws
+            frames[k] = renderer.render(settings);
+            deviceBytes[k] = renderer.modelDeviceBytes();
+            EXPECT_EQ(renderer.validationMessageCount(), 0u);
+        }
+        const std::string what = std::string(c.scene) + ", " + shadowMethodName(c.method) + ", chunk bytes " + std::to_string(c.chunkBytes);
+        ASSERT_EQ(frames[0].positions.size(), frames[1].positions.size()) << what;
+        EXPECT_EQ(0, std::memcmp(frames[0].positions.data(), frames[1].positions.data(), frames[0].positions.size() * sizeof(float))) << what;
+        EXPECT_EQ(0, std::memcmp(frames[0].normals.data(), frames[1].normals.data(), frames[0].normals.size() * sizeof(float))) << what;
+        EXPECT_EQ(0, std::memcmp(frames[0].visibility.data(), frames[1].visibility.data(), frames[0].visibility.size() * sizeof(float)))
+            << what;
+        EXPECT_EQ(frames[0].color.rgba, frames[1].color.rgba) << what;
+        // The lists are an addition on the device: 3 bytes per triangle at most (and a few bytes per chunk).
+        EXPECT_GT(deviceBytes[1], deviceBytes[0]) << what;
+        EXPECT_LE(deviceBytes[1], deviceBytes[0] + 3 * generate.triangles + 4 * 256) << what;
+    }
+}
+
+TEST(CompressedDraw, RasterIndicesNamesRoundTrip)
+{
+    for (RasterIndices indices : {RasterIndices::Auto, RasterIndices::Strips, RasterIndices::Triangles})
+        EXPECT_EQ(parseRasterIndices(rasterIndicesName(indices)), indices);
+    try {
+        parseRasterIndices("lines");
+        FAIL() << "accepted an unknown form";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()), "--raster-indices lines: unknown form (expected auto, strips or triangles)");
+    }
+}
+
 } // namespace
 } // namespace penumbra

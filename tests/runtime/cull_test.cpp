@@ -228,6 +228,7 @@ TEST(Culling, CullsClustersOutsideTheFrustumAndBehindOccluders)
     RenderSettings settings;
     settings.width = settings.height = 128;
     settings.shadowMapSize = 256;
+    settings.adaptiveOcclusion = false; // the frustum holds fewer than PENUMBRA_CULL_MIN_TRIANGLES
     auto cameraView = [&](CullMode mode) {
         settings.cull = mode;
         Frame frame;
@@ -363,6 +364,40 @@ TEST(Culling, ShadowViewsCullCastersBesideTheVisiblePoints)
         expectSameBits(frames[0].color.rgba, frames[1].color.rgba, what + ", srt: color with and without the receiver masks");
     }
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
+}
+
+// A view with fewer than PENUMBRA_CULL_MIN_TRIANGLES in its frustum draws them
+// without occlusion queries (a query costs more than it can save there), unless
+// adaptiveOcclusion is off; the image is the same either way.
+TEST(Culling, SmallViewsSkipOcclusionQueries)
+{
+    GenerateOptions options;
+    options.triangles = 2'000;
+    Scene scene = generateScene("scan", options);
+    Frame frames[2];
+    for (int adaptive = 0; adaptive < 2; ++adaptive) {
+        Renderer renderer;
+        renderer.loadModel(scene.mesh);
+        renderer.setCamera(scene.cameras.at(0));
+        renderer.setLights(scene.lights);
+        RenderSettings settings;
+        settings.width = settings.height = 128;
+        settings.shadowMapSize = 256;
+        settings.cull = CullMode::All;
+        settings.adaptiveOcclusion = adaptive != 0;
+        uint64_t queries = 0;
+        for (int f = 0; f < 3; ++f) {
+            frames[adaptive] = renderer.render(settings);
+            for (const ViewCullStats& view : frames[adaptive].stats.views)
+                queries += view.queriesIssued;
+        }
+        if (adaptive)
+            EXPECT_EQ(queries, 0u) << "a 2,000-triangle model needs no occlusion queries";
+        else
+            EXPECT_GT(queries, 0u) << "adaptiveOcclusion off queries every view";
+        EXPECT_EQ(renderer.validationMessageCount(), 0u);
+    }
+    EXPECT_EQ(frames[0].color.rgba, frames[1].color.rgba);
 }
 
 } // namespace

@@ -21,23 +21,25 @@ namespace penumbra {
 namespace model {
 
 inline constexpr char kMagic[8] = {'P', 'E', 'N', 'U', 'M', 'B', 'R', 'A'};
-inline constexpr uint32_t kVersion = 3;
+inline constexpr uint32_t kVersion = 4;
 inline constexpr uint32_t kSectionAlignment = 64;      // bytes; offsets and the file size are multiples
 inline constexpr uint8_t kStripRestart = 0xFF;         // primitive-restart value of the 8-bit strip indices
 inline constexpr uint32_t kMaxClusterVertices = 255;   // local indices 0..254; 255 is the restart
 inline constexpr uint32_t kMaxClusterTriangles = 1024; // hard limit of the format
 inline constexpr uint32_t kMaxLeafIndexBytes = 65535;  // a leaf's strip range fits 16 bits
 inline constexpr uint32_t kPositionBits = 16;          // quantized coordinate width
-inline constexpr uint32_t kNodeBoundsBits = 8;         // node bounds within the parent's box
-inline constexpr uint32_t kMaxBvhDepth = 64;           // readers may use fixed traversal stacks
+inline constexpr uint32_t kNodeBoundsBits = 8;         // child boxes on their node's grid
+inline constexpr uint32_t kNodeChildren = 4;           // children per node (a 4-wide BVH)
+inline constexpr uint32_t kMaxBvhDepth = 32;           // node levels; readers may use fixed traversal stacks (3 x depth + 1 entries)
+inline constexpr uint32_t kNoCluster = 0xFFFFFFFFu;    // Node::cluster of the nodes above the clusters
 inline constexpr uint32_t kMaxMaterials = 1u << 24;    // MaterialRecord elements
 inline constexpr uint32_t kMaxCameras = 256;           // CameraRecord elements
 inline constexpr uint32_t kMaxLights = 256;            // LightRecord elements
-// Nodes name their children and clusters, and clusters their Cluster node, by
+// Nodes name their children and clusters, and clusters their root node, by
 // 32-bit index: the format's only size limits. With the default options a
-// model has about 0.06 nodes and 0.004 clusters per triangle, so 2^32 - 1
-// nodes hold some 70 G triangles; preprocess checks a conservative estimate
-// (4 nodes per maxLeafTriangles triangles) before it builds. Vertex and strip
+// model has about 0.013 nodes and 0.004 clusters per triangle, so 2^32 - 1
+// nodes hold some 300 G triangles; preprocess checks a conservative estimate
+// (2 nodes per maxLeafTriangles triangles) before it builds. Vertex and strip
 // offsets and every byte count are 64-bit.
 inline constexpr uint64_t kMaxNodes = 0xFFFFFFFFull;
 inline constexpr uint64_t kMaxClusters = 0xFFFFFFFFull;
@@ -120,8 +122,8 @@ inline constexpr uint32_t kClusterFlagsMask = kClusterClosed; // every other bit
 
 // A cluster: up to 255 vertices and its triangles as 8-bit strips.
 // Decoded position = boxMin + float(q) * step, evaluated without fused multiply-add.
-// Version 3: 64 bytes, with 64-bit vertex and strip offsets (a file may hold more
-// than 2^32 vertices or 4 GiB of strips) and flags.
+// 64 bytes (since version 3), with 64-bit vertex and strip offsets (a file may
+// hold more than 2^32 vertices or 4 GiB of strips) and flags.
 struct ClusterRecord {
     float boxMin[3];        // 0: quantization origin (the cluster's bounds minimum)
     float step[3];          // 12: model units per quantization step, per axis (>= 0)
@@ -130,7 +132,7 @@ struct ClusterRecord {
     uint32_t indexBytes;    // 40: bytes of strips (restarts included); first and last byte are not restarts
     uint16_t vertexCount;   // 44: 3..maxClusterVertices
     uint16_t triangleCount; // 46: 1..maxClusterTriangles
-    uint32_t node;          // 48: index of this cluster's Node (kind Cluster)
+    uint32_t node;          // 48: index of this cluster's root Node (named by one Cluster slot)
     uint32_t material;      // 52: index into Materials: every triangle of the cluster has this material
     uint32_t flags;         // 56: ClusterFlags; bits outside kClusterFlagsMask are zero
     uint32_t reserved;      // 60: 0
@@ -179,32 +181,59 @@ struct LightRecord {
 };
 static_assert(sizeof(LightRecord) == 80);
 
+// A vertex: 6 bytes, no padding (version 4; version 3 padded to 8). The
+// rasterizer reads it as R16G16_UINT + R16_UINT attributes (formats every
+// device supports), the ray tracer as one R16G16B16_UINT texel where the
+// device can, else three R16_UINT texels.
 struct QuantizedVertex {
     uint16_t x, y, z; // position in the cluster box, 0..65535
-    uint16_t w;       // 0 (reserved: keeps vertices 8-byte aligned for R16G16B16A16_UINT)
 };
-static_assert(sizeof(QuantizedVertex) == 8);
+static_assert(sizeof(QuantizedVertex) == 6);
 
-enum class NodeKind : uint8_t {
-    Interior = 0, // children: nodes first .. first+childCount-1
-    Cluster = 1,  // a cluster's root; children as Interior; second = cluster index
-    Leaf = 2,     // a strip range: first = cluster index, second = start | count << 16 (bytes, relative to the cluster's firstIndex)
+// What a node's child slot holds (2 bits per slot in Node::kinds).
+enum class ChildKind : uint8_t {
+    Empty = 0,    // no child (only after the node's last child)
+    Interior = 1, // a node of the same part of the tree: child[c] is its index
+    Cluster = 2,  // in a node above the clusters: a cluster's root node, child[c] is its index
+    Leaf = 3,     // in a node of a cluster: a strip range of that cluster, child[c] = start | count << 16
+                  // (bytes, relative to the cluster's firstIndex)
 };
 
-// BVH node. Bounds are stored relative to the parent's decoded box with 8 bits
-// per coordinate, rounded outward: lo = parentMin + lo/255 * parentExtent,
-// hi likewise. The root's box is the header's bounds (its lo/hi are 0 and 255).
-// Children always have larger indices than their parent and each node but the
-// root is the child of exactly one node.
+// BVH node: a 4-wide node in the spirit of compressed wide BVHs (Ylitie,
+// Karras, Laine 2017). The children's boxes lie on a grid of the node's own,
+// 8 bits per coordinate: lo = origin + lo * 2^(exponent - 127) per axis, hi
+// likewise (the power-of-two step makes the product exact, so decoding has one
+// rounding; boxes are rounded outward and checked with the decoder at build),
+// so a node decodes without its parent. The root is node 0 and its own box is
+// the header's bounds. Nodes above the clusters (cluster = kNoCluster) hold
+// Interior and Cluster children; a cluster's root node and the nodes below it
+// (cluster = its index) hold Interior and Leaf children. Children have larger
+// indices than their node, each node but the root is the child of exactly one
+// slot, each cluster's root is named by one Cluster slot and by its record.
+// 64 bytes: shaders read it as four 16-byte words.
 struct Node {
-    uint8_t lo[3];
-    uint8_t hi[3];
-    uint8_t kind;       // NodeKind
-    uint8_t childCount; // Interior/Cluster: 1..2; Leaf: 0
-    uint32_t first;
-    uint32_t second;
+    float origin[3];     // 0: the grid's origin (model units)
+    uint8_t exponent[3]; // 12: per axis, the grid step is 2^(exponent - 127); 1..254
+    uint8_t kinds;       // 15: ChildKind of child c in bits 2c..2c+1; the non-empty children first, at least one
+    uint8_t lo[3][4];    // 16: [axis][child] box minimum on the grid (0 for empty children)
+    uint8_t hi[3][4];    // 28: [axis][child] box maximum, >= lo (0 for empty children)
+    uint32_t cluster;    // 40: the cluster whose subtree this node is in (its root included), or kNoCluster
+    uint32_t reserved;   // 44: 0
+    uint32_t child[4];   // 48: per ChildKind (0 for empty children)
 };
-static_assert(sizeof(Node) == 16);
+static_assert(sizeof(Node) == 64);
+static_assert(offsetof(Node, exponent) == 12 && offsetof(Node, kinds) == 15 && offsetof(Node, lo) == 16 &&
+              offsetof(Node, hi) == 28 && offsetof(Node, cluster) == 40 && offsetof(Node, child) == 48);
+
+inline ChildKind childKind(const Node& node, uint32_t c) { return ChildKind((node.kinds >> (2 * c)) & 3u); }
+// Children of the node (the non-empty slots).
+inline uint32_t childCount(const Node& node)
+{
+    uint32_t n = 0;
+    while (n < kNodeChildren && childKind(node, n) != ChildKind::Empty)
+        ++n;
+    return n;
+}
 
 } // namespace model
 
@@ -258,9 +287,11 @@ void validateLightRecord(const model::LightRecord& record, const std::string& su
 // Decoded position of a cluster's local vertex (exactly the GPU's arithmetic).
 glm::vec3 decodePosition(const model::ClusterRecord& cluster, const model::QuantizedVertex& vertex);
 
-// Decoded box of a child node given its parent's box.
-void decodeChildBounds(const model::Node& child, const glm::vec3& parentMin, const glm::vec3& parentMax, glm::vec3& min,
-                       glm::vec3& max);
+// The grid step of a node's axis: 2^(exponent - 127) (exponent 1..254).
+float nodeStep(uint8_t exponent);
+
+// Decoded box of child c of node (exactly the GPU's arithmetic).
+void decodeChildBox(const model::Node& node, uint32_t c, glm::vec3& min, glm::vec3& max);
 
 // Calls fn(a, b, c) with the local vertex indices of every triangle of the
 // strip bytes [begin, end) (restart-separated strips, alternating winding

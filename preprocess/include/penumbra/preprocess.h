@@ -19,7 +19,8 @@ namespace penumbra {
 struct PreprocessOptions {
     uint32_t maxClusterVertices = 255;  // unique vertices per cluster, 3..model::kMaxClusterVertices
     uint32_t maxClusterTriangles = 512; // triangles per cluster, 1..model::kMaxClusterTriangles
-    uint32_t maxLeafTriangles = 48;     // triangles per strip-range leaf inside a cluster (1..maxClusterTriangles)
+    uint32_t maxLeafTriangles = 18;     // triangles per strip-range leaf inside a cluster (1..maxClusterTriangles); 18 keeps the
+                                        // bench scenes within 8 (scan) and 10 (plant) bytes per triangle with 4-wide nodes
     uint32_t sahBins = 16;              // bins of the top-level binned SAH build, 2..256
     unsigned threads = 0;               // worker threads including the caller; 0 = hardware concurrency
     // Clusters do not mix triangles of closed components with open ones (as they do not

@@ -81,6 +81,23 @@ struct DeviceInfo {
     std::string apiVersion;      // e.g. "1.3.230"
 };
 
+// How the raster passes (camera, shadow maps, afsm and rh casters) index the
+// compressed model's triangles. The tracer always reads the file's strips.
+//   Strips:    the file's 8-bit strips with primitive restart, drawn in place
+//              (no copy; what GPUs do best).
+//   Triangles: an 8-bit triangle list per cluster, decoded from the strips at
+//              load (3 more bytes per triangle on the device). lavapipe splits
+//              a draw at every restart and runs its vertex pipeline once per
+//              strip: on a 10.9 M-triangle model the lists cut the raster
+//              passes' CPU time by a quarter and its page faults 3-10x.
+//   Auto:      Triangles on a CPU device (lavapipe), Strips on a GPU.
+// The images are the same bit for bit with either (same triangles, same
+// order, same vertex order).
+enum class RasterIndices { Auto, Strips, Triangles };
+
+const char* rasterIndicesName(RasterIndices indices);
+RasterIndices parseRasterIndices(const std::string& name); // throws Error
+
 struct RendererOptions {
     // Empty: the first discrete GPU, else integrated, else any other device
     // (lavapipe). Otherwise a device index or a case-insensitive substring of its name.
@@ -92,6 +109,8 @@ struct RendererOptions {
     // Largest model buffer in bytes (0: min(1 GiB, maxMemoryAllocationSize)).
     // Larger models are split into chunks; tests set it small to exercise that.
     uint64_t maxModelBufferBytes = 0;
+    // What the raster passes draw (RasterIndices above).
+    RasterIndices rasterIndices = RasterIndices::Auto;
     // Longest wait for the device to finish one submission (a frame's passes
     // up to a read-back, an upload). A longer one fails with one line,
     // "device did not finish <passes> in N s", and the renderer refuses further
@@ -143,7 +162,9 @@ struct RenderSettings {
     // the fit: one host round trip per frame). Same image either way.
     bool cullBesideReceivers = true;
     // CullMode::All: a view whose occlusion queries cull little goes frustum-only
-    // for a few frames. false (tests): queries in every view, every frame.
+    // for a few frames, and a view whose frustum holds fewer than
+    // PENUMBRA_CULL_MIN_TRIANGLES (65536) triangles is culled by its frustum
+    // only. false (tests): queries in every view, every frame.
     bool adaptiveOcclusion = true;
     // Benchmarks (penumbra bench's floor table): also time each pass's floor
     // in the frame, recorded just before the pass as "<pass>_floor": for

@@ -18,23 +18,27 @@ void CompactPass::bind(vk::Device& device, VkBuffer marks, VkBuffer list, VkBuff
     kernel.write(device, {vk::storageBuffer(marks), vk::storageBuffer(list), vk::storageBuffer(stats)});
 }
 
-void CompactPass::recordFloor(VkCommandBuffer cmd, uint32_t pixelCount) const
+void CompactPass::recordFloor(VkCommandBuffer cmd, uint32_t width, uint32_t height) const
 {
+    const uint32_t pixelCount = width * height;
     kernel.bind(cmd, true);
-    kernel.push(cmd, CompactPush{pixelCount, PENUMBRA_COMPACT_LIST});
+    kernel.push(cmd, CompactPush{pixelCount, PENUMBRA_COMPACT_LIST, width, 0});
     const Groups2D groups = spreadGroups(groupCount(pixelCount, PENUMBRA_COMPACT_GROUP_SIZE), 65535u);
     vkCmdDispatch(cmd, groups.x, groups.y, 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
 }
 
-void CompactPass::record(VkCommandBuffer cmd, uint32_t pixelCount) const
+void CompactPass::record(VkCommandBuffer cmd, uint32_t width, uint32_t height) const
 {
+    const uint32_t pixelCount = width * height;
     vkCmdFillBuffer(cmd, rayList, 0, PENUMBRA_RAY_LIST_HEADER_UINTS * 4, 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     kernel.bind(cmd);
-    CompactPush push{pixelCount, PENUMBRA_COMPACT_LIST};
+    CompactPush push{pixelCount, PENUMBRA_COMPACT_LIST, width, 0};
     kernel.push(cmd, push);
-    const Groups2D groups = spreadGroups(groupCount(pixelCount, PENUMBRA_COMPACT_GROUP_SIZE), 65535u);
+    // One invocation per pixel of the 8x8 tiles covering the image (compact.comp.glsl: tilePixel).
+    const uint32_t tiled = groupCount(width, 8) * groupCount(height, 8) * 64;
+    const Groups2D groups = spreadGroups(groupCount(tiled, PENUMBRA_COMPACT_GROUP_SIZE), 65535u);
     vkCmdDispatch(cmd, groups.x, groups.y, 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     push.phase = PENUMBRA_COMPACT_DISPATCH;

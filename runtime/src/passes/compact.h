@@ -12,8 +12,10 @@ enum CompactBinding : uint32_t { kCompactMarks, kCompactRayList, kCompactStats, 
 struct CompactPush {
     uint32_t pixelCount;
     uint32_t phase; // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
+    uint32_t width; // of the image
+    uint32_t pad;
 };
-static_assert(sizeof(CompactPush) == 8);
+static_assert(sizeof(CompactPush) == 16);
 
 class CompactPass {
   public:
@@ -23,9 +25,10 @@ class CompactPass {
     // Clears the list's header, lists the marked pixels of pixelCount, writes
     // the dispatch size and adds the list's length to PENUMBRA_STAT_PIP; ends
     // with the barrier to the trace (indirect).
-    void record(VkCommandBuffer cmd, uint32_t pixelCount) const;
+    // The list holds the pixels in 8x8 tiles (coherent rays for the tracer's SIMD registers).
+    void record(VkCommandBuffer cmd, uint32_t width, uint32_t height) const;
     // The null twin (shaders/floor.glsli): the marks read, one entry per marked pixel written; after createFloor.
-    void recordFloor(VkCommandBuffer cmd, uint32_t pixelCount) const;
+    void recordFloor(VkCommandBuffer cmd, uint32_t width, uint32_t height) const;
     void createFloor(vk::Device& device) { kernel.createFloor(device); }
 
   private:

@@ -1,5 +1,8 @@
 #include "passes/thin_triangles.h"
 
+#include <algorithm>
+#include <vector>
+
 #include "config.h"
 #include "passes/pass.h"
 
@@ -7,12 +10,48 @@ namespace penumbra::passes {
 
 void ThinTrianglesPass::create(vk::Device& device)
 {
-    kernel.create(device, "thin_triangles.comp", {vk::kStorageImage}, sizeof(ThinTrianglesPush));
+    kernel.create(device, "thin_triangles.comp",
+                  {vk::kStorageImage, vk::kTexels, vk::kTexels, vk::kTexels, vk::kTexels, vk::kStorage}, sizeof(ThinTrianglesPush));
 }
 
-void ThinTrianglesPass::destroy(vk::Device& device) { kernel.destroy(device); }
+void ThinTrianglesPass::destroy(vk::Device& device)
+{
+    kernel.destroy(device);
+    vk::destroyBuffer(device, list);
+    thinMapView = VK_NULL_HANDLE;
+    texels = {};
+    texelsComplete = false;
+}
 
-void ThinTrianglesPass::bind(vk::Device& device, const vk::Image& thinMap) { kernel.write(device, {vk::storageImage(thinMap.view)}); }
+void ThinTrianglesPass::bind(vk::Device& device, const vk::Image& thinMap)
+{
+    thinMapView = thinMap.view;
+    writeSet(device);
+}
+
+void ThinTrianglesPass::bindModel(vk::Device& device, const GpuGeometry& geometry)
+{
+    texels = geometry.texels;
+    texelsComplete = geometry.texelsComplete;
+    vertexTexelsSplit = geometry.vertexTexelsSplit;
+    // Every triangle of the model could be a sliver of one view: the list holds them all, up to PENUMBRA_THIN_LIST_MAX.
+    const uint32_t capacity = uint32_t(std::min<uint64_t>(std::max<uint64_t>(geometry.triangles, 1), PENUMBRA_THIN_LIST_MAX));
+    vk::destroyBuffer(device, list);
+    std::vector<uint32_t> header(PENUMBRA_THIN_LIST_HEADER_UINTS, 0);
+    header[4] = capacity;
+    list = vk::createBufferWithData(device, header.data(), header.size() * sizeof(uint32_t),
+                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                    vk::Addressable::No, header.size() * sizeof(uint32_t) + VkDeviceSize(capacity) * 8);
+    writeSet(device);
+}
+
+void ThinTrianglesPass::writeSet(vk::Device& device) const
+{
+    if (!thinMapView || !texels.nodes)
+        return;
+    kernel.write(device, {vk::storageImage(thinMapView), vk::texelBuffer(texels.nodes), vk::texelBuffer(texels.clusters),
+                          vk::texelBuffer(texels.vertices), vk::texelBuffer(texels.strips), vk::storageBuffer(list.buffer)});
+}
 
 void clearThinMap(VkCommandBuffer cmd, const vk::Image& thinMap)
 {
@@ -32,7 +71,13 @@ void ThinTrianglesPass::clear(VkCommandBuffer cmd, const vk::Image& thinMap) con
 void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, const GpuGeometry& geometry, VkDeviceAddress modelTable,
                                uint32_t mapSize, uint32_t thinLayers, const ThinView& view) const
 {
-    kernel.bind(cmd);
+    const uint32_t texels = texelsComplete ? 1u : 0u, local = view.areaLight ? 1u : 0u, split = vertexTexelsSplit ? 1u : 0u;
+    // The list's count, cleared for this view.
+    vk::memoryBarrier(cmd, kCompute | kIndirect, kStorageRW | kIndirectRead, kClear, kTransferWrite);
+    vkCmdFillBuffer(cmd, list.buffer, 0, sizeof(uint32_t), 0);
+    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+    kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split});
+    // One invocation per node, then per leaf of the workgroup's nodes.
     const uint32_t groups = std::max(groupCount(geometry.nodeCount, PENUMBRA_THIN_TRIANGLES_GROUP_SIZE), 1u);
     const Groups2D dispatch = spreadGroups(groups, device.properties.limits.maxComputeWorkGroupCount[0]);
     ThinTrianglesPush push{view.viewProj,
@@ -47,6 +92,12 @@ void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, co
                            view.clusterMask};
     kernel.push(cmd, push);
     vkCmdDispatch(cmd, dispatch.x, dispatch.y, 1);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+    kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_DISPATCH, split});
+    vkCmdDispatch(cmd, 1, 1, 1);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead);
+    kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_FILL, split});
+    vkCmdDispatchIndirect(cmd, list.buffer, sizeof(uint32_t));
 }
 
 } // namespace penumbra::passes

@@ -10,6 +10,8 @@
 
 #include "config.h"
 
+static_assert(PENUMBRA_TRACE_STACK_SIZE >= 3 * penumbra::model::kMaxBvhDepth + 4, "the tracer's stack holds every pending node");
+
 namespace penumbra::passes {
 
 namespace {
@@ -72,6 +74,7 @@ void TracePass::bindModel(vk::Device& device, const GpuGeometry& geometry)
     }
     texels = geometry.texels;
     texelsComplete = geometry.texelsComplete;
+    vertexTexelsSplit = geometry.vertexTexelsSplit;
     writeSet(device);
     header.nodeChunkShift = geometry.nodeChunkShift;
     header.nodeChunkCount = uint32_t(nodeChunkCount);
@@ -121,7 +124,7 @@ void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, float originOff
     if (lightIndex >= PENUMBRA_MAX_LIGHTS)
         fail("ray tracer", "light index " + std::to_string(lightIndex) + " out of range (at most " +
                                std::to_string(PENUMBRA_MAX_LIGHTS) + " lights)");
-    kernel.bind(cmd, vk::Specialization{texelsComplete ? 1u : 0u});
+    kernel.bind(cmd, vk::Specialization{texelsComplete ? 1u : 0u, vertexTexelsSplit ? 1u : 0u});
     TracePush push{tableAddress, lightIndex, originOffset, samples, {}, {}, {}};
     std::copy(boundsMin, boundsMin + 4, push.boundsMin);
     std::copy(boundsMax, boundsMax + 4, push.boundsMax);

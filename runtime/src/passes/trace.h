@@ -65,6 +65,7 @@ class TracePass {
     VkDeviceAddress tableAddress = 0;
     GpuGeometry::TexelViews texels;  // the model's texel views, bound in bind()
     bool texelsComplete = false;     // the tracer reads them (else by device address)
+    bool vertexTexelsSplit = false;  // GpuGeometry::vertexTexelsSplit
     float boundsMin[4] = {}, boundsMax[4] = {};
     VkBuffer rayList = VK_NULL_HANDLE; // its header holds the indirect dispatch
 };
