@@ -363,10 +363,12 @@ struct Renderer::Impl::FrameScript {
         case Step::PenumbraMask: {
             const uint32_t top = maskTopLevel(t.shadowSize);
             r.penumbraMask.clear(cmd);
-            r.classify.recordSoft(cmd, {light, slot, PENUMBRA_SOFT_RECEIVERS, 0, 1.0f, t.shadowSize, top, 0}, width(), height());
+            r.classify.recordSoft(cmd, {light, slot, PENUMBRA_SOFT_RECEIVERS, 0, 1.0f, t.shadowSize, top, 0}, uint32_t(l.positionType.w), width(),
+                                  height());
             const float range = l.mapRange[slot].x - l.mapEye[slot].w;
             r.penumbraMask.record(cmd, {glm::inverse(l.viewProj[slot]), light, slot, 0, t.shadowSize, top, spec.uses(Step::ThinTriangles) ? 1u : 0u,
-                                        float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0});
+                                        float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0},
+                                   uint32_t(l.positionType.w));
             timer.mark(cmd, PassId::PenumbraMask);
             return;
         }
@@ -378,7 +380,8 @@ struct Renderer::Impl::FrameScript {
                     const uint32_t mode = slot == 0 ? step.mode : step.cornerMode;
                     const bool average = mode == PENUMBRA_SOFT_AVERAGE;
                     r.classify.recordSoft(cmd, {light, slot, mode, average && first ? 1u : 0u, average ? 1.0f / float(maps) : 1.0f,
-                                                t.shadowSize, maskTopLevel(t.shadowSize), 0}, width(), height(), floor);
+                                                t.shadowSize, maskTopLevel(t.shadowSize), 0},
+                                          uint32_t(l.positionType.w), width(), height(), floor);
                 } else {
                     r.classify.record(cmd, {light, step.mode}, uint32_t(l.positionType.w), width(), height(), floor);
                 }
@@ -394,7 +397,7 @@ struct Renderer::Impl::FrameScript {
             timer.mark(cmd, PassId::Compact);
             return;
         case Step::Trace:
-            r.trace.record(cmd, light, rayOffset, area ? settings.lightSamples : 0);
+            r.trace.record(cmd, light, uint32_t(l.positionType.w), rayOffset, area ? settings.lightSamples : 0);
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             timer.mark(cmd, PassId::Trace);
             return;

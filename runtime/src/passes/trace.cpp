@@ -117,14 +117,14 @@ void TracePass::writeSet(vk::Device& device) const
                           vk::texelBuffer(texels.strips)});
 }
 
-void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, uint32_t samples) const
+void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightType, float originOffset, uint32_t samples) const
 {
     if (!tableAddress || !rayList)
         fail("ray tracer", "record before bindModel and bind");
     if (lightIndex >= PENUMBRA_MAX_LIGHTS)
         fail("ray tracer", "light index " + std::to_string(lightIndex) + " out of range (at most " +
                                std::to_string(PENUMBRA_MAX_LIGHTS) + " lights)");
-    kernel.bind(cmd, vk::Specialization{texelsComplete ? 1u : 0u, vertexTexelsSplit ? 1u : 0u});
+    kernel.bind(cmd, vk::Specialization{texelsComplete ? 1u : 0u, vertexTexelsSplit ? 1u : 0u, samples != 0 ? 1u : 0u, lightType});
     TracePush push{tableAddress, lightIndex, originOffset, samples, {}, {}, {}};
     std::copy(boundsMin, boundsMin + 4, push.boundsMin);
     std::copy(boundsMax, boundsMax + 4, push.boundsMax);

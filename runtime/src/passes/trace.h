@@ -50,8 +50,9 @@ class TracePass {
     // originOffset along the normal turned toward the light. The caller orders
     // the writes of the ray list and G-buffer before, and the visibility reads after.
     // samples > 0 (area lights): that many light samples per pixel, visibility is
-    // the unblocked fraction (soft shadows).
-    void record(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, uint32_t samples = 0) const;
+    // the unblocked fraction (soft shadows). lightType (PENUMBRA_LIGHT_*) and
+    // samples > 0 pick a pipeline specialized for them.
+    void record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightType, float originOffset, uint32_t samples = 0) const;
     // Device address of the model table (bvh_traversal.glsli), 0 before bindModel.
     VkDeviceAddress modelTableAddress() const { return tableAddress; }
 
