@@ -481,6 +481,25 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
     }
 }
 
+void Culling::refreshCommands(const std::vector<VkDrawIndexedIndirectCommand>& commands)
+{
+    if (!model || mode == CullMode::None || !drawCommands.mapped)
+        return;
+    auto* out = static_cast<VkDrawIndexedIndirectCommand*>(drawCommands.mapped);
+    auto refresh = [&](uint32_t i, uint32_t cluster) {
+        out[i].indexCount = commands[cluster].indexCount;
+        out[i].firstIndex = commands[cluster].firstIndex;
+        out[i].vertexOffset = commands[cluster].vertexOffset;
+    };
+    for (const ViewPlan& plan : plans) {
+        uint32_t i = plan.firstCommand;
+        for (uint32_t cluster : plan.firstPhase)
+            refresh(i++, cluster);
+        for (const Entry& entry : plan.finalPhase)
+            refresh(i++, entry.cluster);
+    }
+}
+
 void Culling::resetQueries(VkCommandBuffer cmd)
 {
     if (queryCount)

@@ -124,6 +124,10 @@ struct Culling {
     // frame must be finished. Then resetQueries outside any rendering.
     void beginFrame(vk::Device& device, CullMode mode, bool adaptive, std::vector<CullView> views);
     void resetQueries(VkCommandBuffer cmd);
+    // Paged geometry (geometry_pages.h): rewrites the index count, first index
+    // and vertex offset of every planned draw from commands (GpuGeometry::commands
+    // after pages moved); the device must be idle.
+    void refreshCommands(const std::vector<VkDrawIndexedIndirectCommand>& commands);
     // Records view `view` of beginFrame's list (with CullMode::None or no model: the whole geometry).
     void recordView(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
                     const EndRendering& end);

@@ -136,6 +136,12 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
         if (geometry.encoding != GeometryEncoding::Compressed)
             fail("render", "rh needs the compressed model (the uncompressed reference is for raster benchmarks)");
     }
+    if (geometry.paged()) {
+        if (settings.shadows == ShadowMethod::AliasFree || settings.shadows == ShadowMethod::RayHierarchy)
+            fail("--geometry-budget", std::string(spec.name) + " is not rendered under a geometry budget yet: use sm, srt or frt");
+        if (settings.measureFloors)
+            fail("--geometry-budget", "floors are measured in core (no budget)");
+    }
     if (spec.traces() && geometry.encoding != GeometryEncoding::Compressed)
         fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
 }
@@ -154,6 +160,7 @@ struct Renderer::Impl::FrameScript {
     VkCommandBuffer cmd;
     PassTimer timer;
     std::vector<uint32_t> lightFirstView;                          // first shadow view of each light
+    std::vector<uint32_t> lightViewCount;                          // its shadow views
     std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks; // layer k of light i at 6 i + k
     std::vector<VkDeviceAddress> thinClusterMask;                   // the same layers; 0: every cluster
     uint32_t viewFitMask = 0, receiverGridMask = 0;
@@ -189,6 +196,11 @@ struct Renderer::Impl::FrameScript {
             r.ensureFloors();
         std::memcpy(r.targets.frameUniforms.mapped, &data, sizeof(data));
         lightFirstView.resize(lights.size());
+        lightViewCount.assign(lights.size(), 0);
+        if (r.geometry.paged()) {
+            r.pages.beginFrame();
+            r.pages.ensureParking(r.device, uint64_t(s.width) * s.height);
+        }
         receiverMasks.resize(6 * lights.size());
         thinClusterMask.assign(6 * lights.size(), 0);
         // Maps fitted to what the camera sees: directional lights, and area lights whose maps are drawn.
@@ -230,11 +242,127 @@ struct Renderer::Impl::FrameScript {
             lightFirstView[i] = uint32_t(views.size());
             const bool area = isAreaLight(lights[i]);
             const uint32_t maps = area ? (spec.drawsAreaMaps() ? uint32_t(data.lights[i].spotCosLayers.w) : 0u) : layers(i);
+            lightViewCount[i] = maps;
             for (uint32_t k = 0; k < maps; ++k)
                 views.push_back({"light" + std::to_string(i) + (maps > 1 ? (area ? ".map" : ".face") + std::to_string(k) : ""),
                                  1 + 6 * i + k, data.lights[i].viewProj[k], false, occlusion, area ? nullptr : receiverMasks[6 * i + k]});
         }
         r.shadowCulling.beginFrame(r.device, settings.cull, settings.adaptiveOcclusion, std::move(views));
+        if (r.geometry.paged())
+            r.shadowCulling.refreshCommands(r.geometry.commands); // planned from the load-time commands
+    }
+
+    // Paged geometry: makes the clusters resident (geometry_pages.h). A change
+    // needs the device idle: with inFrame, the frame's commands so far are
+    // submitted first and a new command buffer begun after.
+    void ensureResident(const std::vector<uint32_t>& clusters, const std::string& what, bool inFrame)
+    {
+        GeometryPages& pages = r.pages;
+        if (pages.allResident(clusters)) {
+            pages.ensure(r.device, r.geometry, *r.model, clusters, what); // the pages' last use only
+            return;
+        }
+        if (inFrame)
+            r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+        pages.ensure(r.device, r.geometry, *r.model, clusters, what);
+        r.culling.refreshCommands(r.geometry.commands);
+        r.shadowCulling.refreshCommands(r.geometry.commands);
+        if (inFrame)
+            beginCommands();
+    }
+
+    // Paged geometry: before a light's passes, the clusters its shadow views
+    // may draw and those its thin-triangle views may decode
+    // (clusterMayReachView, with the receiver masks' cluster bits).
+    void ensureLightResident(uint32_t light)
+    {
+        const CullModel& model = *r.shadowCulling.model;
+        const uint32_t clusterCount = uint32_t(model.clusterMin.size());
+        std::vector<uint8_t> wanted(clusterCount, 0);
+        for (uint32_t v = lightFirstView[light]; v < lightFirstView[light] + lightViewCount[light]; ++v)
+            for (uint32_t c : r.shadowCulling.viewClusters(v))
+                wanted[c] = 1;
+        if (spec.uses(Step::ThinTriangles)) {
+            const gpu::LightData& l = data.lights[light];
+            const bool area = isAreaLight(lights[light]);
+            const uint32_t views = area ? uint32_t(l.spotCosLayers.w) : layers(light);
+            const size_t words = (clusterCount + 31) / 32;
+            for (uint32_t k = 0; k < views; ++k) {
+                const uint32_t* mask = nullptr;
+                if (!area && thinClusterMask[6 * light + k])
+                    mask = static_cast<const uint32_t*>(r.targets.thinClusterMasks.mapped) + (6 * light + k) * words;
+                for (uint32_t c = 0; c < clusterCount; ++c)
+                    if (!wanted[c] && (!mask || (mask[c >> 5] >> (c & 31)) & 1u) &&
+                        clusterMayReachView(l.viewProj[k], model.clusterMin[c], model.clusterMax[c], r.targets.shadowSize, 4.0f))
+                        wanted[c] = 1;
+            }
+        }
+        std::vector<uint32_t> clusters;
+        for (uint32_t c = 0; c < clusterCount; ++c)
+            if (wanted[c])
+                clusters.push_back(c);
+        ensureResident(clusters, "light " + std::to_string(light) + "'s views", true);
+    }
+
+    // Paged geometry: after a trace pass, the rays it parked are traced again
+    // until none is left. The clusters the last dispatch visited are made
+    // resident when they fit together (then its parked rays all finish: a ray
+    // traced again visits no cluster it did not visit before); otherwise the
+    // first half of its parked rays is traced alone, and so on down to one ray,
+    // whose working set must fit the budget.
+    void traceParked(uint32_t light, uint32_t samples)
+    {
+        GeometryPages& pages = r.pages;
+        r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+        std::vector<uint32_t> front(pages.parkedEntries(), pages.parkedEntries() + pages.parkedCount()), rest;
+        std::vector<uint32_t> visited = pages.visitedClusters();
+        pages.frame.parkedRays += front.size();
+        size_t batch = front.size();
+        const std::string what = "the rays toward light " + std::to_string(light);
+        for (uint32_t round = 0; !front.empty() || !rest.empty(); ++round) {
+            if (round > 4 * 1024 * 1024)
+                fail("--geometry-budget", "parked rays of light " + std::to_string(light) + " did not finish");
+            std::vector<uint32_t> toTrace;
+            if (front.empty()) {
+                const size_t take = std::min(batch, rest.size());
+                toTrace.assign(rest.begin(), rest.begin() + take);
+                rest.erase(rest.begin(), rest.begin() + take);
+            } else if (pages.fits(visited)) {
+                ensureResident(visited, what, false);
+                toTrace.swap(front);
+            } else {
+                if (front.size() == 1)
+                    ensureResident(visited, "one ray toward light " + std::to_string(light), false); // fails: the budget is too small
+                const size_t half = front.size() / 2;
+                rest.insert(rest.begin(), front.begin() + half, front.end());
+                toTrace.assign(front.begin(), front.begin() + half);
+                batch = half;
+            }
+            front.clear();
+            // The list into the frame's ray list (its header holds the indirect dispatch), then the trace.
+            auto* list = static_cast<uint32_t*>(pages.retraceList.mapped);
+            const Groups2D groups = spreadGroups(uint32_t((toTrace.size() + PENUMBRA_TRACE_GROUP_SIZE - 1) / PENUMBRA_TRACE_GROUP_SIZE),
+                                                 r.device.properties.limits.maxComputeWorkGroupCount[0]);
+            list[0] = uint32_t(toTrace.size());
+            list[1] = groups.x;
+            list[2] = groups.y;
+            list[3] = 1;
+            std::copy(toTrace.begin(), toTrace.end(), list + PENUMBRA_RAY_LIST_HEADER_UINTS);
+            pages.clearParking();
+            beginCommands();
+            vk::memoryBarrier(cmd, kCompute | kIndirect, kStorageRW | kIndirectRead, kCopy, kTransferWrite);
+            const VkBufferCopy region{0, 0, (PENUMBRA_RAY_LIST_HEADER_UINTS + toTrace.size()) * sizeof(uint32_t)};
+            vkCmdCopyBuffer(cmd, pages.retraceList.buffer, r.targets.rayList.buffer, 1, &region);
+            vk::memoryBarrier(cmd, kCopy, kTransferWrite, kCompute | kIndirect, kStorageRead | kIndirectRead);
+            r.trace.record(cmd, light, rayOffset, samples, pages.parkingAddress(r.device), pages.clusterWords());
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
+            r.submitAndWait(cmd, "trace (parked rays)");
+            ++pages.frame.parkingRounds;
+            front.assign(pages.parkedEntries(), pages.parkedEntries() + pages.parkedCount());
+            visited = pages.visitedClusters();
+            pages.frame.parkedRays += front.size();
+        }
+        beginCommands();
     }
 
     // RenderSettings::measureFloors: a raster pass's floor, every triangle of
@@ -397,6 +525,15 @@ struct Renderer::Impl::FrameScript {
             timer.mark(cmd, PassId::Compact);
             return;
         case Step::Trace:
+            if (r.geometry.paged()) {
+                r.pages.clearParking();
+                r.trace.record(cmd, light, rayOffset, area ? settings.lightSamples : 0, r.pages.parkingAddress(r.device),
+                               r.pages.clusterWords());
+                vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
+                timer.mark(cmd, PassId::Trace);
+                traceParked(light, area ? settings.lightSamples : 0);
+                return;
+            }
             r.trace.record(cmd, light, rayOffset, area ? settings.lightSamples : 0);
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             timer.mark(cmd, PassId::Trace);
@@ -475,6 +612,8 @@ struct Renderer::Impl::FrameScript {
     // The method's sequence for one light.
     void recordLight(uint32_t light)
     {
+        if (r.geometry.paged())
+            ensureLightResident(light);
         if (!isAreaLight(lights[light])) {
             for (const MethodStep& step : spec.hard)
                 runStep(step, light, false, 0, true);
@@ -586,6 +725,16 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         out.rhRounds = rh.rounds;
         out.rhPeakPairBytes = rh.peakPairBytes;
     }
+    if (r.geometry.paged()) {
+        const GeometryPageStats& pages = r.pages.frame;
+        out.geometryBudgetBytes = r.pages.poolBytes();
+        out.geometryBytes = r.pages.geometryBytes();
+        out.residentPeakBytes = pages.residentPeakBytes;
+        out.pagesUploaded = pages.pagesUploaded;
+        out.bytesStreamed = pages.bytesStreamed;
+        out.parkingRounds = pages.parkingRounds;
+        out.parkedRays = pages.parkedRays;
+    }
     out.device = r.device.info;
     for (uint32_t pass = 0; pass < uint32_t(PassId::Count); ++pass)
         if (ran[pass])
@@ -609,6 +758,10 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, frame.view.viewProj, true, true}});
     if (!readBack)
         frame.planShadowViews();
+    if (geometry.paged()) {
+        culling.refreshCommands(geometry.commands); // planned from the load-time commands
+        frame.ensureResident(culling.viewClusters(0), "the camera's view", false);
+    }
 
     frame.beginCommands();
     vkCmdResetQueryPool(commandBuffer, queryPool, 0, kMaxTimestamps);
