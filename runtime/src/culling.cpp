@@ -544,6 +544,29 @@ std::vector<uint32_t> Culling::viewClusters(uint32_t view) const
     return clusters;
 }
 
+std::vector<uint32_t> Culling::firstPhaseClusters(uint32_t view) const
+{
+    if (!model || mode == CullMode::None || view >= plans.size() || !plans[view].view.occlusion)
+        return viewClusters(view);
+    return plans[view].firstPhase;
+}
+
+std::vector<uint32_t> Culling::drawnClusters(vk::Device& device, uint32_t view) const
+{
+    const ViewPlan& plan = plans.at(view);
+    std::vector<uint32_t> clusters = plan.firstPhase;
+    const uint32_t groupCount = uint32_t(plan.groupQueryBegin.size());
+    if (groupCount == 0)
+        return clusters;
+    std::vector<uint32_t> results(groupCount);
+    vk::readQueryResults(device, queryPool, plan.firstQuery, groupCount, results.size() * sizeof(uint32_t), results.data(),
+                         sizeof(uint32_t), 0, "the occlusion queries");
+    for (const Entry& entry : plan.finalPhase)
+        if (entry.query != kNoQuery && results.at(entry.query - plan.firstQuery) != 0)
+            clusters.push_back(entry.cluster);
+    return clusters;
+}
+
 void Culling::markView(VkCommandBuffer cmd, uint32_t view, bool end) const
 {
     if (view < plans.size())
@@ -569,6 +592,8 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
                          const BeginRendering& begin, const EndRendering& end)
 {
     const bool timed = viewIndex < plans.size();
+    if (beforeView)
+        beforeView(viewIndex); // paged geometry: the clusters of phase 1 made resident
     if (timed)
         vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * viewIndex);
     recordPhases(cmd, viewIndex, geometry, begin, end);
@@ -628,6 +653,8 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
         return;
     }
     end();
+    if (betweenPhases)
+        betweenPhases(viewIndex); // paged geometry: the clusters whose queries passed made resident
 
     // Query results -> instance counts of the final list.
     constexpr VkPipelineStageFlags2 kAttachments = VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT |

@@ -142,6 +142,20 @@ struct Culling {
     // texel only.
     void markClustersNearReceivers(const ReceiverMask& mask, uint32_t* bits) const;
 
+    // Paged geometry (geometry_pages.h): called between a view's two phases,
+    // after phase 1's rendering ended, with the view's index; it may submit
+    // the command buffer, wait and begin it again (the same handle).
+    std::function<void(uint32_t view)> betweenPhases;
+    // Paged geometry: called as a view's recording starts (no rendering begun), like betweenPhases.
+    std::function<void(uint32_t view)> beforeView;
+    // The clusters view `view` may draw before its occlusion queries are
+    // answered: phase 1's, or every cluster of a view planned without queries.
+    std::vector<uint32_t> firstPhaseClusters(uint32_t view) const;
+    // After phase 1 ran (device idle): phase 1's clusters and those whose query
+    // passed, the only ones phase 2 draws (cull_predicates.comp.glsl).
+    std::vector<uint32_t> drawnClusters(vk::Device& device, uint32_t view) const;
+    const std::string& viewName(uint32_t view) const { return plans.at(view).view.name; }
+
     // The clusters view `view` draws, ascending, for a view planned without
     // occlusion queries (its frustum and receiver mask only); every cluster
     // with CullMode::None. Needs the compressed model.

@@ -214,11 +214,37 @@ struct Renderer::Impl::FrameScript {
                 receiverGridMask |= 1u << i;
         }
         timer.pool = r.queryPool;
+        if (r.geometry.paged()) {
+            auto betweenPhases = [this](Culling& culling) {
+                return [this, &culling](uint32_t view) {
+                    // The queries are answered once phase 1 ran: submit and wait, then read them.
+                    r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+                    ensureResident(culling.drawnClusters(r.device, view), "the " + culling.viewName(view) + " view", false);
+                    beginCommands();
+                };
+            };
+            r.culling.betweenPhases = betweenPhases(r.culling);
+            r.shadowCulling.betweenPhases = betweenPhases(r.shadowCulling);
+            auto beforeView = [this](Culling& culling) {
+                return [this, &culling](uint32_t view) {
+                    ensureResident(culling.firstPhaseClusters(view), "the " + (view < culling.plans.size() ? culling.viewName(view) : std::string("whole-model")) + " view",
+                                   true);
+                };
+            };
+            r.culling.beforeView = beforeView(r.culling);
+            r.shadowCulling.beforeView = beforeView(r.shadowCulling);
+        }
         if (s.measureFloors)
             timer.submitAndRestart = [this] {
                 r.submitAndWait(cmd, timer.passesSinceLastSubmit());
                 beginCommands();
             };
+    }
+
+    ~FrameScript()
+    {
+        r.culling.betweenPhases = r.culling.beforeView = nullptr;
+        r.shadowCulling.betweenPhases = r.shadowCulling.beforeView = nullptr;
     }
 
     uint32_t layers(uint32_t light) const { return uint32_t(data.lights[light].spotCosLayers.z); }
@@ -271,37 +297,28 @@ struct Renderer::Impl::FrameScript {
             beginCommands();
     }
 
-    // Paged geometry: before a light's passes, the clusters its shadow views
-    // may draw and those its thin-triangle views may decode
-    // (clusterMayReachView, with the receiver masks' cluster bits).
-    void ensureLightResident(uint32_t light)
+    // Paged geometry: before a thin-triangle step, the clusters its views may
+    // decode: those of the receiver masks' cluster bits (every cluster for area
+    // lights) that can reach the view (clusterMayReachView).
+    void ensureThinResident(uint32_t light, bool area, uint32_t slot)
     {
         const CullModel& model = *r.shadowCulling.model;
         const uint32_t clusterCount = uint32_t(model.clusterMin.size());
-        std::vector<uint8_t> wanted(clusterCount, 0);
-        for (uint32_t v = lightFirstView[light]; v < lightFirstView[light] + lightViewCount[light]; ++v)
-            for (uint32_t c : r.shadowCulling.viewClusters(v))
-                wanted[c] = 1;
-        if (spec.uses(Step::ThinTriangles)) {
-            const gpu::LightData& l = data.lights[light];
-            const bool area = isAreaLight(lights[light]);
-            const uint32_t views = area ? uint32_t(l.spotCosLayers.w) : layers(light);
-            const size_t words = (clusterCount + 31) / 32;
-            for (uint32_t k = 0; k < views; ++k) {
+        const gpu::LightData& l = data.lights[light];
+        const size_t words = (clusterCount + 31) / 32;
+        std::vector<uint32_t> clusters;
+        for (uint32_t c = 0; c < clusterCount; ++c)
+            for (uint32_t k = area ? slot : 0; k < (area ? slot + 1 : layers(light)); ++k) {
                 const uint32_t* mask = nullptr;
                 if (!area && thinClusterMask[6 * light + k])
                     mask = static_cast<const uint32_t*>(r.targets.thinClusterMasks.mapped) + (6 * light + k) * words;
-                for (uint32_t c = 0; c < clusterCount; ++c)
-                    if (!wanted[c] && (!mask || (mask[c >> 5] >> (c & 31)) & 1u) &&
-                        clusterMayReachView(l.viewProj[k], model.clusterMin[c], model.clusterMax[c], r.targets.shadowSize, 4.0f))
-                        wanted[c] = 1;
+                if ((!mask || (mask[c >> 5] >> (c & 31)) & 1u) &&
+                    clusterMayReachView(l.viewProj[k], model.clusterMin[c], model.clusterMax[c], r.targets.shadowSize, 4.0f)) {
+                    clusters.push_back(c);
+                    break;
+                }
             }
-        }
-        std::vector<uint32_t> clusters;
-        for (uint32_t c = 0; c < clusterCount; ++c)
-            if (wanted[c])
-                clusters.push_back(c);
-        ensureResident(clusters, "light " + std::to_string(light) + "'s views", true);
+        ensureResident(clusters, "light " + std::to_string(light) + "'s thin-triangle views", true);
     }
 
     // Paged geometry: after a trace pass, the rays it parked are traced again
@@ -473,6 +490,8 @@ struct Renderer::Impl::FrameScript {
             timer.mark(cmd, PassId::ShadowMap);
             return;
         case Step::ThinTriangles: {
+            if (r.geometry.paged())
+                ensureThinResident(light, area, slot);
             r.thinTriangles.clear(cmd, t.thinMap);
             for (uint32_t layer = 0; layer < (area ? 1 : layers(light)); ++layer) {
                 ThinView thin;
@@ -612,8 +631,6 @@ struct Renderer::Impl::FrameScript {
     // The method's sequence for one light.
     void recordLight(uint32_t light)
     {
-        if (r.geometry.paged())
-            ensureLightResident(light);
         if (!isAreaLight(lights[light])) {
             for (const MethodStep& step : spec.hard)
                 runStep(step, light, false, 0, true);
@@ -760,7 +777,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         frame.planShadowViews();
     if (geometry.paged()) {
         culling.refreshCommands(geometry.commands); // planned from the load-time commands
-        frame.ensureResident(culling.viewClusters(0), "the camera's view", false);
+        frame.ensureResident(culling.firstPhaseClusters(0), "the camera view", false);
     }
 
     frame.beginCommands();
