@@ -249,13 +249,26 @@ class SuiteRunner {
             fail(options.outDir, "cannot create the results folder: " + error.message());
         for (const BenchScene& scene : options.scenes)
             runMethods(scene);
-        runScalability();
-        runLightSweep();
+        if (wants("scalability"))
+            runScalability();
+        if (wants("light_size"))
+            runLightSweep();
         progressBar.finish();
         return std::move(results);
     }
 
   private:
+    // SuiteOptions::sections and ::methods: empty lists take everything.
+    bool wants(const std::string& section) const
+    {
+        return options.sections.empty() || std::find(options.sections.begin(), options.sections.end(), section) != options.sections.end();
+    }
+    bool wantsMethod(ShadowMethod method) const
+    {
+        return options.methods.empty() ||
+               std::find(options.methods.begin(), options.methods.end(), shadowMethodName(method)) != options.methods.end();
+    }
+
     void step(const std::string& label)
     {
         progressBar.update(label, double(doneSteps) / double(std::max<size_t>(totalSteps, 1)));
@@ -358,7 +371,8 @@ class SuiteRunner {
         std::string label = section + " " + loaded.name;
         std::vector<ShadowMethod> methods;
         for (ShadowMethod method : kGpuMethods)
-            if ((kind == ShadowKind::Hard || shadowMethodDoesAreaLights(method)) && methodTakes(method, section, light))
+            if ((kind == ShadowKind::Hard || shadowMethodDoesAreaLights(method)) && methodTakes(method, section, light) &&
+                wantsMethod(method))
                 methods.push_back(method);
         std::vector<Measurement> measured(methods.size());
         for (size_t i = 0; i < methods.size(); ++i) {
@@ -434,16 +448,20 @@ class SuiteRunner {
         LoadedScene loaded = generateAndLoad(*renderer, benchScene.name, benchScene.triangles);
         std::string prefix = "images/" + loaded.name;
         renderer->setLights({loaded.light});
-        measureAllMethods("methods", loaded, ShadowKind::Hard, loaded.light, 0.0, 1.0, kNoValue, prefix + "-hard");
+        if (wants("methods"))
+            measureAllMethods("methods", loaded, ShadowKind::Hard, loaded.light, 0.0, 1.0, kNoValue, prefix + "-hard");
         Light area = areaLightFor(loaded.light, loaded.bounds, options.softLightRadius);
         renderer->setLights({area});
-        measureAllMethods("methods", loaded, ShadowKind::Soft, area, options.softLightRadius, 1.0, kNoValue,
-                          prefix + "-soft");
+        if (wants("soft"))
+            measureAllMethods("methods", loaded, ShadowKind::Soft, area, options.softLightRadius, 1.0, kNoValue,
+                              prefix + "-soft");
         // Omni-directional hard shadows: a point light among the geometry, with rh.
         const Light point = pointLightAmong(loaded.bounds);
         renderer->setLights({point});
-        measureAllMethods("point", loaded, ShadowKind::Hard, point, 0.0, 1.0, kNoValue, prefix + "-point");
-        measureRhVariants(loaded);
+        if (wants("point"))
+            measureAllMethods("point", loaded, ShadowKind::Hard, point, 0.0, 1.0, kNoValue, prefix + "-point");
+        if (wants("rh_variants") && wantsMethod(ShadowMethod::RayHierarchy))
+            measureRhVariants(loaded);
     }
 
     // The paper's Table 2 on our scenes: rh with each cone test, rays sorted

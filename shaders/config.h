@@ -97,8 +97,11 @@
 #define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list
 #define PENUMBRA_COMPACT_DISPATCH 1u     // the tracer's indirect dispatch size from the list's count
 // penumbra_mask.comp.glsl: values of its push constant `level` past the reductions' levels.
-#define PENUMBRA_MASK_WRITE_DISPATCH 0xFFFFFFFEu // write the splat jobs' indirect dispatch size
-#define PENUMBRA_MASK_SPLAT_JOBS 0xFFFFFFFFu     // splat the listed jobs
+#define PENUMBRA_MASK_STAGE_EDGES 0u          // penumbra_mask.comp stages: edges of the map, level 0 -> 1
+#define PENUMBRA_MASK_STAGE_REDUCE 1u         // a level of the min-depth pyramid, level -> level + 1
+#define PENUMBRA_MASK_STAGE_WRITE_DISPATCH 2u // write the splat jobs' indirect dispatch size
+#define PENUMBRA_MASK_STAGE_SPLAT 3u          // splat the listed jobs
+#define PENUMBRA_MASK_STAGE_PUSH_DOWN 4u      // a mask level's minimum into the finer level, level + 1 -> level
 
 // Counters of one frame (std430 uint64_t array, atomically accumulated).
 #define PENUMBRA_STAT_RAYS 0             // rays traced

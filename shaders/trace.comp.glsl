@@ -18,9 +18,12 @@
 layout(constant_id = 0) const uint kTexelAccess = 0u;
 // 1: the vertices' texel view is R16_UINT, three texels a vertex (GpuGeometry::vertexTexelsSplit).
 layout(constant_id = 1) const uint kSplitVertexTexels = 0u;
+// Specialized per light as well: llvmpipe runs every branch of a shader, taken or not.
+layout(constant_id = 2) const uint kSoft = 0u;                          // push.samples != 0
+layout(constant_id = 3) const uint kLightType = PENUMBRA_LIGHT_POINT; // PENUMBRA_LIGHT_*
 // 1: paged geometry (RendererOptions::geometryBudgetBytes, geometry_pages.h): a ray that reaches a
 // cluster that is not resident is parked; 0 (no budget): the check is compiled out.
-layout(constant_id = 2) const uint kGeometryBudget = 0u;
+layout(constant_id = 4) const uint kGeometryBudget = 0u;
 layout(set = 0, binding = 6) uniform usamplerBuffer modelNodes;
 layout(set = 0, binding = 7) uniform usamplerBuffer modelClusters;
 layout(set = 0, binding = 8) uniform usamplerBuffer modelVertices;
@@ -119,7 +122,7 @@ float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, boo
 {
     if (!inFrontOfEmitter(light, p))
         return 0.0;
-    uint shape = uint(light.positionType.w);
+    const uint shape = kLightType;
     uint seed = sampleSeed(uint(pixel.x), uint(pixel.y), push.lightIndex);
     uint visible = 0u;
     uint traced = oneSample ? 1u : push.samples;
@@ -150,9 +153,9 @@ float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout Tr
     vec3 normal = imageLoad(normalImage, pixel).xyz;
 
     LightData light = frame.lights[push.lightIndex];
-    if (push.samples != 0u)
+    if (kSoft != 0u)
         return traceSoftVisibility(pixel, position.xyz, normal, light, oneSample, rays, counters);
-    uint type = uint(light.positionType.w);
+    const uint type = kLightType;
     vec3 direction;
     float tMax;
     if (type == PENUMBRA_LIGHT_DIRECTIONAL) {

@@ -86,6 +86,7 @@ struct BenchArgs {
     uint32_t softShadowMaps = 0; // 0: the suite's
     bool quiet = false;
     bool noPlots = false;
+    std::vector<std::string> methods, sections;
 };
 
 struct GenerateArgs {
@@ -530,6 +531,8 @@ int runBench(const BenchArgs& args)
     if (args.softShadowMaps) options.softShadowMaps = args.softShadowMaps;
     options.progress = !args.quiet;
     options.plots = !args.noPlots;
+    options.methods = args.methods;
+    options.sections = args.sections;
     runSuite(options);
     return 0;
 }
@@ -665,6 +668,13 @@ int main(int argc, char** argv)
     benchCommand->add_option("--soft-shadow-maps", bench.softShadowMaps, "Soft shadows, sm: shadow maps averaged over the light (default 4)")->check(CLI::Range(1, 6));
     benchCommand->add_flag("--quiet", bench.quiet, "No progress bar");
     benchCommand->add_flag("--no-plots", bench.noPlots, "Write plot data and gnuplot scripts without running gnuplot");
+    benchCommand->add_option("--methods", bench.methods, "Only these GPU methods (the oracle always runs), e.g. --methods sm,srt,frt")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"sm", "srt", "frt", "afsm", "rh"}));
+    benchCommand->add_option("--sections", bench.sections,
+                             "Only these sections: methods (hard), soft, point, rh_variants, scalability, light_size")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"methods", "soft", "point", "rh_variants", "scalability", "light_size"}));
 
     app.add_subcommand("devices", "List the Vulkan devices");
 

@@ -371,7 +371,8 @@ struct Renderer::Impl::FrameScript {
             const VkBufferCopy region{0, 0, (PENUMBRA_RAY_LIST_HEADER_UINTS + toTrace.size()) * sizeof(uint32_t)};
             vkCmdCopyBuffer(cmd, pages.retraceList.buffer, r.targets.rayList.buffer, 1, &region);
             vk::memoryBarrier(cmd, kCopy, kTransferWrite, kCompute | kIndirect, kStorageRead | kIndirectRead);
-            r.trace.record(cmd, light, rayOffset, samples, pages.parkingAddress(r.device), pages.clusterWords());
+            r.trace.record(cmd, light, uint32_t(data.lights[light].positionType.w), rayOffset, samples, pages.parkingAddress(r.device),
+                           pages.clusterWords());
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
             r.submitAndWait(cmd, "trace (parked rays)");
             ++pages.frame.parkingRounds;
@@ -513,10 +514,12 @@ struct Renderer::Impl::FrameScript {
         case Step::PenumbraMask: {
             const uint32_t top = maskTopLevel(t.shadowSize);
             r.penumbraMask.clear(cmd);
-            r.classify.recordSoft(cmd, {light, slot, PENUMBRA_SOFT_RECEIVERS, 0, 1.0f, t.shadowSize, top, 0}, width(), height());
+            r.classify.recordSoft(cmd, {light, slot, PENUMBRA_SOFT_RECEIVERS, 0, 1.0f, t.shadowSize, top, 0}, uint32_t(l.positionType.w), width(),
+                                  height());
             const float range = l.mapRange[slot].x - l.mapEye[slot].w;
             r.penumbraMask.record(cmd, {glm::inverse(l.viewProj[slot]), light, slot, 0, t.shadowSize, top, spec.uses(Step::ThinTriangles) ? 1u : 0u,
-                                        float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0});
+                                        float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0},
+                                   uint32_t(l.positionType.w));
             timer.mark(cmd, PassId::PenumbraMask);
             return;
         }
@@ -528,7 +531,8 @@ struct Renderer::Impl::FrameScript {
                     const uint32_t mode = slot == 0 ? step.mode : step.cornerMode;
                     const bool average = mode == PENUMBRA_SOFT_AVERAGE;
                     r.classify.recordSoft(cmd, {light, slot, mode, average && first ? 1u : 0u, average ? 1.0f / float(maps) : 1.0f,
-                                                t.shadowSize, maskTopLevel(t.shadowSize), 0}, width(), height(), floor);
+                                                t.shadowSize, maskTopLevel(t.shadowSize), 0},
+                                          uint32_t(l.positionType.w), width(), height(), floor);
                 } else {
                     r.classify.record(cmd, {light, step.mode}, uint32_t(l.positionType.w), width(), height(), floor);
                 }
@@ -546,14 +550,14 @@ struct Renderer::Impl::FrameScript {
         case Step::Trace:
             if (r.geometry.paged()) {
                 r.pages.clearParking();
-                r.trace.record(cmd, light, rayOffset, area ? settings.lightSamples : 0, r.pages.parkingAddress(r.device),
+                r.trace.record(cmd, light, uint32_t(l.positionType.w), rayOffset, area ? settings.lightSamples : 0, r.pages.parkingAddress(r.device),
                                r.pages.clusterWords());
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
                 timer.mark(cmd, PassId::Trace);
                 traceParked(light, area ? settings.lightSamples : 0);
                 return;
             }
-            r.trace.record(cmd, light, rayOffset, area ? settings.lightSamples : 0);
+            r.trace.record(cmd, light, uint32_t(l.positionType.w), rayOffset, area ? settings.lightSamples : 0);
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             timer.mark(cmd, PassId::Trace);
             return;

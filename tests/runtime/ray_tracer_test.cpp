@@ -147,7 +147,7 @@ public:
                               VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                               VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
                                   VK_ACCESS_2_UNIFORM_READ_BIT | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-            tracer.record(cmd, 1, originOffset);
+            tracer.record(cmd, 1, uint32_t(frame.lights[1].positionType.w), originOffset);
             vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT,
                               VK_ACCESS_2_HOST_READ_BIT);
             vk::transition(cmd, visibility, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
@@ -364,7 +364,7 @@ TEST(RayTracer, RejectsModelsWithoutBvhAndUnboundUse)
     tracer.create(device);
     GpuGeometry reference = uploadReference(device, test::cubeOverFloor(0.5f));
     EXPECT_THROW(tracer.bindModel(device, reference), Error);
-    vk::immediateSubmit(device, [&](VkCommandBuffer cmd) { EXPECT_THROW(tracer.record(cmd, 0, 0.0f), Error); });
+    vk::immediateSubmit(device, [&](VkCommandBuffer cmd) { EXPECT_THROW(tracer.record(cmd, 0, PENUMBRA_LIGHT_POINT, 0.0f), Error); });
     destroyGeometry(device, reference);
     tracer.destroy(device);
     EXPECT_EQ(device.validationMessages.load(), 0u);

@@ -37,6 +37,8 @@ struct SuiteOptions {
     bool progress = true;               // progress bar on stderr when it is a terminal
     bool plots = true;                  // run gnuplot on the generated scripts when it is installed
     bool floors = true;                 // methods section, sm and srt: also N frames with every stage's floor (floors.csv)
+    std::vector<std::string> methods;   // only these GPU methods ("sm", "srt", ...); empty: all (the oracle always runs)
+    std::vector<std::string> sections;  // only these sections: methods, soft, point, rh_variants, scalability, light_size; empty: all
 };
 
 // Names accepted by suiteOptions, fastest first: smoke (CI, well under a
