@@ -544,27 +544,36 @@ std::vector<uint32_t> Culling::viewClusters(uint32_t view) const
     return clusters;
 }
 
-std::vector<uint32_t> Culling::firstPhaseClusters(uint32_t view) const
+void Culling::drawInRanges(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, uint32_t firstCommand,
+                           const std::vector<uint32_t>& clusters, const std::vector<uint32_t>& drawn, bool clear,
+                           const BeginRendering& begin, const EndRendering& end, const std::function<void()>& last)
 {
-    if (!model || mode == CullMode::None || view >= plans.size() || !plans[view].view.occlusion)
-        return viewClusters(view);
-    return plans[view].firstPhase;
+    std::vector<uint32_t> cuts = cutRanges ? cutRanges(drawn) : std::vector<uint32_t>{};
+    cuts.insert(cuts.begin(), 0u);
+    cuts.push_back(uint32_t(clusters.size()));
+    for (size_t r = 0; r + 1 < cuts.size(); ++r) {
+        if (ensureRange)
+            ensureRange(view, r);
+        begin(r == 0 && clear);
+        drawList(cmd, geometry, firstCommand + cuts[r], std::vector<uint32_t>(clusters.begin() + cuts[r], clusters.begin() + cuts[r + 1]));
+        if (r + 2 == cuts.size() && last)
+            last();
+        end();
+    }
 }
 
-std::vector<uint32_t> Culling::drawnClusters(vk::Device& device, uint32_t view) const
+std::vector<uint32_t> Culling::finalDrawn(vk::Device& device, uint32_t view) const
 {
     const ViewPlan& plan = plans.at(view);
-    std::vector<uint32_t> clusters = plan.firstPhase;
     const uint32_t groupCount = uint32_t(plan.groupQueryBegin.size());
-    if (groupCount == 0)
-        return clusters;
     std::vector<uint32_t> results(groupCount);
-    vk::readQueryResults(device, queryPool, plan.firstQuery, groupCount, results.size() * sizeof(uint32_t), results.data(),
-                         sizeof(uint32_t), 0, "the occlusion queries");
+    if (groupCount)
+        vk::readQueryResults(device, queryPool, plan.firstQuery, groupCount, results.size() * sizeof(uint32_t), results.data(),
+                             sizeof(uint32_t), 0, "the occlusion queries");
+    std::vector<uint32_t> drawn;
     for (const Entry& entry : plan.finalPhase)
-        if (entry.query != kNoQuery && results.at(entry.query - plan.firstQuery) != 0)
-            clusters.push_back(entry.cluster);
-    return clusters;
+        drawn.push_back(entry.query == kNoQuery || results.at(entry.query - plan.firstQuery) != 0 ? entry.cluster : kNoQuery);
+    return drawn;
 }
 
 void Culling::markView(VkCommandBuffer cmd, uint32_t view, bool end) const
@@ -592,8 +601,6 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
                          const BeginRendering& begin, const EndRendering& end)
 {
     const bool timed = viewIndex < plans.size();
-    if (beforeView)
-        beforeView(viewIndex); // paged geometry: the clusters of phase 1 made resident
     if (timed)
         vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * viewIndex);
     recordPhases(cmd, viewIndex, geometry, begin, end);
@@ -616,6 +623,10 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
         finalClusters[i] = plan.finalPhase[i].cluster;
     const uint32_t firstFinal = plan.firstCommand + uint32_t(plan.firstPhase.size());
     if (!plan.view.occlusion) {
+        if (geometry.paged()) { // in ranges that fit the pool
+            drawInRanges(cmd, viewIndex, geometry, firstFinal, finalClusters, finalClusters, true, begin, end, {});
+            return;
+        }
         begin(true);
         if (finalClusters.size() == model->commands.size())
             drawGeometry(cmd, geometry); // the frustum holds everything (a sun's map): the model's own list
@@ -643,18 +654,15 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
 
     // Phase 1: last frame's set (and clusters at the near plane), then the
     // boxes of everything else in the frustum against that depth.
-    begin(true);
-    drawList(cmd, geometry, plan.firstCommand, plan.firstPhase);
-    queryBoxRange(plan.firstQuery, groupCount);
-    if (groupCount == 0) {
-        // Nothing else can be visible: the depth is final already.
-        queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size()));
-        end();
+    // (Paged geometry: in ranges that fit the pool, the queries inside the last.)
+    drawInRanges(cmd, viewIndex, geometry, plan.firstCommand, plan.firstPhase, plan.firstPhase, true, begin, end, [&] {
+        queryBoxRange(plan.firstQuery, groupCount);
+        if (groupCount == 0) // nothing else can be visible: the depth is final already
+            queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size()));
+    });
+    if (groupCount == 0)
         return;
-    }
-    end();
-    if (betweenPhases)
-        betweenPhases(viewIndex); // paged geometry: the clusters whose queries passed made resident
+    const std::vector<uint32_t> drawn = queriesAnswered ? queriesAnswered(viewIndex) : std::vector<uint32_t>{};
 
     // Query results -> instance counts of the final list.
     constexpr VkPipelineStageFlags2 kAttachments = VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT |
@@ -693,10 +701,9 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
 
     // Phase 2: the final list over the phase-1 depth, then last frame's set
     // tested against the final depth (next frame's history).
-    begin(false);
-    drawList(cmd, geometry, firstFinal, finalClusters);
-    queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size()));
-    end();
+    drawInRanges(cmd, viewIndex, geometry, firstFinal, finalClusters,
+                 drawn, false, begin, end,
+                 [&] { queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size())); });
 }
 
 std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)

@@ -142,18 +142,21 @@ struct Culling {
     // texel only.
     void markClustersNearReceivers(const ReceiverMask& mask, uint32_t* bits) const;
 
-    // Paged geometry (geometry_pages.h): called between a view's two phases,
-    // after phase 1's rendering ended, with the view's index; it may submit
-    // the command buffer, wait and begin it again (the same handle).
-    std::function<void(uint32_t view)> betweenPhases;
-    // Paged geometry: called as a view's recording starts (no rendering begun), like betweenPhases.
-    std::function<void(uint32_t view)> beforeView;
-    // The clusters view `view` may draw before its occlusion queries are
-    // answered: phase 1's, or every cluster of a view planned without queries.
-    std::vector<uint32_t> firstPhaseClusters(uint32_t view) const;
-    // After phase 1 ran (device idle): phase 1's clusters and those whose query
-    // passed, the only ones phase 2 draws (cull_predicates.comp.glsl).
-    std::vector<uint32_t> drawnClusters(vk::Device& device, uint32_t view) const;
+    // Paged geometry (geometry_pages.h). A list a view draws (its clusters in
+    // draw order, kNoQuery for entries that draw nothing) is cut into ranges
+    // drawn one after another in the same order, so the image is the same:
+    // cutRanges returns the ascending cut points (none: one range), and
+    // ensureRange makes range r of the last cut resident before it is drawn;
+    // queriesAnswered runs between the phases (after phase 1's rendering
+    // ended) and returns finalDrawn once the queries can be read. Each may submit the command
+    // buffer, wait and begin it again (the same handle).
+    std::function<std::vector<uint32_t>(const std::vector<uint32_t>& clusters)> cutRanges;
+    std::function<void(uint32_t view, size_t range)> ensureRange;
+    std::function<std::vector<uint32_t>(uint32_t view)> queriesAnswered;
+    // After phase 1 ran (device idle): per entry of phase 2's list, its
+    // cluster if phase 2 may draw it (its query passed, or a repeat of a
+    // phase-1 cluster), else kNoQuery.
+    std::vector<uint32_t> finalDrawn(vk::Device& device, uint32_t view) const;
     const std::string& viewName(uint32_t view) const { return plans.at(view).view.name; }
 
     // The clusters view `view` draws, ascending, for a view planned without
@@ -222,6 +225,11 @@ struct Culling {
                       const EndRendering& end);
     void drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
                   const std::vector<uint32_t>& clusters);
+    // drawList of `clusters` in ranges (cutRanges on `drawn`), each in its own rendering: the first
+    // begun with begin(clear), the others loading; last() runs inside the last one.
+    void drawInRanges(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, uint32_t firstCommand,
+                      const std::vector<uint32_t>& clusters, const std::vector<uint32_t>& drawn, bool clear,
+                      const BeginRendering& begin, const EndRendering& end, const std::function<void()>& last);
 };
 
 // Draws clusters[0 .. count) (ascending) of the compressed model with its own

@@ -200,8 +200,7 @@ bool GeometryPages::ensure(vk::Device& device, GpuGeometry& geometry, const Comp
         geometry.commands[c] = command;
     };
     for (uint32_t page : evicted) {
-        pageSlot[page] = kNone;
-        --residentPages;
+        pageSlot[page] = kNone; // its slot is taken by a missing page below
         for (uint32_t c = pageFirstCluster[page]; c < pageFirstCluster[page + 1]; ++c)
             patch(c, model.clusters[c].firstVertex | kNotResident, model.clusters[c].firstIndex, {0, 1, 0, 0, c});
     }

@@ -141,6 +141,8 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
             fail("--geometry-budget", std::string(spec.name) + " is not rendered under a geometry budget yet: use sm, srt or frt");
         if (settings.measureFloors)
             fail("--geometry-budget", "floors are measured in core (no budget)");
+        if (settings.cull == CullMode::None)
+            fail("--geometry-budget", "--cull none draws the whole model in one list: use frustum or all under a budget");
     }
     if (spec.traces() && geometry.encoding != GeometryEncoding::Compressed)
         fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
@@ -165,6 +167,7 @@ struct Renderer::Impl::FrameScript {
     std::vector<VkDeviceAddress> thinClusterMask;                   // the same layers; 0: every cluster
     uint32_t viewFitMask = 0, receiverGridMask = 0;
     bool rhFrame = false; // the rh pass's counters were cleared this frame
+    std::vector<std::vector<uint32_t>> finalRanges; // paged geometry: the clusters of each range of a view's phase 2
 
     FrameScript(Impl& renderer, const RenderSettings& s)
         : r(renderer), settings(s), spec(shadowMethodSpec(s.shadows)), bounds(r.geometry.bounds),
@@ -215,24 +218,41 @@ struct Renderer::Impl::FrameScript {
         }
         timer.pool = r.queryPool;
         if (r.geometry.paged()) {
-            auto betweenPhases = [this](Culling& culling) {
+            // The lists a view draws, cut into ranges whose pages fit the pool (Culling::cutRanges).
+            auto cutRanges = [this](const std::vector<uint32_t>& drawn) {
+                std::vector<uint32_t> cuts, range;
+                finalRanges.clear();
+                for (uint32_t i = 0; i < drawn.size(); ++i) {
+                    if (drawn[i] == Culling::kNoQuery)
+                        continue;
+                    range.push_back(drawn[i]);
+                    if (!r.pages.fits(range)) {
+                        range.pop_back();
+                        cuts.push_back(i);
+                        finalRanges.push_back(std::move(range));
+                        range = {drawn[i]};
+                    }
+                }
+                finalRanges.push_back(std::move(range));
+                return cuts;
+            };
+            auto ensureRange = [this](Culling& culling) {
+                return [this, &culling](uint32_t view, size_t range) {
+                    ensureResident(finalRanges.at(range), "the " + culling.viewName(view) + " view", true);
+                };
+            };
+            auto queriesAnswered = [this](Culling& culling) {
                 return [this, &culling](uint32_t view) {
-                    // The queries are answered once phase 1 ran: submit and wait, then read them.
                     r.submitAndWait(cmd, timer.passesSinceLastSubmit());
-                    ensureResident(culling.drawnClusters(r.device, view), "the " + culling.viewName(view) + " view", false);
                     beginCommands();
+                    return culling.finalDrawn(r.device, view);
                 };
             };
-            r.culling.betweenPhases = betweenPhases(r.culling);
-            r.shadowCulling.betweenPhases = betweenPhases(r.shadowCulling);
-            auto beforeView = [this](Culling& culling) {
-                return [this, &culling](uint32_t view) {
-                    ensureResident(culling.firstPhaseClusters(view), "the " + (view < culling.plans.size() ? culling.viewName(view) : std::string("whole-model")) + " view",
-                                   true);
-                };
-            };
-            r.culling.beforeView = beforeView(r.culling);
-            r.shadowCulling.beforeView = beforeView(r.shadowCulling);
+            for (Culling* culling : {&r.culling, &r.shadowCulling}) {
+                culling->cutRanges = cutRanges;
+                culling->ensureRange = ensureRange(*culling);
+                culling->queriesAnswered = queriesAnswered(*culling);
+            }
         }
         if (s.measureFloors)
             timer.submitAndRestart = [this] {
@@ -243,8 +263,11 @@ struct Renderer::Impl::FrameScript {
 
     ~FrameScript()
     {
-        r.culling.betweenPhases = r.culling.beforeView = nullptr;
-        r.shadowCulling.betweenPhases = r.shadowCulling.beforeView = nullptr;
+        for (Culling* culling : {&r.culling, &r.shadowCulling}) {
+            culling->cutRanges = nullptr;
+            culling->ensureRange = nullptr;
+            culling->queriesAnswered = nullptr;
+        }
     }
 
     uint32_t layers(uint32_t light) const { return uint32_t(data.lights[light].spotCosLayers.z); }
@@ -780,8 +803,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     if (!readBack)
         frame.planShadowViews();
     if (geometry.paged()) {
-        culling.refreshCommands(geometry.commands); // planned from the load-time commands
-        frame.ensureResident(culling.firstPhaseClusters(0), "the camera view", false);
+        culling.refreshCommands(geometry.commands); // planned from the load-time commands; the views make their pages resident
     }
 
     frame.beginCommands();
