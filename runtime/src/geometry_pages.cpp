@@ -104,7 +104,35 @@ void GeometryPages::destroy(vk::Device& device)
     vk::destroyBuffer(device, staging);
     vk::destroyBuffer(device, parking);
     vk::destroyBuffer(device, retraceList);
+    vk::destroyBuffer(device, thinMasks);
     parkingCapacity = 0;
+}
+
+void GeometryPages::ensureThinMasks(vk::Device& device, uint64_t bytes)
+{
+    if (thinMasks.size >= bytes && thinMasks.buffer)
+        return;
+    vk::destroyBuffer(device, thinMasks);
+    thinMasks = vk::createBuffer(device, std::max<uint64_t>(bytes, 2 * thinMasks.size), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                 vk::MemoryUse::Upload, vk::Addressable::Yes);
+}
+
+std::vector<std::vector<uint32_t>> GeometryPages::cutIntoRanges(const std::vector<uint32_t>& clusters) const
+{
+    std::vector<std::vector<uint32_t>> ranges(1);
+    std::vector<uint32_t> pages; // of the current range, unsorted
+    for (uint32_t c : clusters) {
+        const uint32_t page = clusterPage[c];
+        if (std::find(pages.begin(), pages.end(), page) == pages.end()) {
+            if (pages.size() == slotCount) {
+                ranges.emplace_back();
+                pages.clear();
+            }
+            pages.push_back(page);
+        }
+        ranges.back().push_back(c);
+    }
+    return ranges;
 }
 
 void GeometryPages::beginFrame()

@@ -72,6 +72,11 @@ class GeometryPages {
     const uint32_t* parkedEntries() const;
     std::vector<uint32_t> visitedClusters() const;
     vk::Buffer retraceList; // RayList layout (header + entries), copied into the frame's ray list
+    // The thin-triangle pass's cluster masks, one per (range, view) of a step (host-visible, addressable).
+    vk::Buffer thinMasks;
+    void ensureThinMasks(vk::Device& device, uint64_t bytes);
+    // Consecutive ranges of `clusters` (in order) whose pages fit the pool together.
+    std::vector<std::vector<uint32_t>> cutIntoRanges(const std::vector<uint32_t>& clusters) const;
 
     GeometryPageStats frame; // this frame's counters (reset by beginFrame)
     void beginFrame();

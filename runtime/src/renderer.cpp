@@ -320,28 +320,66 @@ struct Renderer::Impl::FrameScript {
             beginCommands();
     }
 
-    // Paged geometry: before a thin-triangle step, the clusters its views may
-    // decode: those of the receiver masks' cluster bits (every cluster for area
-    // lights) that can reach the view (clusterMayReachView).
-    void ensureThinResident(uint32_t light, bool area, uint32_t slot)
+    // Paged geometry: a thin-triangle step in ranges. Each view's clusters are
+    // those of its receiver mask's bits (every cluster for area lights) that
+    // can reach it (clusterMayReachView); their union is cut into ranges
+    // whose pages fit the pool, and each range is made resident and its part
+    // of every view's clusters decoded (a cluster mask per range and view).
+    // The thin map takes the minimum of what every range writes, so the map
+    // is the same in any order.
+    void recordThinInRanges(uint32_t light, bool area, uint32_t slot, uint32_t views, const std::function<ThinView(uint32_t)>& thinView)
     {
         const CullModel& model = *r.shadowCulling.model;
         const uint32_t clusterCount = uint32_t(model.clusterMin.size());
         const gpu::LightData& l = data.lights[light];
         const size_t words = (clusterCount + 31) / 32;
+        std::vector<std::vector<uint32_t>> sets(views);
+        std::vector<uint8_t> used(clusterCount, 0);
+        for (uint32_t k = 0; k < views; ++k) {
+            const uint32_t* mask = nullptr;
+            if (!area && thinClusterMask[6 * light + k])
+                mask = static_cast<const uint32_t*>(r.targets.thinClusterMasks.mapped) + (6 * light + k) * words;
+            const glm::mat4& viewProj = l.viewProj[area ? slot : k];
+            for (uint32_t c = 0; c < clusterCount; ++c)
+                if ((!mask || (mask[c >> 5] >> (c & 31)) & 1u) &&
+                    clusterMayReachView(viewProj, model.clusterMin[c], model.clusterMax[c], r.targets.shadowSize, 4.0f)) {
+                    sets[k].push_back(c);
+                    used[c] = 1;
+                }
+        }
         std::vector<uint32_t> clusters;
         for (uint32_t c = 0; c < clusterCount; ++c)
-            for (uint32_t k = area ? slot : 0; k < (area ? slot + 1 : layers(light)); ++k) {
-                const uint32_t* mask = nullptr;
-                if (!area && thinClusterMask[6 * light + k])
-                    mask = static_cast<const uint32_t*>(r.targets.thinClusterMasks.mapped) + (6 * light + k) * words;
-                if ((!mask || (mask[c >> 5] >> (c & 31)) & 1u) &&
-                    clusterMayReachView(l.viewProj[k], model.clusterMin[c], model.clusterMax[c], r.targets.shadowSize, 4.0f)) {
-                    clusters.push_back(c);
-                    break;
-                }
+            if (used[c])
+                clusters.push_back(c);
+        const std::vector<std::vector<uint32_t>> ranges = r.pages.cutIntoRanges(clusters);
+        std::vector<uint32_t> rangeOf(clusterCount, 0);
+        for (uint32_t j = 0; j < ranges.size(); ++j)
+            for (uint32_t c : ranges[j])
+                rangeOf[c] = j;
+        const size_t regionBytes = words * sizeof(uint32_t);
+        if (r.pages.thinMasks.size < ranges.size() * views * regionBytes) { // the old masks may be in use
+            r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+            beginCommands();
+        } else if (r.pages.thinMasks.buffer) { // rewritten below: the previous step's must have run
+            r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+            beginCommands();
+        }
+        r.pages.ensureThinMasks(r.device, std::max<uint64_t>(ranges.size() * views * regionBytes, 4));
+        auto* bits = static_cast<uint32_t*>(r.pages.thinMasks.mapped);
+        std::memset(bits, 0, ranges.size() * views * regionBytes);
+        for (uint32_t k = 0; k < views; ++k)
+            for (uint32_t c : sets[k])
+                bits[(rangeOf[c] * views + k) * words + (c >> 5)] |= 1u << (c & 31);
+        const VkDeviceAddress base = vk::bufferAddress(r.device, r.pages.thinMasks);
+        for (uint32_t j = 0; j < ranges.size(); ++j) {
+            ensureResident(ranges[j], "light " + std::to_string(light) + "'s thin-triangle views", true);
+            for (uint32_t k = 0; k < views; ++k) {
+                ThinView thin = thinView(k);
+                thin.clusterMask = base + (j * views + k) * regionBytes;
+                r.thinTriangles.record(cmd, r.device, r.geometry, r.trace.modelTableAddress(), r.targets.shadowSize,
+                                       r.targets.thinMap.layers, thin);
             }
-        ensureResident(clusters, "light " + std::to_string(light) + "'s thin-triangle views", true);
+        }
     }
 
     // Paged geometry: after a trace pass, the rays it parked are traced again
@@ -514,22 +552,24 @@ struct Renderer::Impl::FrameScript {
             timer.mark(cmd, PassId::ShadowMap);
             return;
         case Step::ThinTriangles: {
-            if (r.geometry.paged())
-                ensureThinResident(light, area, slot);
             r.thinTriangles.clear(cmd, t.thinMap);
-            for (uint32_t layer = 0; layer < (area ? 1 : layers(light)); ++layer) {
-                ThinView thin;
+            auto thinView = [&](uint32_t layer) {
                 if (area) {
                     const float halfTan = 0.5f * l.mapRange[slot].y;
-                    thin = {l.viewProj[slot], 0, glm::vec3(l.mapEye[slot]), true, 1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan),
-                            l.mapRange[slot].y, 0, true};
-                } else {
-                    const float depthPerDistance = uint32_t(l.positionType.w) == PENUMBRA_LIGHT_SPOT ? l.spotCosLayers.y : 0.57735f;
-                    thin = {l.viewProj[layer], layer, glm::vec3(l.positionType), l.shadowParams.z != 0.0f, depthPerDistance,
-                            l.shadowParams.w, thinClusterMask[6 * light + layer], false};
+                    return ThinView{l.viewProj[slot], 0, glm::vec3(l.mapEye[slot]), true, 1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan),
+                                    l.mapRange[slot].y, 0, true};
                 }
-                r.thinTriangles.record(cmd, r.device, r.geometry, r.trace.modelTableAddress(), t.shadowSize, t.thinMap.layers, thin);
-            }
+                const float depthPerDistance = uint32_t(l.positionType.w) == PENUMBRA_LIGHT_SPOT ? l.spotCosLayers.y : 0.57735f;
+                return ThinView{l.viewProj[layer], layer, glm::vec3(l.positionType), l.shadowParams.z != 0.0f, depthPerDistance,
+                                l.shadowParams.w, thinClusterMask[6 * light + layer], false};
+            };
+            const uint32_t views = area ? 1 : layers(light);
+            if (r.geometry.paged())
+                recordThinInRanges(light, area, slot, views, thinView);
+            else
+                for (uint32_t layer = 0; layer < views; ++layer)
+                    r.thinTriangles.record(cmd, r.device, r.geometry, r.trace.modelTableAddress(), t.shadowSize, t.thinMap.layers,
+                                           thinView(layer));
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRead);
             timer.mark(cmd, PassId::ThinTriangles);
             return;
