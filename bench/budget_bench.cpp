@@ -227,7 +227,7 @@ int main(int argc, char** argv)
            << "plot for [d in '";
         for (size_t i = 0; i < divisors.size(); ++i)
             gp << (i ? " " : "") << divisors[i];
-        gp << "'] '" << out << "/budget.csv' using ((strcol(1) eq '" << methods[0] << "' && $2 == real(d)) ? $5 : 1/0):($8/1048576) with linespoints title '"
+        gp << "'] '" << out << "/budget.csv' using ((strcol(1) eq '" << methods[0] << "' && $2 == real(d)) ? $5 : 1/0):($8/1048576) with points pt 7 title '"
            << methods[0] << " 1/'.d\nunset multiplot\n";
         gp.close();
         if (std::system(("command -v gnuplot >/dev/null && gnuplot '" + out + "/budget.gp'").c_str()) != 0)
