@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 
 // Columns of the data files: the methods in this order (afsm last, so that older columns keep their numbers).
 constexpr const char* kMethodOrder[] = {"sm", "srt", "frt", "oracle", "afsm"};
-constexpr const char* kSoftMethodOrder[] = {"sm", "srt", "frt", "oracle"};
+constexpr const char* kSoftMethodOrder[] = {"sm", "srt", "frt", "oracle", "afsm"};
 
 void writeFile(const fs::path& path, const std::string& text)
 {
@@ -98,7 +98,7 @@ std::string recordsCsv(const std::vector<Record>& records, const std::string& se
     std::ostringstream out;
     out << "section,scene,triangles,level,light_radius,method,shadow,available,note,width,height,frames,"
            "median_ms,best_ms,cpu_median_ms,pip_fraction,penumbra_fraction,rays,nodes_visited,nodes_per_ray,error,"
-           "bytes_per_triangle,simplify_error,device_bytes,peak_rss_bytes,device,driver\n";
+           "bytes_per_triangle,simplify_error,device_bytes,peak_rss_bytes,device,driver,light_samples\n";
     for (const Record& r : records) {
         if (r.section != section)
             continue;
@@ -109,7 +109,7 @@ std::string recordsCsv(const std::vector<Record>& records, const std::string& se
             << number(r.pipFraction) << ',' << number(r.penumbraFraction) << ',' << r.rays << ',' << r.nodesVisited
             << ',' << number(r.rays ? double(r.nodesVisited) / double(r.rays) : kNoValue) << ',' << number(r.error)
             << ',' << number(r.bytesPerTriangle) << ',' << number(r.simplifyError) << ',' << r.deviceBytes << ','
-            << r.peakRssBytes << ',' << csvText(r.device) << ',' << csvText(r.driver) << '\n';
+            << r.peakRssBytes << ',' << csvText(r.device) << ',' << csvText(r.driver) << ',' << r.lightSamples << '\n';
     }
     return out.str();
 }
@@ -156,6 +156,8 @@ std::string recordsJson(const SuiteResults& results)
     root["size"] = results.options.size;
     root["frames"] = results.options.frames;
     root["light_samples"] = results.options.lightSamples;
+    root["afsm_samples"] = results.options.afsmSamples;
+    root["afsm_sample_counts"] = results.options.afsmSampleCounts;
     root["penumbra_maps"] = results.options.penumbraMaps;
     root["soft_shadow_maps"] = results.options.softShadowMaps;
     root["soft_light_radius"] = results.options.softLightRadius;
@@ -174,6 +176,7 @@ std::string recordsJson(const SuiteResults& results)
         j["triangles"] = r.triangles;
         j["level"] = r.level;
         j["light_radius"] = r.lightRadius;
+        j["light_samples"] = r.lightSamples;
         j["method"] = r.method;
         j["shadow"] = shadowKindName(r.kind);
         j["available"] = r.available;
@@ -254,6 +257,11 @@ std::vector<double> levelsOf(const std::vector<Record>& records)
         if (r.section == "scalability")
             levels.insert(r.level);
     return {levels.begin(), levels.end()};
+}
+
+bool hasSection(const std::vector<Record>& records, const std::string& section)
+{
+    return std::any_of(records.begin(), records.end(), [&](const Record& r) { return r.section == section && r.available; });
 }
 
 std::vector<double> radiiOf(const std::vector<Record>& records)
@@ -444,7 +452,7 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
     if (!radii.empty()) {
         std::string scene = results.options.sweepScene;
         std::ostringstream data;
-        data << "# radius sm srt frt oracle (median ms) srt_penumbra_fraction oracle_penumbra_fraction\n";
+        data << "# radius sm srt frt oracle afsm (median ms) srt_penumbra_fraction oracle_penumbra_fraction\n";
         for (double radius : radii) {
             data << number(radius);
             for (const char* method : kSoftMethodOrder) {
@@ -468,10 +476,49 @@ std::vector<Plot> writePlotScripts(const SuiteResults& results, const fs::path& 
                   "'' using 1:3 with linespoints title 'srt', "
                   "'' using 1:4 with linespoints title 'frt', "
                   "'' using 1:5 with linespoints title 'Embree oracle (CPU)', "
-                  "'' using 1:6 axes x1y2 with lines dashtype 2 title 'srt penumbra fraction', "
-                  "'' using 1:7 axes x1y2 with lines dashtype 3 title 'oracle penumbra fraction'\n";
+                  "'' using 1:6 with linespoints title 'afsm (" + std::to_string(results.options.afsmSamples) + " samples)', "
+                  "'' using 1:7 axes x1y2 with lines dashtype 2 title 'srt penumbra fraction', "
+                  "'' using 1:8 axes x1y2 with lines dashtype 3 title 'oracle penumbra fraction'\n";
         writeFile(dir / "light_size.gp", script);
         pngs.push_back({"light_size.gp", "light_size.png"});
+    }
+
+    // afsm, the paper's Figures 11-13: soft-shadow time against the triangle
+    // count (scan levels; hard shadows beside), the light radius (the sweep
+    // above) and the number of light samples.
+    if (hasSection(records, "afsm_triangles")) {
+        std::ostringstream data;
+        data << "# triangles afsm_soft_ms afsm_hard_ms frt_hard_ms\n";
+        for (double level : levels) {
+            const Record* soft = findRecord(records, "afsm_triangles", "scan", "afsm", ShadowKind::Soft, level, -1.0);
+            if (!soft)
+                continue;
+            const Record* hard = findRecord(records, "scalability", "scan", "afsm", ShadowKind::Hard, level);
+            const Record* frt = findRecord(records, "scalability", "scan", "frt", ShadowKind::Hard, level);
+            data << soft->triangles << ' ' << number(soft->medianMs, "%.3f", "?") << ' ' << (hard ? number(hard->medianMs, "%.3f", "?") : "?")
+                 << ' ' << (frt ? number(frt->medianMs, "%.3f", "?") : "?") << '\n';
+        }
+        writeFile(dir / "afsm_triangles.dat", data.str());
+        writeFile(dir / "afsm_triangles.gp",
+                  header + "set output 'afsm_triangles.png'\nset title 'afsm: time against triangles (scan levels, log-log; the paper''s Figure 11), " +
+                      title + "'\nset logscale xy\nset grid xtics ytics mxtics mytics\nset xlabel 'triangles'\nset ylabel 'ms per frame'\n"
+                      "plot 'afsm_triangles.dat' using 1:2 with linespoints title 'afsm soft (" +
+                      std::to_string(results.options.afsmSampleCounts.empty() ? 128u : results.options.afsmSampleCounts.front()) +
+                      " samples)', '' using 1:3 with linespoints title 'afsm hard', '' using 1:4 with linespoints dashtype 2 title 'frt hard'\n");
+        pngs.push_back({"afsm_triangles.gp", "afsm_triangles.png"});
+    }
+    if (hasSection(records, "afsm_samples")) {
+        std::ostringstream data;
+        data << "# samples afsm_soft_ms error\n";
+        for (const Record& r : records)
+            if (r.section == "afsm_samples" && r.available)
+                data << r.lightSamples << ' ' << number(r.medianMs, "%.3f", "?") << ' ' << number(r.error, "%.6f", "?") << '\n';
+        writeFile(dir / "afsm_samples.dat", data.str());
+        writeFile(dir / "afsm_samples.gp",
+                  header + "set output 'afsm_samples.png'\nset title 'afsm: soft-shadow time against light samples (the paper''s Figure 13), " +
+                      results.options.sweepScene + ", " + title + "'\nset logscale x 2\nset xlabel 'light samples'\nset ylabel 'ms per frame'\n"
+                      "set yrange [0:*]\nplot 'afsm_samples.dat' using 1:2 with linespoints title 'afsm soft'\n");
+        pngs.push_back({"afsm_samples.gp", "afsm_samples.png"});
     }
     return pngs;
 }
@@ -715,8 +762,8 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
         md << "Scene `" << o.sweepScene << "`, " << o.lightSamples << " light samples, " << o.penumbraMaps
            << " penumbra map(s); median ms per frame and penumbra fraction (covered pixels with 0 < visibility "
               "< 1).\n\n";
-        md << "| radius | sm | srt | frt | oracle | srt penumbra | oracle penumbra | srt error |\n"
-              "|---|---|---|---|---|---|---|---|\n";
+        md << "| radius | sm | srt | frt | oracle | afsm | srt penumbra | oracle penumbra | srt error | afsm error |\n"
+              "|---|---|---|---|---|---|---|---|---|---|\n";
         for (double radius : radii) {
             md << "| " << number(radius);
             for (const char* method : kSoftMethodOrder) {
@@ -727,10 +774,37 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
             const Record* srt = findRecord(records, "light_size", o.sweepScene, "srt", ShadowKind::Soft, 1.0, radius);
             const Record* oracle =
                 findRecord(records, "light_size", o.sweepScene, "oracle", ShadowKind::Soft, 1.0, radius);
+            const Record* afsm = findRecord(records, "light_size", o.sweepScene, "afsm", ShadowKind::Soft, 1.0, radius);
             md << " | " << percent(srt ? srt->penumbraFraction : kNoValue) << " | "
-               << percent(oracle ? oracle->penumbraFraction : kNoValue) << " | " << percent(srt ? srt->error : kNoValue)
-               << " |\n";
+               << percent(oracle ? oracle->penumbraFraction : kNoValue) << " | " << percent(srt ? srt->error : kNoValue) << " | "
+               << percent(afsm ? afsm->error : kNoValue) << " |\n";
         }
+        md << "\nafsm keeps " << o.afsmSamples
+           << " light samples per view sample (its own, the table's); its error is against the oracle tracing those samples, "
+              "so it is the table's discretization alone (the paper's Figure 12 is its time column).\n";
+    }
+
+    if (hasSection(records, "afsm_triangles") || hasSection(records, "afsm_samples")) {
+        md << "\n## Alias-free shadow maps, soft shadows (the paper's Figures 11-13)\n\n"
+              "afsm soft shadows from the sphere light of the methods' soft cases. Time against the triangle count (the scan "
+              "levels of the scalability run, the paper's Figure 11, with its fewest samples), against the light radius (the "
+              "light-size sweep above, Figure 12) and against the number of light samples (Figure 13, the paper: 128 -> 1024 "
+              "samples roughly doubles the cost). Error: mean |visibility - oracle| against the oracle tracing the table's own "
+              "samples (the table's discretization alone).\n\n"
+              "| section | scene | triangles | samples | median ms | best ms | penumbra | error |\n|---|---|---|---|---|---|---|---|\n";
+        for (const Record& r : records) {
+            if (r.section != "afsm_triangles" && r.section != "afsm_samples")
+                continue;
+            md << "| " << r.section << " | " << r.scene << " | " << shortCount(r.triangles) << " | " << r.lightSamples << " | "
+               << ms(r.medianMs) << " | " << ms(r.bestMs) << " | " << percent(r.penumbraFraction) << " | " << percent(r.error) << " |\n";
+        }
+        std::vector<std::pair<double, double>> bySamples;
+        for (const Record& r : records)
+            if (r.section == "afsm_samples" && r.available)
+                bySamples.push_back({double(r.lightSamples), r.medianMs});
+        if (bySamples.size() >= 2)
+            md << "\nTime at " << number(bySamples.back().first, "%.0f") << " samples / time at " << number(bySamples.front().first, "%.0f")
+               << ": " << number(bySamples.back().second / bySamples.front().second, "%.2fx") << ".\n";
     }
 
     if (!plots.empty()) {
@@ -739,13 +813,14 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
             md << "![" << plot << "](" << plot << ")\n\n";
     }
     md << "\n## Images\n\n"
-          "Per scene: `-shadows.png` is sm | srt | frt | afsm (hard shadows only) | oracle (N·L times visibility of the "
+          "Per scene: `-shadows.png` is sm | srt | frt | afsm | rh (point lights only) | oracle (N·L times visibility of the "
           "light), `-diff.png` is each method against the oracle in the same order (red: lit but the oracle shadows it; "
           "blue: the reverse), `-color.png` the rendered frames.\n\n";
     for (const std::string& image : results.images)
         md << "- [" << image << "](" << image << ")\n";
     md << "\n## Files\n\nmethods.csv / methods.json (every record of every section, with per-pass times in the JSON), "
-          "stages.csv, floors.csv, scalability.csv, light_size.csv; *.dat and *.gp are the plot data and gnuplot scripts "
+          "stages.csv, floors.csv, scalability.csv, light_size.csv, point.csv, rh_variants.csv, afsm_triangles.csv, "
+          "afsm_samples.csv; *.dat and *.gp are the plot data and gnuplot scripts "
           "(`gnuplot methods.gp` in this folder remakes a plot).\n";
     return md.str();
 }
@@ -781,6 +856,8 @@ std::string writeReport(SuiteResults& results)
     writeFile(dir / "light_size.csv", recordsCsv(records, "light_size"));
     writeFile(dir / "point.csv", recordsCsv(records, "point"));
     writeFile(dir / "rh_variants.csv", recordsCsv(records, "rh_variants"));
+    writeFile(dir / "afsm_triangles.csv", recordsCsv(records, "afsm_triangles"));
+    writeFile(dir / "afsm_samples.csv", recordsCsv(records, "afsm_samples"));
     writeFile(dir / "stages.csv", stagesCsv(records));
     writeFile(dir / "floors.csv", floorsCsv(records));
     writeFile(dir / "methods.json", recordsJson(results));

@@ -18,7 +18,7 @@ Frame renderSoftShadows(Renderer& renderer, const RenderSettings& settings, cons
 {
     // Area lights cast soft shadows; the suite sets one for soft cases.
     RenderSettings soft = settings;
-    soft.lightSamples = params.lightSamples;
+    soft.lightSamples = settings.shadows == ShadowMethod::AliasFree ? params.afsmSamples : params.lightSamples;
     soft.penumbraMaps = params.penumbraMaps;
     soft.softShadowMaps = params.softShadowMaps;
     return renderer.render(soft);
@@ -38,12 +38,14 @@ std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame&
 }
 
 std::vector<float> oracleSoftVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
-                                        float rayOffset, const SoftShadowParams& params)
+                                        float rayOffset, const SoftShadowParams& params, bool afsmTable)
 {
     OracleOptions options;
     options.originOffset = rayOffset;
+    options.afsmSamples = afsmTable;
     // The suite renders one light: index 0 seeds the samples, as on the GPU.
-    return oracle.softShadowVisibility(frame.positions, frame.normals, frame.color.width, light, 0, params.lightSamples, options);
+    return oracle.softShadowVisibility(frame.positions, frame.normals, frame.color.width, light, 0,
+                                       afsmTable ? params.afsmSamples : params.lightSamples, options);
 }
 
 } // namespace penumbra::bench

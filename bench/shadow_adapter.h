@@ -18,6 +18,7 @@ const char* shadowKindName(ShadowKind kind); // "hard", "soft"
 // integrate the same light samples.
 struct SoftShadowParams {
     uint32_t lightSamples = 16;  // srt, frt and the oracle: samples over the area light per pixel
+    uint32_t afsmSamples = 256;  // afsm and its oracle (the table's samples): light samples per view sample
     uint32_t penumbraMaps = 1;   // srt: shadow maps whose masks mark the penumbra, 1 (centre) or 5 (centre and corners)
     uint32_t softShadowMaps = 4; // sm: point-light shadow maps averaged over the light
 };
@@ -41,7 +42,9 @@ double penumbraFraction(const Frame& frame, ShadowKind kind);
 // soft, kVisibilityBackground and kVisibilityBackFacing as in oracle.h.
 std::vector<float> oracleHardVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
                                         float rayOffset);
+// afsmTable: the oracle traces afsm's table samples (params.afsmSamples of
+// them; OracleOptions::afsmSamples): against it afsm differs only by its table.
 std::vector<float> oracleSoftVisibility(const EmbreeOracle& oracle, const Frame& frame, const Light& light,
-                                        float rayOffset, const SoftShadowParams& params);
+                                        float rayOffset, const SoftShadowParams& params, bool afsmTable = false);
 
 } // namespace penumbra::bench

@@ -235,10 +235,12 @@ class SuiteRunner {
         std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
         results.date = date;
         soft.lightSamples = options.lightSamples;
+        soft.afsmSamples = options.afsmSamples;
         soft.penumbraMaps = options.penumbraMaps;
         soft.softShadowMaps = options.softShadowMaps;
-        // Steps for the progress bar: 4 per scene and kind, 4 per level, 4 per light radius.
-        totalSteps = options.scenes.size() * (2 * 4 + 9) + options.levels.size() * 4 + options.lightRadii.size() * 4;
+        // Steps for the progress bar: 4 per scene and kind, 4 per level, 4 per light radius, 1 per afsm sample count.
+        totalSteps = options.scenes.size() * (2 * 4 + 9) + options.levels.size() * 5 + options.lightRadii.size() * 4 +
+                     options.afsmSampleCounts.size();
     }
 
     SuiteResults run()
@@ -253,6 +255,8 @@ class SuiteRunner {
             runScalability();
         if (wants("light_size"))
             runLightSweep();
+        if (wants("afsm_samples") && wantsMethod(ShadowMethod::AliasFree))
+            runAfsmSampleSweep();
         progressBar.finish();
         return std::move(results);
     }
@@ -409,9 +413,20 @@ class SuiteRunner {
         for (size_t i = 0; i < methods.size(); ++i) {
             Record r = gpuRecord(section, loaded, methods[i], kind, measured[i]);
             r.error = visibilityError(oracleVisibility, measured[i].gbuffer.visibility);
+            if (kind == ShadowKind::Soft && methods[i] == ShadowMethod::AliasFree) {
+                // afsm keeps its own samples (the table's, SuiteOptions::afsmSamples): against the oracle tracing
+                // them only the table's discretization is left.
+                r.error = visibilityError(oracleSoftVisibility(oracle, measured[i].gbuffer, light, rayOffset, soft, true),
+                                          measured[i].gbuffer.visibility);
+                r.note = std::to_string(soft.afsmSamples) + " light samples; error against the oracle on the table's samples";
+            }
             r.lightRadius = radius;
             r.level = level;
             r.simplifyError = simplifyError;
+            if (kind == ShadowKind::Soft)
+                r.lightSamples = methods[i] == ShadowMethod::AliasFree ? soft.afsmSamples
+                                 : methods[i] == ShadowMethod::ShadowMap ? soft.softShadowMaps
+                                                                         : soft.lightSamples;
             add(r);
         }
         Record o = baseRecord(section, loaded, kOracleName, kind);
@@ -527,6 +542,12 @@ class SuiteRunner {
             loadInto(*renderer, loaded);
             renderer->setLights({loaded.light});
             measureAllMethods("scalability", loaded, ShadowKind::Hard, loaded.light, 0.0, level, simplifyError, "");
+            // The paper's Figure 11: afsm soft shadows (its fewest samples, 128 in the paper) against the triangle count.
+            if (!wantsMethod(ShadowMethod::AliasFree))
+                continue;
+            const Light area = areaLightFor(loaded.light, loaded.bounds, options.softLightRadius);
+            renderer->setLights({area});
+            measureAfsmSoft("afsm_triangles", loaded, area, options.softLightRadius, level, options.afsmSampleCounts.front());
         }
     }
 
@@ -553,6 +574,47 @@ class SuiteRunner {
             renderer->setLights({area});
             measureAllMethods("light_size", loaded, ShadowKind::Soft, area, radius, 1.0, kNoValue, "");
         }
+    }
+
+    // afsm soft shadows with `samples` light samples, the scene's area light
+    // already set; error against the oracle on the table's samples (table
+    // error only). The paper's Figures 11 and 13.
+    void measureAfsmSoft(const std::string& section, LoadedScene& loaded, const Light& area, double radius, double level, uint32_t samples)
+    {
+        const std::string label = section + " " + loaded.name + " afsm " + std::to_string(samples);
+        step(label);
+        SoftShadowParams params = soft;
+        params.afsmSamples = samples;
+        Measurement m = measure(*renderer, baseSettings(ShadowMethod::AliasFree), ShadowKind::Soft, params, options.frames);
+        if (!loaded.oracle) {
+            auto buildStart = std::chrono::steady_clock::now();
+            loaded.oracle = std::make_unique<EmbreeOracle>(loaded.scene.mesh);
+            loaded.oracleBuildMs = msSince(buildStart);
+        }
+        const float rayOffset = m.gbuffer.stats.rayOffset > 0.0f ? m.gbuffer.stats.rayOffset : 1e-4f;
+        Record r = gpuRecord(section, loaded, ShadowMethod::AliasFree, ShadowKind::Soft, m);
+        r.error = visibilityError(oracleSoftVisibility(*loaded.oracle, m.gbuffer, area, rayOffset, params, true), m.gbuffer.visibility);
+        r.lightRadius = radius;
+        r.level = level;
+        r.lightSamples = samples;
+        r.note = std::to_string(samples) + " light samples; error against the oracle on the table's samples";
+        add(r);
+        stepDone(label);
+    }
+
+    // The paper's Figure 13: afsm soft shadows against the number of light
+    // samples, on the sweep scene with the method comparison's light radius.
+    void runAfsmSampleSweep()
+    {
+        if (options.afsmSampleCounts.empty())
+            return;
+        auto it = std::find_if(options.scenes.begin(), options.scenes.end(),
+                               [&](const BenchScene& s) { return s.name == options.sweepScene; });
+        LoadedScene loaded = generateAndLoad(*renderer, options.sweepScene, it != options.scenes.end() ? it->triangles : 200'000);
+        const Light area = areaLightFor(loaded.light, loaded.bounds, options.softLightRadius);
+        renderer->setLights({area});
+        for (uint32_t samples : options.afsmSampleCounts)
+            measureAfsmSoft("afsm_samples", loaded, area, options.softLightRadius, 1.0, samples);
     }
 
     // Shadow image of one visibility buffer: N.L shading times visibility,
@@ -656,6 +718,12 @@ void checkOptions(const SuiteOptions& options)
             fail("bench", "light radii must be in (0, 1) of the scene diagonal");
     if (options.lightSamples < 4 || options.lightSamples > 256)
         fail("bench", "light samples must be 4..256");
+    // afsm's range (shaders/config.h: PENUMBRA_AFSM_MIN_SAMPLES, _MAX_SAMPLES).
+    if (options.afsmSamples < 128 || options.afsmSamples > 1024)
+        fail("bench", "afsm light samples must be 128..1024");
+    for (uint32_t samples : options.afsmSampleCounts)
+        if (samples < 128 || samples > 1024)
+            fail("bench", "afsm sample counts must be 128..1024");
     if (options.softShadowMaps < 1 || options.softShadowMaps > 6)
         fail("bench", "soft shadow maps must be 1..6");
     if (options.penumbraMaps != 1 && options.penumbraMaps != 5)
@@ -671,7 +739,7 @@ size_t stageGroupOf(const std::string& passName)
     static const std::map<std::string, size_t> groups = {{"camera", 0},        {"view_fit", 0},   {"view_fit_readback", 5},   {"shadow_map", 0},     {"thin_triangles", 1},
                                                          {"penumbra_mask", 1}, {"classify", 1},   {"compact", 2},
                                                          {"trace", 3},         {"shade", 4},      {"readback", 5},
-                                                         {"afsm_casters", 0},  {"afsm_samples", 1},
+                                                         {"afsm_casters", 0},  {"afsm_bin", 0},     {"afsm_samples", 1},
                                                          {"rh_build", 1},      {"rh_traverse", 3}};
     auto it = groups.find(passName);
     return it == groups.end() ? kStageGroupCount - 1 : it->second;
@@ -696,6 +764,8 @@ SuiteOptions suiteOptions(const std::string& suite)
         o.scanTriangles = 64'000;
         o.levels = {1.0 / 16, 1.0 / 4, 1.0};
         o.lightRadii = {0.005, 0.02};
+        o.afsmSamples = 128;
+        o.afsmSampleCounts = {128, 1024};
     } else if (suite == "quick") {
         // Under 5 minutes on 2 cores with lavapipe (soft full ray tracing, 16 samples a pixel, dominates).
         o.size = 320;
@@ -704,6 +774,7 @@ SuiteOptions suiteOptions(const std::string& suite)
         o.scanTriangles = 1'000'000;
         o.levels = {1.0 / 256, 1.0 / 64, 1.0 / 16, 1.0 / 4, 1.0};
         o.lightRadii = {0.0025, 0.01, 0.04};
+        o.afsmSamples = 128;
     } else if (suite == "full") {
         // The paper's shapes: 1024^2, 1-2 M triangle scenes, a 16 M-triangle scan in 9 levels.
         o.size = 1024;

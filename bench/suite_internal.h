@@ -30,11 +30,14 @@ struct FloorSummary {
 
 // One measured case (or one that could not run in this build).
 struct Record {
-    std::string section;      // "methods", "point" (a point light among the geometry), "rh_variants", "scalability" or "light_size"
+    // "methods", "point" (a point light among the geometry), "rh_variants", "scalability", "light_size", or afsm's
+    // soft-shadow sweeps "afsm_triangles" (Figure 11) and "afsm_samples" (Figure 13)
+    std::string section;
     std::string scene;        // generator name
     uint64_t triangles = 0;   // triangles stored in the model
     double level = 1.0;       // scalability: triangle ratio of the simplification level
     double lightRadius = 0.0; // soft: sphere-light radius as a fraction of the scene diagonal; 0 for hard
+    uint32_t lightSamples = 0; // soft: light samples per pixel (afsm: bits per view sample)
     std::string method;       // "sm", "srt", "frt" or "oracle"
     ShadowKind kind = ShadowKind::Hard;
     bool available = true; // false: not run; note says why

@@ -1,63 +1,79 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Alias-free shadow maps, casters (Sintorn et al. 2008, section 3.2):
 // conservative rasterization of each triangle over the sample grid. lavapipe
-// has no conservative-rasterization extension, so the triangle is drawn as
-// its bounding rectangle in the grid, grown by one cell on each side: every
-// cell whose area the triangle's projection touches has its centre inside,
-// so the fragment shader sees every cell whose samples the triangle can
-// shadow (afsm_casters.frag.glsl tests them exactly). A triangle reaching
-// behind a perspective projection's eye covers the whole grid.
+// has no conservative-rasterization extension, so the triangle is drawn
+// grown: each edge moved out by half a cell's extent along its normal plus
+// half a cell (afsm_casters.glsli: afsmOffsetAndClip), within its bounding
+// rectangle grown by one cell. Every cell whose area the triangle's
+// projection touches has its centre inside, so the fragment shader sees every
+// cell whose samples the triangle can shadow (afsm_casters.frag.glsl tests
+// them exactly). A triangle reaching behind a perspective projection's eye
+// covers the whole grid. With
+// push.computeCells > 0 the triangles whose rectangle spans at most that many
+// cells were tested by the compute path (afsm_bin.comp.glsl) and are left out.
 
 #include "config.h"
+#include "shadow_common.glsli"
+#include "shadow_ray.glsli"
+#include "penumbra/light_sampling.h"
+#include "afsm.glsli"
+// C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
+layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
+layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth
+#define AFSM_RECTANGLES_ONLY 1
+#define AFSM_POLYGONS 1
+#include "afsm_casters.glsli"
 
 layout(triangles) in;
-layout(triangle_strip, max_vertices = 4) out;
+layout(triangle_strip, max_vertices = 8) out;
 
 layout(location = 0) in vec3 worldPosition[];
 layout(location = 0) flat out vec3 vertex0;
 layout(location = 1) flat out vec3 vertex1;
 layout(location = 2) flat out vec3 vertex2;
 // The triangle's projection in grid cells, for the fragment shader's exact
-// cell test; edges.w = 0: no test (a vertex behind the eye).
+// cell test; projected2.w = 0: no test (a vertex behind the eye).
 layout(location = 3) flat out vec4 projected01; // xy vertex 0, zw vertex 1
 layout(location = 4) flat out vec4 projected2;  // xy vertex 2, w = 1 when valid
 
 layout(push_constant) uniform AfsmCastersPush {
     mat4 viewProj;     // the layer's projection (the grid's)
+    uint64_t slots;    // AfsmRaySlot per slot (afsm_casters.frag.glsl)
     uint lightIndex;
     uint gridSize;     // cells per side
     float originOffset;
-    uint pad;
+    float computeCells; // rectangles of at most this many cells: the compute path's (0: none)
 } push;
 
 void main()
 {
-    vec2 lo = vec2(-1.0), hi = vec2(1.0);
-    bool behind = false;
-    vec2 pmin = vec2(3.0e38), pmax = vec2(-3.0e38);
     vec2 cells[3];
-    for (int i = 0; i < 3; ++i) {
-        vec4 clip = push.viewProj * vec4(worldPosition[i], 1.0);
-        if (clip.w <= 1e-20) {
-            behind = true;
-            break;
-        }
-        vec2 ndc = clip.xy / clip.w;
-        cells[i] = (ndc * 0.5 + 0.5) * float(push.gridSize);
-        pmin = min(pmin, ndc);
-        pmax = max(pmax, ndc);
+    bool behind;
+    AfsmDepthBound depth;
+    AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, cells, behind, depth);
+    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
+        return;
+    // The triangle grown by half a cell and the margin of afsmCellMayMeetTriangle, within the rectangle.
+    vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);
+    float area = afsmCross(cells[1] - cells[0], cells[2] - cells[0]);
+    if (behind || area == 0.0) {
+        afsmRectPolygon(lo, hi);
+    } else {
+        afsmPolygon[0] = cells[0];
+        afsmPolygon[1] = area > 0.0 ? cells[1] : cells[2];
+        afsmPolygon[2] = area > 0.0 ? cells[2] : cells[1];
+        afsmPolygonCount = 3;
+        afsmOffsetAndClip(0.5, lo, hi);
     }
-    if (!behind) {
-        float cell = 2.0 / float(push.gridSize);
-        lo = max(pmin - vec2(cell), vec2(-1.0));
-        hi = min(pmax + vec2(cell), vec2(1.0));
-        if (any(greaterThan(lo, hi)))
-            return;
-    }
-    const vec2 corners[4] = vec2[](vec2(0.0, 0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), vec2(1.0, 1.0));
-    for (int i = 0; i < 4; ++i) {
-        gl_Position = vec4(mix(lo, hi, corners[i]), 0.5, 1.0);
+    // Depth: at each cell's centre, the caster's nearest depth over the cell grown by the margin (afsmNearestOver's
+    // plane, affine across the polygon); the depth test (LESS against the cells' farthest samples, 0 for empty cells;
+    // clamped, not clipped) drops the cells every sample of which lies nearer the light than the caster.
+    AfsmDepthBound plane = AfsmDepthBound(depth.plane, -3.0e38);
+    for (int i = 0; i < afsmPolygonCount; ++i) {
+        float z = depth.plane.w == 0.0 ? depth.nearest : afsmNearestOver(plane, afsmPolygon[afsmStripIndex(i)] - 0.5, 0.5);
+        gl_Position = afsmStripVertex(i, push.gridSize, z);
         vertex0 = worldPosition[0];
         vertex1 = worldPosition[1];
         vertex2 = worldPosition[2];

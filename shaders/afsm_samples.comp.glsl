@@ -2,41 +2,103 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_atomic_int64 : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_basic : require
 // Alias-free shadow maps, the view samples' passes (Sintorn et al. 2008,
 // section 3; afsm.glsli). Per camera pixel, one of:
 //  PENUMBRA_AFSM_COUNT: the sample's grid cell in layer `layer` gets one more
-//    sample (atomicAdd on cellCount);
+//    sample (atomicAdd on cellCount) and keeps its farthest sample's depth
+//    (afsmDepth of the ray origin: the casters' depth test), and the layer
+//    its farthest sample's clip.w (soft: the influence regions' far plane);
 //  PENUMBRA_AFSM_LIST: after the prefix sum (afsm_scan.comp.glsl) turned the
-//    counts into offsets, the sample writes its pixel index into its cell's
-//    range of the flat list (cellFill counts the cell's slots taken);
+//    counts into offsets, the sample writes its ray and pixel index
+//    (AfsmRaySlot, afsm.glsli) into its cell's range of the flat list of
+//    slots (cellFill counts the cell's slots taken);
 //  PENUMBRA_AFSM_RESOLVE: after every layer's casters (afsm_casters), the
 //    light's visibility: 0 where a caster blocked the sample's ray or the
 //    surface faces away, 1 elsewhere; -1 for background. Clears the marks
-//    (nothing is traced) and counts covered pixels.
+//    (nothing is traced); shade counts the covered pixels.
+// Built a second time with PENUMBRA_AFSM_SOFT (afsm_samples.comp.soft) for
+// area lights (section 4): a pixel is a sample when some point of the light
+// lies above its plane and it is in front of a one-sided emitter; the list writes the slot's ray origin and
+// the light's jittered axes (AfsmSlot); the resolve counts the light samples
+// above the pixel's plane that no caster's mask holds, and clears the mask.
 
 #include "config.h"
 #include "shadow_common.glsli"
 #include "shadow_ray.glsli"
+#include "penumbra/light_sampling.h"
+#ifdef PENUMBRA_AFSM_SOFT
+#define AFSM_SOFT 1
+#endif
+#define AFSM_SLOTS 1
 #include "afsm.glsli"
 
 layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_GROUP_SIZE) in;
 
 #define PIXEL_MARKS_ACCESS writeonly
 #include "pixel_bindings.glsli"
-// C++: runtime/src/passes/afsm.h (AfsmBinding).
+// C++: runtime/src/passes/afsm.h (AfsmSamplesBinding).
 layout(set = 0, binding = 6, std430) buffer CellCount { uint cellCount[]; };   // per cell: samples, then (scan) first slot
 layout(set = 0, binding = 7, std430) buffer CellFill { uint cellFill[]; };     // per cell: slots taken (PENUMBRA_AFSM_LIST)
-layout(set = 0, binding = 8, std430) buffer SampleList { uint samplePixels[]; }; // pixel index per slot
-layout(set = 0, binding = 9, std430) buffer Shadowed { uint shadowed[]; };     // per pixel: 1 when a caster blocks its ray
+layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };     // per pixel: 1 when a caster blocks its ray (soft: all its samples)
+layout(set = 0, binding = 9, std430) buffer Far { uint farBits; };             // the layer's farthest sample's clip.w (float bits)
+layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth (float bits)
+layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared here)
+layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (counted here)
 
 layout(push_constant) uniform AfsmSamplesPush {
+    mat4 viewProj;      // the layer's grid projection
+    uint64_t slots;     // AfsmRaySlot (soft: AfsmSlot) per slot
+    uint64_t masks;     // soft: afsmWords(samples) uints per pixel
+    uint64_t table;     // soft: the lookup table (afsm_table.comp.glsl)
     uint lightIndex;
-    uint mode;        // PENUMBRA_AFSM_COUNT, _LIST, _RESOLVE
-    uint layer;       // layer of the light binned (COUNT, LIST)
-    uint gridSize;    // cells per side
+    uint mode;          // PENUMBRA_AFSM_COUNT, _LIST, _RESOLVE
+    uint layer;         // layer of the light binned (COUNT, LIST)
+    uint gridSize;      // cells per side
     float originOffset;
-    uint pad0, pad1, pad2;
+    uint cube;          // 1: the layers are the six cube faces around the light's position
+    uint samples;       // soft: light samples n
+    uint tableSize;     // soft: angles | distances << 16
 } push;
+
+#ifdef PENUMBRA_AFSM_SOFT
+// Whether the pixel at p (normal n) sees some point of the area light: in
+// front of a one-sided emitter, and some point of the light above its plane.
+bool softSample(LightData light, vec3 p, vec3 n)
+{
+    return inFrontOfEmitter(light, p) && areaLightHeightRange(light, p, n).y > 0.0;
+}
+
+uint areaShape(LightData light)
+{
+    return uint(light.positionType.w);
+}
+
+// The light's fraction of samples above the pixel's plane that no caster's
+// mask holds; clears the pixel's mask for the next light.
+float softVisibility(LightData light, uvec2 pixel, uint index, vec3 p, vec3 n)
+{
+    uint shape = areaShape(light);
+    vec4 jitter = afsmJitter(shape, sampleSeed(pixel.x, pixel.y, push.lightIndex));
+    vec3 c = light.positionType.xyz;
+    vec3 axisU = afsmAxisU(shape, c, light.areaU.xyz, light.areaV.xyz, p, jitter);
+    vec3 axisV = afsmAxisV(shape, c, light.areaU.xyz, light.areaV.xyz, p, jitter);
+    // Samples above the plane through p: n . (x - p) > 0 (as the tracer's dot(normal, direction) > 0).
+    uint above = afsmPlaneThrough(n, p, c, axisU, axisV, shape == PENUMBRA_AREA_RECTANGLE, push.tableSize);
+    uint quads = afsmQuads(push.samples);
+    AfsmQuadArray masks = AfsmQuadArray(push.masks);
+    bool blocked = shadowed[index] != 0u;
+    uvec4 visible = uvec4(0u);
+    for (uint q = 0u; q < quads; ++q) {
+        uvec4 mask = masks.quads[index * quads + q];
+        masks.quads[index * quads + q] = uvec4(0u);
+        visible += uvec4(bitCount(afsmPlaneQuad(push.table, above, q, quads, afsmValidBits(q, push.samples)) & ~mask));
+    }
+    return blocked ? 0.0 : float(visible.x + visible.y + visible.z + visible.w) / float(push.samples);
+}
+#endif
 
 uvec2 samplePixel()
 {
@@ -46,35 +108,87 @@ uvec2 samplePixel()
         return uvec2(0u);
     uint index = uint(pixel.y * size.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
+    LightData light = frame.lights[push.lightIndex];
     if (push.mode == PENUMBRA_AFSM_RESOLVE) {
         if (position.w == 0.0) {
             imageStore(visibilityImage, pixel, vec4(-1.0));
             marks[index] = 0u;
             return uvec2(0u);
         }
+        vec3 n = imageLoad(gNormal, pixel).xyz;
+#ifdef PENUMBRA_AFSM_SOFT
+        float visibility = 0.0;
+        PENUMBRA_SKIP_UNLESS(softSample(light, position.xyz, n))
+            visibility = softVisibility(light, uvec2(pixel), index, position.xyz, n);
+        imageStore(visibilityImage, pixel, vec4(visibility));
+#else
         ShadowRay ray;
-        bool facing = afsmSampleRay(frame.lights[push.lightIndex], position.xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray);
+        bool facing = afsmSampleRay(light, position.xyz, n, push.originOffset, ray);
         imageStore(visibilityImage, pixel, vec4(facing && shadowed[index] == 0u ? 1.0 : 0.0));
+#endif
         marks[index] = 0u;
-        return uvec2(1u, 0u);
+        return uvec2(0u);
     }
     if (position.w == 0.0)
         return uvec2(0u);
-    LightData light = frame.lights[push.lightIndex];
-    ShadowRay ray;
-    if (!afsmSampleRay(light, position.xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray))
+    vec3 n = imageLoad(gNormal, pixel).xyz;
+#ifdef PENUMBRA_AFSM_SOFT
+    if (!softSample(light, position.xyz, n))
         return uvec2(0u);
-    uint cell = afsmCell(light, push.layer, position.xyz, ray.origin, push.gridSize);
+    vec3 origin = position.xyz + n * push.originOffset;
+    if (afsmLayer(light, position.xyz, push.cube != 0u) != push.layer)
+        return uvec2(0u);
+#else
+    ShadowRay ray;
+    if (!afsmSampleRay(light, position.xyz, n, push.originOffset, ray))
+        return uvec2(0u);
+    vec3 origin = ray.origin;
+    if (shadowLayer(light, position.xyz) != push.layer)
+        return uvec2(0u);
+#endif
+    float depth, w;
+    uint cell = afsmGridCell(push.viewProj, origin, push.gridSize, depth, w);
     if (cell == AFSM_NOT_BINNED)
         return uvec2(0u);
-    if (push.mode == PENUMBRA_AFSM_COUNT)
+#ifndef PENUMBRA_AFSM_SOFT
+    // A spot light's grid is its cone: samples outside it get no light (shade), nothing to list.
+    if (uint(light.positionType.w) != PENUMBRA_LIGHT_POINT) {
+        vec4 clip = push.viewProj * vec4(origin, 1.0);
+        if (any(greaterThan(abs(clip.xy), vec2(clip.w))))
+            return uvec2(0u);
+    }
+#endif
+    if (push.mode == PENUMBRA_AFSM_COUNT) {
         atomicAdd(cellCount[cell], 1u);
-    else
-        samplePixels[cellCount[cell] + atomicAdd(cellFill[cell], 1u)] = index;
+        // Depths lie in [0, 1] (the grid's depth range holds the model) but for a hair past it; clamped as the casters' depth
+        // test clamps; non-negative floats order as uints.
+        atomicMax(cellDepth[cell], floatBitsToUint(clamp(depth, 0.0, 1.0)));
+        return uvec2(0u, floatBitsToUint(w));
+    } else {
+        uint slot = cellCount[cell] + atomicAdd(cellFill[cell], 1u);
+        slotShadowed[slot] = 0u;
+        atomicAdd(cellAlive[cell], 1u);
+#ifndef PENUMBRA_AFSM_SOFT
+        AfsmRaySlots(push.slots).slots[slot] = afsmRaySlot(ray, index);
+#else
+        uint shape = areaShape(light);
+        vec4 jitter = afsmJitter(shape, sampleSeed(uint(pixel.x), uint(pixel.y), push.lightIndex));
+        vec3 c = light.positionType.xyz;
+        AfsmSlots(push.slots).slots[slot] =
+            AfsmSlot(vec4(origin, uintBitsToFloat(index)), vec4(afsmAxisU(shape, c, light.areaU.xyz, light.areaV.xyz, position.xyz, jitter), 0.0),
+                     vec4(afsmAxisV(shape, c, light.areaU.xyz, light.areaV.xyz, position.xyz, jitter), 0.0));
+#endif
+    }
     return uvec2(0u);
 }
 
 void main()
 {
-    samplePixel(); // covered pixels are counted by shade
+    uvec2 counts = samplePixel(); // covered pixels are counted by shade
+    // The layer's farthest sample (clip.w): one atomic per subgroup.
+    if (push.mode == PENUMBRA_AFSM_COUNT) {
+        uint farthest = subgroupMax(counts.y);
+        if (subgroupElect() && farthest != 0u)
+            atomicMax(farBits, farthest);
+    }
 }

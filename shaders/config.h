@@ -24,6 +24,13 @@
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
 #define PENUMBRA_AFSM_SCAN_GROUP 256     // afsm_scan.comp: invocations per workgroup (16 counts each)
 #define PENUMBRA_AFSM_MAX_GRID 4096      // afsm: most grid cells per side (one level of block totals in the scan)
+#define PENUMBRA_AFSM_MIN_SAMPLES 128    // afsm soft shadows: fewest light samples (bits per view sample; section 4.2)
+#define PENUMBRA_AFSM_MAX_SAMPLES 1024   // ... and most
+#define PENUMBRA_AFSM_TABLE_WORDS (1u << 23) // afsm: lookup table of plane -> sample bitmask, at most this many uints (32 MiB)
+#define PENUMBRA_AFSM_TABLE_GROUP 64     // afsm_table.comp: table entries per workgroup (one word of each)
+#define PENUMBRA_AFSM_BIN_GROUP 64       // afsm_bin.comp: BVH nodes per workgroup (their leaves then decoded one per invocation)
+#define PENUMBRA_AFSM_COMPUTE_CELLS 16.0 // afsm: casters whose grown rectangle spans at most this many grid cells are tested in compute
+#define PENUMBRA_AFSM_COMPUTE_BUDGET 384u // ... when their cells and samples take at most this many loop iterations (lavapipe: 65535 per invocation)
 #define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: pairs or nodes per workgroup
 #define PENUMBRA_RH_MAX_LEVELS 16        // rh: most levels of a cone hierarchy (4^15 leaves: far more than any image's rays)
 #define PENUMBRA_RH_SORT_ORDER 10u      // rh sorted: direction keys on a 2^10 x 2^10 Hilbert grid per layer
@@ -69,7 +76,10 @@
 // afsm_samples.comp.glsl: the view samples of an alias-free shadow map.
 #define PENUMBRA_AFSM_COUNT 0u           // count the samples per grid cell
 #define PENUMBRA_AFSM_LIST 1u            // list them per cell (after the prefix sum)
-#define PENUMBRA_AFSM_RESOLVE 2u         // the light's visibility from the samples' shadow flags
+#define PENUMBRA_AFSM_RESOLVE 2u         // the light's visibility from the samples' shadow flags (soft: their masks)
+// afsm_table.comp.glsl phases.
+#define PENUMBRA_AFSM_TABLE_SAMPLES 0u   // the light samples' 2-D positions (penumbra/light_sampling.h)
+#define PENUMBRA_AFSM_TABLE_MASKS 1u     // per (angle, distance) entry, the bitmask of the samples in front of the line
 // rh_rays.comp.glsl modes.
 #define PENUMBRA_RH_RAYS_COUNT 0u        // each tile's padded ray count at its Morton index
 #define PENUMBRA_RH_RAYS_LIST 1u         // after the scan: the rays at their tile's offset

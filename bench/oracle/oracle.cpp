@@ -161,7 +161,9 @@ std::vector<float> EmbreeOracle::softShadowVisibility(const std::vector<float>& 
         uint32_t seed = sampling::sampleSeed(uint32_t(i % width), uint32_t(i / width), lightIndex);
         uint32_t visible = 0, above = 0;
         for (uint32_t s = 0; s < samples; ++s) {
-            glm::vec3 target = sampling::areaLightPoint(shape, light.position, u, v, position, sampling::stratifiedSample(seed, s, samples));
+            glm::vec3 target = options.afsmSamples ? sampling::afsmLightPoint(shape, light.position, u, v, position, seed, s, samples)
+                                                   : sampling::areaLightPoint(shape, light.position, u, v, position,
+                                                                              sampling::stratifiedSample(seed, s, samples));
             glm::vec3 dir = target - position;
             float distance = glm::length(dir);
             dir /= std::max(distance, 1e-30f);

@@ -42,7 +42,7 @@ struct RenderArgs {
     double geometryPageKiB = double(RendererOptions{}.geometryPageBytes) / 1024.0;
     std::string shadowFit = "view";
     uint32_t shadowMapSize = 2048;
-    uint32_t samples = RenderSettings{}.lightSamples;
+    uint32_t samples = 0; // 0: the method's default (srt, frt: RenderSettings' 16; afsm: 256)
     uint32_t penumbraMaps = RenderSettings{}.penumbraMaps;
     uint32_t smMaps = RenderSettings{}.softShadowMaps;
     float biasConstant = RenderSettings{}.depthBiasConstant;
@@ -72,6 +72,7 @@ struct BenchArgs {
     uint32_t frames = 0;         // 0: the suite's
     uint64_t scanTriangles = 0;  // 0: the suite's
     uint32_t lightSamples = 0;   // 0: the suite's
+    uint32_t afsmSamples = 0;    // 0: the suite's
     uint32_t penumbraMaps = 0;   // 0: the suite's
     uint32_t softShadowMaps = 0; // 0: the suite's
     bool quiet = false;
@@ -152,7 +153,13 @@ int runRender(const RenderArgs& args)
     const RasterIndices rasterIndices = parseRasterIndices(args.rasterIndices);
     settings.fitShadowMapsToView = args.shadowFit == "view";
     settings.shadowMapSize = args.shadowMapSize;
-    settings.lightSamples = args.samples;
+    // Light samples: srt and frt trace 4..256 per pixel; afsm keeps 128..1024 bits per view sample (one clear error each).
+    const bool afsm = settings.shadows == ShadowMethod::AliasFree;
+    settings.lightSamples = args.samples ? args.samples : afsm ? 256 : RenderSettings{}.lightSamples;
+    if (afsm && (settings.lightSamples < 128 || settings.lightSamples > 1024))
+        fail("--samples " + std::to_string(settings.lightSamples), "afsm takes 128..1024 light samples per pixel");
+    if (!afsm && settings.lightSamples > 256)
+        fail("--samples " + std::to_string(settings.lightSamples), args.shadows + " takes 4..256 light samples per pixel (afsm: 128..1024)");
     settings.penumbraMaps = args.penumbraMaps;
     settings.softShadowMaps = args.smMaps;
     settings.depthBiasConstant = args.biasConstant;
@@ -321,6 +328,7 @@ int runBench(const BenchArgs& args)
     if (args.frames) options.frames = args.frames;
     if (args.scanTriangles) options.scanTriangles = args.scanTriangles;
     if (args.lightSamples) options.lightSamples = args.lightSamples;
+    if (args.afsmSamples) options.afsmSamples = args.afsmSamples;
     if (args.penumbraMaps) options.penumbraMaps = args.penumbraMaps;
     if (args.softShadowMaps) options.softShadowMaps = args.softShadowMaps;
     options.progress = !args.quiet;
@@ -407,7 +415,7 @@ int main(int argc, char** argv)
     renderCommand->add_flag("--exr-layers", render.exrLayers,
                             ".exr output: also write float channels visibility.lightN (every light), pip (pixels given rays) and Z (view depth)");
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
-    renderCommand->add_option("--samples", render.samples, "Area lights, srt/frt: light samples per pixel (soft shadows)")->capture_default_str()->check(CLI::Range(4, 256));
+    renderCommand->add_option("--samples", render.samples, "Area lights: light samples per pixel (soft shadows); srt, frt: 4..256 (default 16), afsm: 128..1024 (default 256)")->check(CLI::Range(4, 1024));
     renderCommand->add_option("--cone-test", render.coneTest, "rh: the cone/triangle test: precise (Olsson and Assarsson 2011, section 3.2) or spheres (bounding spheres, for comparison)")->capture_default_str();
     renderCommand->add_option("--rh-sort", render.rhSort, "rh: order the rays by direction before building the cone hierarchy (section 3.5): on, or off (by pixel)")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--rh-two-pass", render.rhTwoPass, "rh: the large casters first, then the hierarchy rebuilt without the rays they shadowed, then the others (section 3.4): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
@@ -434,6 +442,7 @@ int main(int argc, char** argv)
     benchCommand->add_option("--frames", bench.frames, "Timed frames per case after one warm-up (default: the suite's)")->check(CLI::Range(1, 1000));
     benchCommand->add_option("--scan-triangles", bench.scanTriangles, "Scalability: triangles of the full scan model (default: the suite's)")->check(CLI::Range(uint64_t(1000), uint64_t(1'000'000'000)));
     benchCommand->add_option("--light-samples", bench.lightSamples, "Soft shadows: light samples per pixel (default 16)")->check(CLI::Range(4, 256));
+    benchCommand->add_option("--afsm-samples", bench.afsmSamples, "Soft shadows, afsm: light samples (bits per view sample; default 256)")->check(CLI::Range(128, 1024));
     benchCommand->add_option("--penumbra-maps", bench.penumbraMaps, "Soft shadows: penumbra maps, 1 or 5 (default 1)")->check(CLI::IsMember({1, 5}));
     benchCommand->add_option("--soft-shadow-maps", bench.softShadowMaps, "Soft shadows, sm: shadow maps averaged over the light (default 4)")->check(CLI::Range(1, 6));
     benchCommand->add_flag("--quiet", bench.quiet, "No progress bar");
@@ -442,9 +451,9 @@ int main(int argc, char** argv)
         ->delimiter(',')
         ->check(CLI::IsMember({"sm", "srt", "frt", "afsm", "rh"}));
     benchCommand->add_option("--sections", bench.sections,
-                             "Only these sections: methods (hard), soft, point, rh_variants, scalability, light_size")
+                             "Only these sections: methods (hard), soft, point, rh_variants, scalability (with afsm_triangles), light_size, afsm_samples")
         ->delimiter(',')
-        ->check(CLI::IsMember({"methods", "soft", "point", "rh_variants", "scalability", "light_size"}));
+        ->check(CLI::IsMember({"methods", "soft", "point", "rh_variants", "scalability", "light_size", "afsm_samples"}));
 
     app.add_subcommand("devices", "List the Vulkan devices");
 

@@ -508,12 +508,14 @@ void createDevice(Device& device, const RendererOptions& options)
     enable.features.shaderInt64 = VK_TRUE;
     enable.features.drawIndirectFirstInstance = VK_TRUE;
     enable.features.vertexPipelineStoresAndAtomics = supported.features.vertexPipelineStoresAndAtomics;
-    // Alias-free shadow maps draw their casters with a geometry shader whose fragments write the samples' flags.
-    device.aliasFree = supported.features.geometryShader && supported.features.fragmentStoresAndAtomics;
+    // Alias-free shadow maps draw their casters with a geometry shader whose fragments write the samples' flags,
+    // depth-tested against the cells' farthest samples with depth clamping (no caster clipped by the grid's depth range).
+    device.aliasFree = supported.features.geometryShader && supported.features.fragmentStoresAndAtomics && supported.features.depthClamp;
     // Cone ray hierarchies gather their casters with a geometry shader that stores them.
     device.rayHierarchy = supported.features.geometryShader && supported.features.vertexPipelineStoresAndAtomics;
     enable.features.geometryShader = device.aliasFree || device.rayHierarchy;
     enable.features.fragmentStoresAndAtomics = device.aliasFree;
+    enable.features.depthClamp = device.aliasFree;
     const char* extensions[] = {VK_EXT_INDEX_TYPE_UINT8_EXTENSION_NAME};
 
     float priority = 1.0f;

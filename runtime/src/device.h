@@ -47,7 +47,7 @@ struct Device {
     DeviceInfo info;
     VkDeviceSize maxAllocationSize = 1ull << 30; // VkPhysicalDeviceMaintenance3Properties
     bool vertexStores = false;                   // vertexPipelineStoresAndAtomics (decode check)
-    bool aliasFree = false;                      // geometryShader and fragmentStoresAndAtomics (afsm casters)
+    bool aliasFree = false;                      // geometryShader, fragmentStoresAndAtomics and depthClamp (afsm casters)
     bool rayHierarchy = false;                   // geometryShader and vertexPipelineStoresAndAtomics (rh casters)
     VkDeviceSize maxModelBufferBytes = 0;        // RendererOptions::maxModelBufferBytes
     RasterIndices rasterIndices = RasterIndices::Strips; // RendererOptions::rasterIndices, Auto resolved by the device type

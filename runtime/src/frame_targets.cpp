@@ -44,13 +44,14 @@ std::vector<vk::Buffer*> FrameTargets::mapSizedBuffers()
 
 std::vector<vk::Buffer*> FrameTargets::afsmBuffers()
 {
-    return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSamples, &afsmShadowed};
+    return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSlots, &afsmShadowed, &afsmFar, &afsmCellDepth, &afsmSlotShadowed, &afsmCellAlive};
 }
 
 void FrameTargets::destroyImageSized(vk::Device& device)
 {
-    for (vk::Buffer* buffer : afsmBuffers()) // afsmSamples and afsmShadowed are per pixel
+    for (vk::Buffer* buffer : afsmBuffers()) // afsmSlots and afsmShadowed are per pixel
         vk::destroyBuffer(device, *buffer);
+    vk::destroyImage(device, afsmDepth);
     vk::destroyBuffer(device, readbackLightVisibility);
     vk::destroyBuffer(device, readbackLightMarks);
     afsmGrid = 0;
@@ -162,13 +163,20 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     vkDeviceWaitIdle(device.device);
     for (vk::Buffer* buffer : afsmBuffers())
         vk::destroyBuffer(device, *buffer);
+    vk::destroyImage(device, afsmDepth);
     afsmGrid = 0; // stays 0 if a creation below throws
     const VkDeviceSize cells = VkDeviceSize(gridSize) * gridSize, pixels = VkDeviceSize(width) * height;
     afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmCellDepth = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmCellAlive = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmDepth = vk::createImage(device, gridSize, gridSize, 1, kDepthFormat,
+                                VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);
     afsmBlockSums = vk::createBuffer(device, PENUMBRA_AFSM_MAX_GRID * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
-    afsmSamples = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmSlots = vk::createBuffer(device, pixels * 48, kStorageDst, vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
+    afsmSlotShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmFar = vk::createBuffer(device, 16, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmGrid = gridSize;
     return true;
 }

@@ -47,7 +47,11 @@ struct FrameTargets {
     // afsm only (alias-free shadow maps; passes/afsm.h), made on first use.
     uint32_t afsmGrid = 0;   // cells per side
     vk::Buffer afsmCellFirst, afsmCellCount, afsmBlockSums; // per grid cell
-    vk::Buffer afsmSamples, afsmShadowed;                   // per pixel
+    vk::Buffer afsmSlots, afsmShadowed;                     // per pixel: a slot of the sample list (48 bytes, addressable), a flag
+    vk::Buffer afsmSlotShadowed;                            // per slot: its pixel's flag
+    vk::Buffer afsmFar;                                     // the layer's farthest sample depth
+    vk::Buffer afsmCellDepth, afsmCellAlive;                // per grid cell: its farthest sample depth, its samples not yet shadowed
+    vk::Image afsmDepth;                                    // D32 grid: the cells' farthest sample depths (the casters' depth test)
     // RenderSettings::readbackLightLayers only, made on first use: every light's
     // visibility and marks (PENUMBRA_MAX_LIGHTS slices of one image each).
     vk::Buffer readbackLightVisibility, readbackLightMarks;

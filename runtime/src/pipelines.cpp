@@ -330,6 +330,7 @@ VkPipeline createGraphicsPipeline(Device& device, const GraphicsPipelineDesc& de
     raster.cullMode = VK_CULL_MODE_NONE; // CAD and scanned models are often open or two-sided
     raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
     raster.depthBiasEnable = desc.depthBias;
+    raster.depthClampEnable = desc.depthClamp;
     raster.rasterizerDiscardEnable = desc.rasterizerDiscard;
     raster.lineWidth = 1.0f;
     VkPipelineMultisampleStateCreateInfo multisample{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
@@ -337,7 +338,7 @@ VkPipeline createGraphicsPipeline(Device& device, const GraphicsPipelineDesc& de
     VkPipelineDepthStencilStateCreateInfo depth{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
     depth.depthTestEnable = VK_TRUE;
     depth.depthWriteEnable = desc.depthWrite;
-    depth.depthCompareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
+    depth.depthCompareOp = desc.depthCompare;
     std::vector<VkPipelineColorBlendAttachmentState> blends(desc.colorFormats.size());
     for (auto& blend : blends)
         blend.colorWriteMask = desc.colorWrite ? 0xf : 0;

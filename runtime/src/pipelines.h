@@ -121,6 +121,8 @@ struct GraphicsPipelineDesc {
     std::vector<VkFormat> colorFormats;
     VkFormat depthFormat = VK_FORMAT_UNDEFINED; // UNDEFINED: no depth attachment
     bool depthWrite = true;
+    VkCompareOp depthCompare = VK_COMPARE_OP_LESS_OR_EQUAL;
+    bool depthClamp = false;                  // fragment depths clamped instead of primitives clipped (needs the depthClamp feature)
     bool colorWrite = true;                   // false: colour attachments masked (culling boxes)
     bool depthBias = false;
     bool rasterizerDiscard = false;

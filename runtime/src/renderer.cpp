@@ -104,16 +104,32 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
     if (pixelBytes > device.maxAllocationSize || pixelBytes / 4 + 16 > limits.maxStorageBufferRange)
         fail("render", std::to_string(settings.width) + "x" + std::to_string(settings.height) +
                            " exceeds this device's buffer limits (one RGBA32F image must fit one allocation and the ray list one storage binding)");
-    if (settings.lightSamples < 4 || settings.lightSamples > PENUMBRA_MAX_SAMPLES)
-        fail("render", "light samples must be 4.." + std::to_string(PENUMBRA_MAX_SAMPLES));
+    const ShadowMethodSpec& spec = shadowMethodSpec(settings.shadows);
+    const bool areaLights = std::any_of(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); });
+    if (settings.shadows == ShadowMethod::AliasFree) {
+        // afsm's bitmasks: one bit per light sample per view sample (section 4.2); only area lights have samples.
+        if (areaLights && (settings.lightSamples < PENUMBRA_AFSM_MIN_SAMPLES || settings.lightSamples > PENUMBRA_AFSM_MAX_SAMPLES))
+            fail("render", "afsm soft shadows take " + std::to_string(PENUMBRA_AFSM_MIN_SAMPLES) + ".." + std::to_string(PENUMBRA_AFSM_MAX_SAMPLES) +
+                               " light samples per pixel (--samples), not " + std::to_string(settings.lightSamples));
+        const uint64_t largest = passes::afsmLargestBuffer(settings.width, settings.height, settings.lightSamples, areaLights);
+        const std::string size = std::to_string(settings.width) + "x" + std::to_string(settings.height);
+        if (largest > device.maxAllocationSize)
+            fail("render", (areaLights ? "afsm soft shadows at " + size + " with " + std::to_string(settings.lightSamples) + " light samples need "
+                                       : "afsm at " + size + " needs ") +
+                               std::to_string(largest >> 20) + " MiB in one buffer (" +
+                               (largest > passes::afsmLargestBuffer(settings.width, settings.height, 0, false) ? "sample masks" : "the sample list") +
+                               "), more than one allocation of this device (" + std::to_string(device.maxAllocationSize >> 20) +
+                               " MiB): use " + (areaLights ? "fewer samples or " : "") + "a smaller image");
+    } else if (settings.lightSamples < 4 || settings.lightSamples > PENUMBRA_MAX_SAMPLES) {
+        fail("render", "light samples must be 4.." + std::to_string(PENUMBRA_MAX_SAMPLES) + " for " + spec.name + " (afsm: " +
+                           std::to_string(PENUMBRA_AFSM_MIN_SAMPLES) + ".." + std::to_string(PENUMBRA_AFSM_MAX_SAMPLES) + ")");
+    }
     if (settings.penumbraMaps != 1 && settings.penumbraMaps != 5)
         fail("render", "penumbra maps must be 1 (the light's centre) or 5 (centre and corners)");
     if (settings.softShadowMaps < 1 || settings.softShadowMaps > 6)
         fail("render", "soft shadow maps (sm) must be 1..6");
-    const ShadowMethodSpec& spec = shadowMethodSpec(settings.shadows);
     // A penumbra mask binds every level of the map (4/3 x 4 bytes per texel) as one storage buffer.
     const uint64_t maskBytes = (1 + maskTexels(settings.shadowMapSize)) * 4;
-    const bool areaLights = std::any_of(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); });
     if (spec.uses(Step::PenumbraMask) && maskBytes > limits.maxStorageBufferRange && areaLights) {
         uint32_t largest = settings.shadowMapSize;
         while (largest > 16 && (1 + maskTexels(largest)) * 4 > limits.maxStorageBufferRange)
@@ -126,7 +142,7 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
     if (areaLights && !spec.softShadows())
         fail("render", std::string(spec.name) + " does not do soft shadows (area lights) yet: use sm, srt or frt for them");
     if (settings.shadows == ShadowMethod::AliasFree && !device.aliasFree)
-        fail("render", "afsm needs geometry shaders and fragment-shader stores, which " + device.info.name + " lacks");
+        fail("render", "afsm needs geometry shaders, fragment-shader stores and depth clamping, which " + device.info.name + " lacks");
     if (settings.shadows == ShadowMethod::RayHierarchy) {
         if (!device.rayHierarchy)
             fail("render", "rh needs geometry shaders and vertex-stage stores, which " + device.info.name + " lacks");
@@ -162,12 +178,14 @@ struct Renderer::Impl::FrameScript {
     VkCommandBuffer cmd;
     PassTimer timer;
     std::vector<uint32_t> lightFirstView;                          // first shadow view of each light
-    std::vector<uint32_t> lightViewCount;                          // its shadow views
     std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks; // layer k of light i at 6 i + k
     std::vector<VkDeviceAddress> thinClusterMask;                   // the same layers; 0: every cluster
     uint32_t viewFitMask = 0, receiverGridMask = 0;
     bool rhFrame = false; // the rh pass's counters were cleared this frame
     std::vector<std::vector<uint32_t>> finalRanges; // paged geometry: the clusters of each range of a view's phase 2
+    // afsm, area lights: each light's grid layers and whether they are cube faces.
+    std::vector<std::vector<AfsmLayer>> afsmLayers;
+    std::vector<bool> afsmCube;
 
     FrameScript(Impl& renderer, const RenderSettings& s)
         : r(renderer), settings(s), spec(shadowMethodSpec(s.shadows)), bounds(r.geometry.bounds),
@@ -187,8 +205,17 @@ struct Renderer::Impl::FrameScript {
         }
         if (r.targets.ensure(r.device, s.width, s.height, s.shadowMapSize, maxLayers))
             r.bindTargets();
-        if (s.shadows == ShadowMethod::AliasFree)
+        if (s.shadows == ShadowMethod::AliasFree) {
             r.ensureAfsmTargets();
+            afsmLayers.resize(lights.size());
+            afsmCube.assign(lights.size(), false);
+            for (size_t i = 0; i < lights.size(); ++i)
+                if (isAreaLight(lights[i])) {
+                    bool cube = false;
+                    afsmLayers[i] = afsmAreaLayers(lights[i], bounds, cube);
+                    afsmCube[i] = cube;
+                }
+        }
         if (s.shadows == ShadowMethod::RayHierarchy) {
             r.ensureRhTargets();
             rhFrame = true;
@@ -199,7 +226,6 @@ struct Renderer::Impl::FrameScript {
             r.ensureFloors();
         std::memcpy(r.targets.frameUniforms.mapped, &data, sizeof(data));
         lightFirstView.resize(lights.size());
-        lightViewCount.assign(lights.size(), 0);
         if (r.geometry.paged()) {
             r.pages.beginFrame();
             r.pages.ensureParking(r.device, uint64_t(s.width) * s.height);
@@ -290,8 +316,14 @@ struct Renderer::Impl::FrameScript {
         for (uint32_t i = 0; i < lights.size(); ++i) {
             lightFirstView[i] = uint32_t(views.size());
             const bool area = isAreaLight(lights[i]);
+            if (area && settings.shadows == ShadowMethod::AliasFree) {
+                // afsm's layers of an area light: frusta that hold the light and the layer's samples.
+                for (const AfsmLayer& layer : afsmLayers[i])
+                    views.push_back({"light" + std::to_string(i) + (afsmCube[i] ? ".face" + std::to_string(layer.index) : ""),
+                                     1 + 6 * i + layer.index, layer.cull, false, false, nullptr});
+                continue;
+            }
             const uint32_t maps = area ? (spec.drawsAreaMaps() ? uint32_t(data.lights[i].spotCosLayers.w) : 0u) : layers(i);
-            lightViewCount[i] = maps;
             for (uint32_t k = 0; k < maps; ++k)
                 views.push_back({"light" + std::to_string(i) + (maps > 1 ? (area ? ".map" : ".face") + std::to_string(k) : ""),
                                  1 + 6 * i + k, data.lights[i].viewProj[k], false, occlusion, area ? nullptr : receiverMasks[6 * i + k]});
@@ -625,11 +657,28 @@ struct Renderer::Impl::FrameScript {
             timer.mark(cmd, PassId::Trace);
             return;
         case Step::AliasFree:
+            if (area) {
+                // Soft shadows (section 4): the table for the light's shape, then its grid's layers.
+                r.afsm.prepareSoft(r.device, cmd, settings.lightSamples, lights[light].type == LightType::Rectangle);
+                r.afsm.clear(cmd);
+                const std::vector<AfsmLayer>& grid = afsmLayers[light];
+                for (uint32_t k = 0; k < grid.size(); ++k) {
+                    r.afsm.recordSamples(cmd, light, grid[k].index, grid[k].grid, afsmCube[light], rayOffset, true);
+                    timer.mark(cmd, PassId::AfsmSamples);
+                    r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
+                                         {lightFirstView[light] + k, 6 * light + grid[k].index, grid[k].grid, light, rayOffset, true},
+                                         [this] { timer.mark(cmd, PassId::AfsmBin); });
+                    timer.mark(cmd, PassId::AfsmCasters);
+                }
+                return;
+            }
             r.afsm.clear(cmd);
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
-                r.afsm.recordSamples(cmd, light, layer, rayOffset);
+                r.afsm.recordSamples(cmd, light, layer, l.viewProj[layer], layers(light) == 6, rayOffset, false);
                 timer.mark(cmd, PassId::AfsmSamples);
-                r.afsm.recordCasters(cmd, r.shadowCulling, lightFirstView[light] + layer, r.geometry, l.viewProj[layer], light, rayOffset);
+                r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
+                                     {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false},
+                                     [this] { timer.mark(cmd, PassId::AfsmBin); });
                 timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
@@ -656,7 +705,7 @@ struct Renderer::Impl::FrameScript {
             }
             return;
         case Step::AfsmResolve:
-            r.afsm.recordResolve(cmd, light, rayOffset);
+            r.afsm.recordResolve(cmd, light, rayOffset, area);
             timer.mark(cmd, PassId::AfsmSamples);
             return;
         case Step::Shade: {
@@ -796,7 +845,9 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     out.penumbraPixels = counters[PENUMBRA_STAT_PENUMBRA];
     const auto areaLights = uint32_t(std::count_if(lights.begin(), lights.end(), [](const Light& l) { return isAreaLight(l); }));
     out.penumbraFraction = out.coveredPixels && areaLights ? double(out.penumbraPixels) / (double(out.coveredPixels) * areaLights) : 0.0;
-    out.lightSamples = areaLights && spec.traces() ? settings.lightSamples : areaLights ? settings.softShadowMaps : 0;
+    out.lightSamples = areaLights && (spec.traces() || settings.shadows == ShadowMethod::AliasFree) ? settings.lightSamples
+                       : areaLights                                                                ? settings.softShadowMaps
+                                                                                                   : 0;
     out.rayOffset = spec.traces() || settings.shadows == ShadowMethod::AliasFree || settings.shadows == ShadowMethod::RayHierarchy ? rayOffset
                                                                                                                                 : 0.0f;
     if (settings.shadows == ShadowMethod::RayHierarchy) {

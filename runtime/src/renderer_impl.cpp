@@ -97,8 +97,8 @@ void Renderer::Impl::ensureAfsmTargets()
     if (!t.ensureAfsm(device, afsmGridSize(t.width, t.height)))
         return;
     const PixelTargets pixels = pixelTargets();
-    afsm.bind(device, {pixels, &t.afsmCellFirst, &t.afsmCellCount, &t.afsmBlockSums, &t.afsmSamples, &t.afsmShadowed, t.width, t.height,
-                       t.afsmGrid});
+    afsm.bind(device, {pixels, &t.afsmCellFirst, &t.afsmCellCount, &t.afsmBlockSums, &t.afsmSlots, &t.afsmShadowed, &t.afsmFar, &t.afsmCellDepth, &t.afsmSlotShadowed, &t.afsmCellAlive, &t.afsmDepth, t.width,
+                       t.height, t.afsmGrid});
 }
 
 void Renderer::Impl::ensureRhTargets()

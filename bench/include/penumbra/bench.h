@@ -32,13 +32,15 @@ struct SuiteOptions {
     std::vector<double> lightRadii;     // light-size sweep: sphere-light radius, fraction of the scene diagonal
     double softLightRadius = 0.01;      // soft cases of the method comparison: radius, fraction of the diagonal
     uint32_t lightSamples = 16;         // soft shadows: light samples per pixel (renderer and oracle alike)
+    uint32_t afsmSamples = 256;         // soft shadows, afsm: light samples (bits per view sample), 128..1024; its oracle traces the table's samples
+    std::vector<uint32_t> afsmSampleCounts = {128, 256, 512, 1024}; // afsm's sample sweep (the paper's Figure 13), on sweepScene
     uint32_t penumbraMaps = 1;          // soft shadows, srt: 1 or 5 shadow maps mark the penumbra
     uint32_t softShadowMaps = 4;        // soft shadows, sm: point-light shadow maps averaged over the light, 1..6
     bool progress = true;               // progress bar on stderr when it is a terminal
     bool plots = true;                  // run gnuplot on the generated scripts when it is installed
     bool floors = true;                 // methods section, sm and srt: also N frames with every stage's floor (floors.csv)
     std::vector<std::string> methods;   // only these GPU methods ("sm", "srt", ...); empty: all (the oracle always runs)
-    std::vector<std::string> sections;  // only these sections: methods, soft, point, rh_variants, scalability, light_size; empty: all
+    std::vector<std::string> sections;  // only these sections: methods, soft, point, rh_variants, scalability (with afsm_triangles), light_size, afsm_samples; empty: all
 };
 
 // Names accepted by suiteOptions, fastest first: smoke (CI, well under a

@@ -1,8 +1,14 @@
 #include "passes/afsm.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "config.h"
+#include "light_space.h"
 #include "passes/pass.h"
 
 namespace penumbra::passes {
@@ -10,48 +16,153 @@ namespace penumbra::passes {
 namespace {
 
 constexpr uint32_t kScanBlock = PENUMBRA_AFSM_SCAN_GROUP * 16; // afsm_scan.comp.glsl: AFSM_SCAN_BLOCK
+constexpr VkPipelineStageFlags2 kFragment = VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
+constexpr VkPipelineStageFlags2 kGeometry = VK_PIPELINE_STAGE_2_GEOMETRY_SHADER_BIT;
+constexpr VkBufferUsageFlags kStorageDst = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
 
 std::vector<VkDescriptorType> castersBindingTypes()
 {
     using namespace vk;
-    return {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+}
+
+std::vector<VkDescriptorType> binBindingTypes()
+{
+    using namespace vk;
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+}
+
+// A perspective frustum from eye along forward with a square field of view
+// (half-angle tangent halfTan); y is not flipped (culling only).
+glm::mat4 cullFrustum(glm::vec3 eye, glm::vec3 forward, float halfTan, float nearPlane, float farPlane)
+{
+    const glm::vec3 f = glm::normalize(forward);
+    const glm::vec3 up = std::abs(f.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
+    return glm::perspectiveRH_ZO(2.0f * std::atan(halfTan), 1.0f, nearPlane, farPlane) * glm::lookAtRH(eye, eye + f, up);
+}
+
+// The frustum from `centre` along `forward` (half-angle tangent halfTan, far
+// plane farPlane) pulled back along its axis until every point within
+// `radius` of the centre lies inside: it then holds every segment from a point
+// of the light to a point of the original frustum (both convex), so every
+// caster between the light and a sample of the layer.
+glm::mat4 pulledBackFrustum(glm::vec3 centre, glm::vec3 forward, float halfTan, float radius, float farPlane)
+{
+    const float pull = radius * std::sqrt(1.0f + halfTan * halfTan) / halfTan * 1.001f + 1e-6f * farPlane;
+    const float far = (farPlane + pull) * 1.001f;
+    return cullFrustum(centre - glm::normalize(forward) * pull, forward, halfTan, far * 1e-6f, far);
 }
 
 } // namespace
 
 uint32_t afsmGridSize(uint32_t width, uint32_t height)
 {
-    uint32_t grid = 16;
-    while (grid < std::max(width, height) && grid < PENUMBRA_AFSM_MAX_GRID)
-        grid *= 2;
-    return grid;
+    // One cell per pixel of the longer side, rounded up to a multiple of 16: a power of two above it (512 cells for
+    // 320 pixels) spent 2.6 cells per pixel, most of them empty, and the casters' raster cost grows with their area.
+    return std::clamp((std::max(width, height) + 15) / 16 * 16, 16u, uint32_t(PENUMBRA_AFSM_MAX_GRID));
+}
+
+AfsmTableSize afsmTableSize(uint32_t samples)
+{
+    AfsmTableSize size;
+    size.words = (samples + 127) / 128 * 4; // whole 128-bit quads (afsm.glsli)
+    const uint64_t entries = PENUMBRA_AFSM_TABLE_WORDS / std::max(size.words, 1u);
+    size.distances = 1;
+    while (uint64_t(size.distances) * 2 * size.distances * 2 <= entries)
+        size.distances *= 2;
+    size.angles = size.distances;
+    while (uint64_t(size.angles) * 2 * size.distances <= entries)
+        size.angles *= 2;
+    return size;
+}
+
+double AfsmTableSize::lineError(bool rectangle) const
+{
+    const double rho = rectangle ? std::sqrt(2.0) : 1.0;
+    const double pi = 3.14159265358979;
+    return rho / double(distances) + rho * 0.5 * pi / double(angles);
+}
+
+uint64_t afsmLargestBuffer(uint32_t width, uint32_t height, uint32_t samples, bool soft)
+{
+    const uint64_t pixels = uint64_t(width) * height;
+    return std::max<uint64_t>(soft ? pixels * afsmTableSize(samples).words * 4 : 0, pixels * 48);
+}
+
+std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, bool& cube)
+{
+    const bool oneSided = light.type != LightType::Sphere;
+    glm::vec3 u, v;
+    areaLightAxes(light, u, v);
+    const float radius = light.type == LightType::Rectangle ? glm::length(u + v) : light.radius;
+    glm::vec3 axis = oneSided ? glm::normalize(light.direction) : bounds.center() - light.position;
+    axis = glm::length(axis) > 0.0f ? glm::normalize(axis) : glm::vec3(0, -1, 0);
+    const AreaMapProjection map = areaMapProjection(light.position, axis, light.up, bounds);
+    std::vector<AfsmLayer> layers;
+    cube = map.capped;
+    if (!cube) {
+        layers.push_back({map.viewProj, pulledBackFrustum(light.position, axis, 0.5f * map.footprint, radius, map.farPlane), 0});
+        return layers;
+    }
+    // Six faces of a cube around the centre (the point light's, same order and matrices).
+    Light point = light;
+    point.type = LightType::Point;
+    const LightProjection faces = lightProjection(point, bounds);
+    static const glm::vec3 axes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    for (uint32_t face = 0; face < 6; ++face) {
+        if (oneSided) {
+            // Left out when every direction of the face points behind the emitter (no sample there).
+            const glm::vec3 a = axes[face], s = axes[(face + 2) % 6], t = axes[(face + 4) % 6];
+            bool front = false;
+            for (float i : {-1.0f, 1.0f})
+                for (float j : {-1.0f, 1.0f})
+                    front = front || glm::dot(a + i * s + j * t, axis) > 0.0f;
+            if (!front)
+                continue;
+        }
+        layers.push_back({faces.viewProj[face], pulledBackFrustum(light.position, axes[face], 1.0f, radius, faces.farPlane), face});
+    }
+    return layers;
 }
 
 void AfsmPass::create(vk::Device& device)
 {
     using namespace vk;
     std::vector<VkDescriptorType> sampleTypes = pixelBindingTypes();
-    sampleTypes.insert(sampleTypes.end(), {kStorage, kStorage, kStorage, kStorage});
+    sampleTypes.insert(sampleTypes.end(), {kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage});
     samples.create(device, "afsm_samples.comp", sampleTypes, sizeof(AfsmSamplesPush));
+    samplesSoft.create(device, "afsm_samples.comp.soft", sampleTypes, sizeof(AfsmSamplesPush));
     scan.create(device, "afsm_scan.comp", {kStorage, kStorage}, sizeof(AfsmScanPush));
+    table.create(device, "afsm_table.comp", {kStorage}, sizeof(AfsmTablePush));
+    bin.create(device, "afsm_bin.comp", binBindingTypes(), sizeof(AfsmBinPush));
+    binSoft.create(device, "afsm_bin.comp.soft", binBindingTypes(), sizeof(AfsmBinPush));
+    params = createBuffer(device, sizeof(AfsmParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
     if (!device.aliasFree)
         return;
-    castersSetLayout = createSetLayout(device, castersBindingTypes(), VK_SHADER_STAGE_FRAGMENT_BIT);
+    castersSetLayout = createSetLayout(device, castersBindingTypes(), VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
     castersSet = allocateSet(device, castersSetLayout, castersBindingTypes(), castersPool);
     GraphicsPipelineDesc desc;
     desc.vertexShader = "afsm_casters.vert";
     desc.geometryShader = "afsm_casters.geom";
     desc.fragmentShader = "afsm_casters.frag";
+    desc.depthFormat = VK_FORMAT_D32_SFLOAT;
     desc.depthWrite = false;
+    desc.depthCompare = VK_COMPARE_OP_LESS;
+    desc.depthClamp = true;
     desc.pushBytes = sizeof(AfsmCastersPush);
     casters.create(device, desc, VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, castersSetLayout);
+    desc.geometryShader = "afsm_soft.geom";
+    desc.fragmentShader = "afsm_soft.frag";
+    desc.pushBytes = sizeof(AfsmSoftPush);
+    softCasters.create(device, desc, VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, castersSetLayout);
 }
 
 void AfsmPass::destroy(vk::Device& device)
 {
-    samples.destroy(device);
-    scan.destroy(device);
+    for (vk::ComputeKernel* kernel : {&samples, &samplesSoft, &scan, &table, &bin, &binSoft})
+        kernel->destroy(device);
     casters.destroy(device);
+    softCasters.destroy(device);
     if (castersPool)
         vkDestroyDescriptorPool(device.device, castersPool, nullptr);
     if (castersSetLayout)
@@ -59,47 +170,131 @@ void AfsmPass::destroy(vk::Device& device)
     castersPool = VK_NULL_HANDLE;
     castersSetLayout = VK_NULL_HANDLE;
     castersSet = VK_NULL_HANDLE;
+    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &params, &clusterMasks})
+        vk::destroyBuffer(device, *buffer);
+    tableCounts[0] = tableCounts[1] = 0;
+    maskWords = maskPixels = clusterMaskWords = 0;
 }
 
 void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
 {
     targets = t;
+    slotsAddress = vk::bufferAddress(device, *t.slots);
     std::vector<vk::Binding> bindings = pixelBindings(t.pixels);
     bindings.insert(bindings.end(), {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.cellCount->buffer),
-                                     vk::storageBuffer(t.samples->buffer), vk::storageBuffer(t.shadowed->buffer)});
+                                     vk::storageBuffer(t.shadowed->buffer), vk::storageBuffer(t.far->buffer),
+                                     vk::storageBuffer(t.cellDepth->buffer), vk::storageBuffer(t.slotShadowed->buffer),
+                                     vk::storageBuffer(t.cellAlive->buffer)});
     samples.write(device, bindings);
+    samplesSoft.write(device, bindings);
     scan.write(device, {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.blockSums->buffer)});
+    const std::vector<vk::Binding> common = {vk::uniformBuffer(t.pixels.frame), vk::storageBuffer(t.cellFirst->buffer),
+                                             vk::storageBuffer(t.cellCount->buffer), vk::storageBuffer(t.shadowed->buffer),
+                                             vk::storageBuffer(t.far->buffer), vk::storageBuffer(t.cellDepth->buffer),
+                                             vk::storageBuffer(t.slotShadowed->buffer), vk::storageBuffer(t.cellAlive->buffer)};
+    std::vector<vk::Binding> binBindings = common;
+    binBindings.push_back(vk::storageBuffer(params.buffer));
+    bin.write(device, binBindings);
+    binSoft.write(device, binBindings);
     if (castersSet)
-        vk::writeSet(device, castersSet,
-                     {vk::storageImage(t.pixels.position), vk::storageImage(t.pixels.normal), vk::uniformBuffer(t.pixels.frame),
-                      vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.cellCount->buffer), vk::storageBuffer(t.samples->buffer),
-                      vk::storageBuffer(t.shadowed->buffer)});
+        vk::writeSet(device, castersSet, common);
+    writeParams();
+}
+
+void AfsmPass::writeParams() const
+{
+    const AfsmParams values{slotsAddress, masksAddress, tableAddress, softSamples, softTable.packed()};
+    std::memcpy(params.mapped, &values, sizeof(values));
+}
+
+void AfsmPass::prepareSoft(vk::Device& device, VkCommandBuffer cmd, uint32_t lightSamples, bool rectangle)
+{
+    const AfsmTableSize size = afsmTableSize(lightSamples);
+    const uint32_t pixels = targets.width * targets.height;
+    // Masks for the image: they must start at zero (each resolve clears what it read).
+    if (maskPixels != pixels || maskWords < size.words) {
+        vkDeviceWaitIdle(device.device);
+        vk::destroyBuffer(device, masks);
+        maskPixels = maskWords = 0;
+        masks = vk::createBuffer(device, VkDeviceSize(pixels) * size.words * 4, kStorageDst, vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
+        masksAddress = vk::bufferAddress(device, masks);
+        vk::memoryBarrier(cmd, kCompute | kFragment, kStorageRW, kClear, kTransferWrite);
+        vkCmdFillBuffer(cmd, masks.buffer, 0, VK_WHOLE_SIZE, 0);
+        vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute | kFragment, kStorageRW);
+        maskPixels = pixels;
+        maskWords = size.words;
+    }
+    const int shape = rectangle ? 0 : 1;
+    if (tableCounts[shape] != lightSamples) {
+        if (tables[shape].size < size.bytes()) {
+            vkDeviceWaitIdle(device.device);
+            vk::destroyBuffer(device, tables[shape]);
+            tables[shape] = vk::createBuffer(device, size.bytes(), kStorageDst, vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
+        }
+        if (!tableSamples.buffer) {
+            tableSamples = vk::createBuffer(device, VkDeviceSize(PENUMBRA_AFSM_MAX_SAMPLES) * 8, kStorageDst, vk::MemoryUse::DeviceLocal);
+            table.write(device, {vk::storageBuffer(tableSamples.buffer)});
+        }
+        AfsmTablePush push{vk::bufferAddress(device, tables[shape]), PENUMBRA_AFSM_TABLE_SAMPLES,
+                           rectangle ? uint32_t(PENUMBRA_LIGHT_RECTANGLE) : uint32_t(PENUMBRA_LIGHT_DISK), lightSamples, size.packed()};
+        vk::memoryBarrier(cmd, kCompute | kFragment, kStorageRead, kCompute, kStorageRW);
+        table.bind(cmd);
+        table.push(cmd, push);
+        vkCmdDispatch(cmd, groupCount(lightSamples, PENUMBRA_AFSM_TABLE_GROUP), 1, 1);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRead);
+        push.phase = PENUMBRA_AFSM_TABLE_MASKS;
+        table.push(cmd, push);
+        vkCmdDispatch(cmd, groupCount(size.angles * size.distances, PENUMBRA_AFSM_TABLE_GROUP), size.words, 1);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kFragment, kStorageRead);
+        tableCounts[shape] = lightSamples;
+    }
+    tableAddress = vk::bufferAddress(device, tables[shape]);
+    softSamples = lightSamples;
+    softTable = size;
+    writeParams();
 }
 
 void AfsmPass::clear(VkCommandBuffer cmd) const
 {
-    vk::memoryBarrier(cmd, kCompute, kStorageRead, kClear, kTransferWrite);
+    vk::memoryBarrier(cmd, kCompute | kFragment, kStorageRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, targets.shadowed->buffer, 0, VK_WHOLE_SIZE, 0);
-    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute | VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, kStorageRW);
+    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute | kFragment, kStorageRW);
 }
 
-void AfsmPass::dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push) const
+AfsmSamplesPush AfsmPass::samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube,
+                                      float originOffset, bool soft) const
 {
-    samples.bind(cmd);
-    samples.push(cmd, push);
+    AfsmSamplesPush push{viewProj, slotsAddress, 0, 0, lightIndex, mode, layer, targets.gridSize, originOffset, cube ? 1u : 0u, 0, 0};
+    if (soft) {
+        push.masks = masksAddress;
+        push.table = tableAddress;
+        push.samples = softSamples;
+        push.tableSize = softTable.packed();
+    }
+    return push;
+}
+
+void AfsmPass::dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft) const
+{
+    const vk::ComputeKernel& kernel = soft ? samplesSoft : samples;
+    kernel.bind(cmd);
+    kernel.push(cmd, push);
     vkCmdDispatch(cmd, groupCount(targets.width, PENUMBRA_SHADE_GROUP_SIZE), groupCount(targets.height, PENUMBRA_SHADE_GROUP_SIZE), 1);
 }
 
-void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, float originOffset) const
+void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
+                             bool soft) const
 {
-    const VkPipelineStageFlags2 kFragment = VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
     const uint32_t grid = targets.gridSize, cells = grid * grid;
     // The previous layer's casters read the lists.
-    vk::memoryBarrier(cmd, kFragment | kCompute, kStorageRead, kClear, kTransferWrite);
+    vk::memoryBarrier(cmd, kFragment | kGeometry | kCompute, kStorageRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, targets.cellFirst->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.cellCount->buffer, 0, VkDeviceSize(cells) * 4, 0);
+    vkCmdFillBuffer(cmd, targets.far->buffer, 0, VK_WHOLE_SIZE, 0);
+    vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(cells) * 4, 0);
+    vkCmdFillBuffer(cmd, targets.cellAlive->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
-    dispatchPixels(cmd, {lightIndex, PENUMBRA_AFSM_COUNT, layer, grid, originOffset, {}});
+    dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_COUNT, layer, viewProj, cube, originOffset, soft), soft);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
 
     // Counts to offsets: block scans, the blocks' totals, then each block's prefix added.
@@ -110,35 +305,96 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
         vkCmdDispatch(cmd, phase == 1 ? 1 : blocks, 1, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     }
-    dispatchPixels(cmd, {lightIndex, PENUMBRA_AFSM_LIST, layer, grid, originOffset, {}});
-    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kCompute, kStorageRW);
+    dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_LIST, layer, viewProj, cube, originOffset, soft), soft);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry | kCompute | kCopy, kStorageRW | kTransferRead);
+
+    // The cells' farthest sample depths into the depth image the casters are tested against.
+    const vk::Image& depth = *targets.depth;
+    vk::transition(cmd, depth, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, kDepthTests,
+                   VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT, kCopy, kTransferWrite);
+    VkBufferImageCopy region{};
+    region.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
+    region.imageExtent = {grid, grid, 1};
+    vkCmdCopyBufferToImage(cmd, targets.cellDepth->buffer, depth.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+    vk::transition(cmd, depth, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, kCopy, kTransferWrite,
+                   kDepthTests, VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT);
 }
 
-void AfsmPass::recordCasters(VkCommandBuffer cmd, Culling& culling, uint32_t view, const GpuGeometry& geometry, const glm::mat4& viewProj,
-                             uint32_t lightIndex, float originOffset) const
+void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry,
+                             VkDeviceAddress modelTable, const CasterLayer& layer, const std::function<void()>& afterCompute)
 {
     if (!castersSet)
         fail("afsm", "this device lacks geometry shaders or fragment-shader stores (needed to rasterize the casters)");
     const uint32_t grid = targets.gridSize;
+    // The compute path: the small casters of the view's clusters (compressed model only).
+    const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount;
+    if (compute) {
+        const uint32_t clusters = uint32_t(culling.model->clusterMin.size());
+        const uint32_t words = (clusters + 31) / 32;
+        if (clusterMaskWords < words) {
+            vkDeviceWaitIdle(device.device);
+            vk::destroyBuffer(device, clusterMasks);
+            clusterMaskWords = 0;
+            clusterMasks = vk::createBuffer(device, VkDeviceSize(words) * 4 * 6 * PENUMBRA_MAX_LIGHTS, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                            vk::MemoryUse::Upload, vk::Addressable::Yes);
+            clusterMaskWords = words;
+        }
+        uint32_t* bits = static_cast<uint32_t*>(clusterMasks.mapped) + size_t(layer.maskSlot) * clusterMaskWords;
+        std::fill(bits, bits + clusterMaskWords, 0u);
+        for (uint32_t c : culling.viewClusters(layer.view))
+            bits[c >> 5] |= 1u << (c & 31);
+        const AfsmBinPush push{layer.viewProj,
+                               modelTable,
+                               vk::bufferAddress(device, clusterMasks) + VkDeviceSize(layer.maskSlot) * clusterMaskWords * 4,
+                               geometry.nodeCount,
+                               layer.lightIndex,
+                               grid,
+                               layer.originOffset,
+                               float(PENUMBRA_AFSM_COMPUTE_CELLS),
+                               0};
+        const vk::ComputeKernel& kernel = layer.soft ? binSoft : bin;
+        const Groups2D groups = spreadGroups(groupCount(geometry.nodeCount, PENUMBRA_AFSM_BIN_GROUP), device.properties.limits.maxComputeWorkGroupCount[0]);
+        kernel.bind(cmd);
+        kernel.push(cmd, push);
+        vkCmdDispatch(cmd, groups.x, groups.y, 1);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry, kStorageRW);
+    }
+    afterCompute();
+    // The raster path: the other casters (all of them without the compute path).
+    VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depthAttachment.imageView = targets.depth->view;
+    depthAttachment.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depthAttachment.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+    depthAttachment.storeOp = VK_ATTACHMENT_STORE_OP_NONE;
     VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
     rendering.renderArea = {{0, 0}, {grid, grid}};
     rendering.layerCount = 1;
-    const AfsmCastersPush push{viewProj, lightIndex, grid, originOffset, 0};
-    const VkPipeline pipeline = casters[geometry.encoding];
-    culling.recordView(cmd, view, geometry, [&](bool) {
+    rendering.pDepthAttachment = &depthAttachment;
+    const float computeCells = compute ? float(PENUMBRA_AFSM_COMPUTE_CELLS) : 0.0f;
+    const AfsmCastersPush hardPush{layer.viewProj, slotsAddress, layer.lightIndex, grid, layer.originOffset, computeCells};
+    const AfsmSoftPush softPush{layer.viewProj, slotsAddress, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,
+                                softSamples,   softTable.packed(), computeCells, {}};
+    const vk::RasterPipelines& pipelines = layer.soft ? softCasters : casters;
+    const VkPipeline pipeline = pipelines[geometry.encoding];
+    const VkDescriptorSet set = castersSet;
+    culling.recordView(cmd, layer.view, geometry, [&](bool) {
         vkCmdBeginRendering(cmd, &rendering);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
-        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, casters.layout, 0, 1, &castersSet, 0, nullptr);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipelines.layout, 0, 1, &set, 0, nullptr);
         vk::setViewport(cmd, grid, grid);
-        vkCmdPushConstants(cmd, casters.layout, VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(push), &push);
+        const VkShaderStageFlags stages = VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
+        if (layer.soft)
+            vkCmdPushConstants(cmd, pipelines.layout, stages, 0, sizeof(softPush), &softPush);
+        else
+            vkCmdPushConstants(cmd, pipelines.layout, stages, 0, sizeof(hardPush), &hardPush);
     }, [&] { vkCmdEndRendering(cmd); });
-    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, kStorageWrite, kCompute | kClear, kStorageRW | kTransferWrite);
+    vk::memoryBarrier(cmd, kFragment, kStorageWrite, kCompute | kClear, kStorageRW | kTransferWrite);
 }
 
-void AfsmPass::recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset) const
+void AfsmPass::recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const
 {
-    dispatchPixels(cmd, {lightIndex, PENUMBRA_AFSM_RESOLVE, 0, targets.gridSize, originOffset, {}});
-    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+    dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_RESOLVE, 0, glm::mat4(1.0f), false, originOffset, soft), soft);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kFragment, kStorageRW);
 }
 
 } // namespace penumbra::passes

@@ -1,42 +1,71 @@
-// Alias-free shadow maps, hard shadows (Sintorn, Eisemann, Assarsson 2008,
-// section 3; shaders afsm_samples.comp, afsm_scan.comp, afsm_casters.vert/
-// geom/frag, afsm.glsli): per layer of the light, the camera's samples are
-// counted per grid cell, the counts turned into offsets by a prefix sum and
-// the samples listed per cell; then every caster of the layer's culled view
-// is rasterized conservatively over the grid and tests the samples of each
-// cell it covers exactly. Resolve writes the light's visibility.
+// Alias-free shadow maps (Sintorn, Eisemann, Assarsson 2008; shaders
+// afsm_samples.comp, afsm_scan.comp, afsm_casters.vert/geom/frag,
+// afsm_soft.geom/frag, afsm_table.comp, afsm.glsli). Per layer of the light,
+// the camera's samples are counted per grid cell, the counts turned into
+// offsets by a prefix sum and the samples listed per cell; then every caster
+// of the layer's culled view is rasterized conservatively over the grid and
+// tests the samples of each cell it covers exactly. Resolve writes the
+// light's visibility.
+//
+// Hard shadows (section 3): a caster covers its own footprint in the grid and
+// sets a sample's shadow flag when it blocks the sample's ray (the tracer's
+// watertight test). Soft shadows (section 4, area lights): a caster covers its
+// influence region and ORs the light samples it hides into the sample's
+// bitmask, one bit per light sample, by four lookups in a table from a plane
+// to a bitmask (built on the GPU per light shape and sample count).
 #pragma once
+
+#include <functional>
 
 #include <glm/mat4x4.hpp>
 
 #include "culling.h"
 #include "model_geometry.h"
 #include "passes/pixel_bindings.h"
+#include "penumbra/penumbra.h"
+
+namespace penumbra::gpu {
+struct LightData;
+}
 
 namespace penumbra::passes {
 
 enum AfsmSamplesBinding : uint32_t {
     kAfsmCellFirst = kPixelBindingCount, // per cell: samples, then (after the scan) the first slot
     kAfsmCellCount,                      // per cell: slots taken while listing (= samples)
-    kAfsmSamples,                        // pixel index per slot
-    kAfsmShadowed,                       // per pixel: 1 when a caster blocks its ray
+    kAfsmShadowed,                       // per pixel: 1 when a caster blocks its ray (soft: every light sample)
+    kAfsmFar,                            // the layer's farthest sample depth (afsm.glsli: afsmDepth)
+    kAfsmCellDepth,                      // per cell: its farthest sample depth
+    kAfsmSlotShadowed,                   // per slot: its pixel's flag (cleared when listed)
+    kAfsmCellAlive,                      // per cell: its samples not yet shadowed
     kAfsmSamplesBindingCount
 };
 enum AfsmScanBinding : uint32_t { kAfsmScanCounts, kAfsmScanBlockSums, kAfsmScanBindingCount };
+// The raster path's set (hard and soft pipelines).
 enum AfsmCastersBinding : uint32_t {
-    kAfsmCastersPosition, kAfsmCastersNormal, kAfsmCastersFrame, kAfsmCastersCellFirst, kAfsmCastersCellCount, kAfsmCastersSamples,
-    kAfsmCastersShadowed, kAfsmCastersBindingCount
+    kAfsmCastersFrame, kAfsmCastersCellFirst, kAfsmCastersCellCount, kAfsmCastersShadowed, kAfsmCastersFar, kAfsmCastersCellDepth,
+    kAfsmCastersSlotShadowed, kAfsmCastersCellAlive, kAfsmCastersBindingCount
+};
+enum AfsmBinBinding : uint32_t {
+    kAfsmBinFrame, kAfsmBinCellFirst, kAfsmBinCellCount, kAfsmBinShadowed, kAfsmBinFar, kAfsmBinCellDepth, kAfsmBinSlotShadowed, kAfsmBinCellAlive, kAfsmBinParams,
+    kAfsmBinBindingCount
 };
 
 struct AfsmSamplesPush {
+    glm::mat4 viewProj; // the layer's grid projection
+    uint64_t slots;     // soft: device address of the per-slot data
+    uint64_t masks;     // soft: of the per-pixel sample masks
+    uint64_t table;     // soft: of the lookup table
     uint32_t lightIndex;
     uint32_t mode; // PENUMBRA_AFSM_COUNT, _LIST, _RESOLVE
     uint32_t layer;
     uint32_t gridSize;
     float originOffset;
-    uint32_t pad[3];
+    uint32_t cube;      // the layers are the six cube faces around the light's position
+    uint32_t samples;   // soft: light samples
+    uint32_t tableSize; // soft: angles | distances << 16
 };
-static_assert(sizeof(AfsmSamplesPush) == 32);
+static_assert(sizeof(AfsmSamplesPush) == 120);
 
 struct AfsmScanPush {
     uint32_t count;
@@ -46,26 +75,108 @@ static_assert(sizeof(AfsmScanPush) == 8);
 
 struct AfsmCastersPush {
     glm::mat4 viewProj;
+    uint64_t slots;     // AfsmRaySlot per slot
     uint32_t lightIndex;
     uint32_t gridSize;
     float originOffset;
+    float computeCells; // casters of at most this many cells are the compute path's (0: none)
+};
+static_assert(sizeof(AfsmCastersPush) == 88);
+
+struct AfsmSoftPush {
+    glm::mat4 viewProj;
+    uint64_t slots, masks, table;
+    uint32_t lightIndex;
+    uint32_t gridSize;
+    float originOffset;
+    uint32_t samples;
+    uint32_t tableSize;
+    float computeCells;
+    uint32_t pad[2];
+};
+static_assert(sizeof(AfsmSoftPush) == 120);
+
+struct AfsmBinPush {
+    glm::mat4 viewProj;
+    uint64_t modelTable;
+    uint64_t clusterMask;
+    uint32_t nodeCount;
+    uint32_t lightIndex;
+    uint32_t gridSize;
+    float originOffset;
+    float computeCells;
     uint32_t pad;
 };
-static_assert(sizeof(AfsmCastersPush) == 80);
+static_assert(sizeof(AfsmBinPush) == 104);
+
+// afsm_bin.comp's buffers and table (binding kAfsmBinParams).
+struct AfsmParams {
+    uint64_t slots, masks, table;
+    uint32_t samples, tableSize;
+};
+static_assert(sizeof(AfsmParams) == 32);
+
+struct AfsmTablePush {
+    uint64_t table;
+    uint32_t phase;
+    uint32_t shape;
+    uint32_t count;
+    uint32_t tableSize;
+};
+static_assert(sizeof(AfsmTablePush) == 24);
 
 struct AfsmTargets {
     PixelTargets pixels;
     const vk::Buffer* cellFirst = nullptr;
     const vk::Buffer* cellCount = nullptr;
     const vk::Buffer* blockSums = nullptr;
-    const vk::Buffer* samples = nullptr;
+    const vk::Buffer* slots = nullptr; // per slot (a pixel's worth): AfsmRaySlot or AfsmSlot (48 bytes), addressable
     const vk::Buffer* shadowed = nullptr;
+    const vk::Buffer* far = nullptr;
+    const vk::Buffer* cellDepth = nullptr;
+    const vk::Buffer* slotShadowed = nullptr;
+    const vk::Buffer* cellAlive = nullptr;
+    const vk::Image* depth = nullptr; // D32, grid x grid: each cell's farthest sample depth, for the casters' depth test
     uint32_t width = 0, height = 0, gridSize = 0;
 };
 
 // Cells per side of the grid for a width x height view: one cell per pixel of
-// the longer side, a power of two (the paper fits one sample per texel).
+// the longer side, rounded up to a multiple of 16 (the paper fits one sample
+// per texel).
 uint32_t afsmGridSize(uint32_t width, uint32_t height);
+
+// The soft-shadow lookup table for n light samples: angles x distances
+// entries (powers of two, at most PENUMBRA_AFSM_TABLE_WORDS words in all) of
+// 4 ceil(n / 128) words (whole 128-bit quads), and the largest distance of a misclassified light
+// sample from the plane's line, in the light's 2-D units (rectangle: half
+// its sides; disk, sphere: its radius): half a step of the distance plus
+// half a step of the angle at the farthest sample.
+struct AfsmTableSize {
+    uint32_t angles = 0, distances = 0, words = 0;
+    uint64_t bytes() const { return uint64_t(angles) * distances * words * 4; }
+    uint32_t packed() const { return angles | distances << 16; }
+    double lineError(bool rectangle) const;
+};
+AfsmTableSize afsmTableSize(uint32_t samples);
+
+// Bytes of afsm's largest buffer for this image (the slots of the sample
+// list; soft shadows with n samples: or the per-pixel masks), for the
+// settings' check.
+uint64_t afsmLargestBuffer(uint32_t width, uint32_t height, uint32_t samples, bool soft);
+
+// One layer of an area light's grid (soft shadows): the grid's projection
+// from the light's centre, and the frustum whose casters can shadow its
+// samples (the same one pulled back until it holds the whole light).
+struct AfsmLayer {
+    glm::mat4 grid;
+    glm::mat4 cull;
+    uint32_t index = 0; // the face for cube layers
+};
+// The area light's layers: one perspective grid along its axis over the
+// model, or, when that would be wider than PENUMBRA_AREA_MAX_HALF_FOV, the six
+// faces of a cube around its centre (a one-sided light's faces wholly behind
+// it left out). cube: whether the layers are cube faces.
+std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, bool& cube);
 
 class AfsmPass {
   public:
@@ -74,24 +185,58 @@ class AfsmPass {
     void create(vk::Device& device);
     void destroy(vk::Device& device);
     void bind(vk::Device& device, const AfsmTargets& targets);
+    // Soft shadows: the table for this light shape (rectangle, or disk for
+    // disks and spheres) and sample count, built into cmd when it is new, and
+    // the masks and per-slot data for the bound image; then the soft passes
+    // use them.
+    void prepareSoft(vk::Device& device, VkCommandBuffer cmd, uint32_t samples, bool rectangle);
     // Clears the samples' shadow flags (before a light's layers).
     void clear(VkCommandBuffer cmd) const;
-    // Counts, offsets and lists the samples of layer `layer` of the light.
-    void recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, float originOffset) const;
-    // The casters of view `view` of `culling`, over the grid of viewProj.
-    void recordCasters(VkCommandBuffer cmd, Culling& culling, uint32_t view, const GpuGeometry& geometry, const glm::mat4& viewProj,
-                       uint32_t lightIndex, float originOffset) const;
-    // The light's visibility (and cleared marks, counted pixels).
-    void recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset) const;
+    // Counts, offsets and lists the samples of layer `layer` of the light in the grid of viewProj.
+    void recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
+                       bool soft) const;
+    // The casters of one layer: view `view` of `culling`, over the grid of
+    // viewProj. The small ones are binned in compute (afsm_bin.comp) when the
+    // model is compressed (modelTable: the tracer's model table; maskSlot:
+    // the layer's cluster mask among PENUMBRA_MAX_LIGHTS x 6), the others drawn.
+    struct CasterLayer {
+        uint32_t view = 0, maskSlot = 0;
+        glm::mat4 viewProj{1.0f};
+        uint32_t lightIndex = 0;
+        float originOffset = 0;
+        bool soft = false;
+    };
+    // afterCompute: runs between the two paths (the frame's timestamp).
+    void recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable,
+                       const CasterLayer& layer, const std::function<void()>& afterCompute);
+    // The light's visibility (and cleared marks, counted pixels; soft: cleared masks).
+    void recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const;
 
   private:
-    void dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push) const;
-    vk::ComputeKernel samples, scan;
+    void dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft) const;
+    AfsmSamplesPush samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
+                                bool soft) const;
+    vk::ComputeKernel samples, samplesSoft, scan, table, bin, binSoft;
+    void writeParams() const;
     VkDescriptorSetLayout castersSetLayout = VK_NULL_HANDLE;
     VkDescriptorPool castersPool = VK_NULL_HANDLE;
     VkDescriptorSet castersSet = VK_NULL_HANDLE;
-    vk::RasterPipelines casters;
+    vk::RasterPipelines casters, softCasters;
     AfsmTargets targets;
+    uint64_t slotsAddress = 0;
+    // Soft shadows, made on the first soft frame: a table per shape (0:
+    // rectangle, 1: disk) with the sample count it holds, its samples' 2-D
+    // positions, and per pixel of the bound image the masks.
+    vk::Buffer tables[2], tableSamples;
+    uint32_t tableCounts[2] = {};
+    vk::Buffer masks;
+    uint32_t maskWords = 0, maskPixels = 0;
+    uint64_t tableAddress = 0, masksAddress = 0;
+    uint32_t softSamples = 0;
+    AfsmTableSize softTable;
+    vk::Buffer params;       // AfsmParams (host-visible)
+    vk::Buffer clusterMasks; // per light layer: bit per cluster in its view (host-visible)
+    uint32_t clusterMaskWords = 0;
 };
 
 } // namespace penumbra::passes

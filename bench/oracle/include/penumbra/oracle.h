@@ -16,6 +16,12 @@ struct OracleOptions {
     // in model units (absorbs quantization and interpolation error).
     float originOffset = 1e-4f;
     unsigned threads = 0; // 0: all cores
+    // Soft shadows: trace the light samples of afsm's lookup table
+    // (penumbra/light_sampling.h, afsmLightPoint: one fixed set of `samples`
+    // points per light shape, turned or mirrored per pixel) instead of the
+    // per-pixel stratified samples of srt and frt. afsm against this oracle
+    // differs only by the table's discretization.
+    bool afsmSamples = false;
 };
 
 // Visibility per pixel: 1 lit, 0 shadowed, -1 background (position w == 0),
@@ -43,7 +49,7 @@ public:
     // x = i % width, y = i / width and lightIndex, as the GPU tracer does)
     // that no triangle blocks; samples below the pixel's plane count as
     // blocked. kVisibilityBackFacing where no sample is above the plane or the
-    // pixel is behind a one-sided emitter.
+    // pixel is behind a one-sided emitter. options.afsmSamples: afsm's samples.
     std::vector<float> softShadowVisibility(const std::vector<float>& positions, const std::vector<float>& normals, uint32_t width,
                                             const Light& light, uint32_t lightIndex, uint32_t samples,
                                             const OracleOptions& options = {}) const;

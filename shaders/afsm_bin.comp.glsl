@@ -1,0 +1,172 @@
+// Alias-free shadow maps, the compute path of the casters (Sintorn et al.
+// 2008, section 3.2; the issue's "bin each triangle to the texels its
+// light-space footprint touches"): the small casters of one layer's culled
+// view, binned to their grid cells and tested there without the rasterizer.
+// On lavapipe every rasterized caster costs a triangle setup and fragment
+// shader invocations for its whole bounding rectangle of 2x2-pixel quads,
+// however few cells it covers; most casters of a large model cover a few
+// cells. So each caster whose grown rectangle (afsm_casters.glsli) spans at
+// most PENUMBRA_AFSM_COMPUTE_CELLS cells and whose cells hold little work is
+// tested here, cell by cell, exactly as the fragment shader would
+// (afsmTestCellHard, afsmTestCellSoft); the raster path (afsm_casters.geom,
+// afsm_soft.geom) draws the others. Leaves are decoded as the thin-triangle
+// pass decodes them (thin_triangles.comp.glsl: one invocation per leaf, the
+// tracer's strip walk), those of clusters outside the view skipped.
+// Built twice: hard shadows, and soft shadows with PENUMBRA_AFSM_SOFT
+// (afsm_bin.comp.soft).
+#version 460
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_8bit_storage : require
+#extension GL_EXT_shader_16bit_storage : require
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_ballot : require
+
+#include "config.h"
+#include "bvh_traversal.glsli"
+#include "shadow_common.glsli"
+#include "penumbra/light_sampling.h"
+#ifdef PENUMBRA_AFSM_SOFT
+#define AFSM_SOFT 1
+#endif
+#define AFSM_SLOTS 1
+#include "afsm.glsli"
+
+layout(local_size_x = PENUMBRA_AFSM_BIN_GROUP) in;
+
+// C++: runtime/src/passes/afsm.h (AfsmBinBinding).
+layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };
+layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };
+layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
+layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
+layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };
+layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
+layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
+// Where the slots (and, soft, the masks and the table) are (AfsmPass: AfsmParams).
+layout(set = 0, binding = 8, std430) readonly buffer Params {
+    uint64_t slots, softMasks, softTable;
+    uint softSamples, softTableSize;
+};
+
+#include "afsm_casters.glsli"
+
+layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer ClusterMask { uint bits[]; };
+
+layout(push_constant) uniform AfsmBinPush {
+    mat4 viewProj;        // the layer's grid projection
+    uint64_t modelTable;  // bvh_traversal.glsli
+    uint64_t clusterMask; // bit per cluster: in the layer's culled view
+    uint nodeCount;
+    uint lightIndex;
+    uint gridSize;
+    float originOffset;
+    float computeCells;   // PENUMBRA_AFSM_COMPUTE_CELLS
+    uint pad;
+} push;
+
+void binCaster(vec3 v0, vec3 v1, vec3 v2)
+{
+#ifdef PENUMBRA_AFSM_SOFT
+    LightData light = frame.lights[push.lightIndex];
+    float nearest;
+    AfsmRect r = afsmSoftRect(push.viewProj, light, uintBitsToFloat(farBits), v0, v1, v2, push.gridSize, nearest);
+    uint perSample = 1u + afsmQuads(softSamples);
+    AfsmSoftTable table = AfsmSoftTable(slots, softMasks, softTable, softSamples, softTableSize);
+#else
+    vec2 projected[3];
+    bool behind;
+    AfsmDepthBound depth;
+    AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, projected, behind, depth);
+    float nearest = depth.nearest;
+    uint perSample = 1u;
+#endif
+    // The cells one by one, counting the work as afsmComputeWork does (the
+    // raster path's mirror of this choice); past the budget the raster path
+    // takes the caster (the cells tested so far are tested twice).
+    if (r.empty || !(afsmRectCells(r, push.gridSize) <= push.computeCells))
+        return;
+    ivec2 first, last;
+    afsmRectCellRange(r, push.gridSize, first, last);
+    uint work = 0u;
+    for (int y = first.y; y <= last.y; ++y)
+        for (int x = first.x; x <= last.x; ++x) {
+            uint cell = uint(y) * push.gridSize + uint(x);
+            uint count = cellCount[cell];
+#ifdef PENUMBRA_AFSM_SOFT
+            bool beyond = afsmCellBehind(cell, nearest);
+#else
+            vec2 corner = vec2(x, y);
+            bool beyond = afsmCellBehind(cell, afsmNearestOver(depth, corner, 0.5));
+#endif
+            work += 1u + (beyond ? 0u : perSample * count);
+            if (work > PENUMBRA_AFSM_COMPUTE_BUDGET)
+                return;
+            if (count == 0u || beyond || cellAlive[cell] == 0u)
+                continue;
+#ifdef PENUMBRA_AFSM_SOFT
+            afsmTestCellSoft(cell, light, table, v0, v1, v2);
+#else
+            if (afsmCellMayMeetTriangle(corner + 0.5, projected, !behind))
+                afsmTestCellHard(cell, slots, v0, v1, v2);
+#endif
+        }
+}
+
+shared uvec2 passingLeaves[4 * PENUMBRA_AFSM_BIN_GROUP]; // cluster, leaf reference (start | count << 16)
+shared uint passingCount;
+
+// As thin_triangles.comp.glsl (format version 4): each workgroup takes
+// PENUMBRA_AFSM_BIN_GROUP BVH nodes and lists their leaf children (a node's
+// children belong to its one cluster) whose cluster is in the layer's culled
+// view; then each invocation decodes whole leaves of the list, one after
+// another, with the tracer's strip walk (leafOccludes: the last two decoded
+// vertices kept, the first two swapped for odd strip positions, triangles
+// with a repeated index skipped), and bins each triangle.
+void main()
+{
+    const uint lane = gl_LocalInvocationIndex;
+    if (lane == 0u)
+        passingCount = 0u;
+    barrier();
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint index = group * PENUMBRA_AFSM_BIN_GROUP + lane;
+    ModelTable table = ModelTable(push.modelTable);
+    if (index < push.nodeCount) {
+        WideNode node = loadNode(NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift), index);
+        const uint cluster = nodeCluster(node);
+        const bool inView = cluster != PENUMBRA_NO_CLUSTER && (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u;
+        for (uint slot = 0u; slot < 4u; ++slot)
+            if (inView && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF)
+                passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);
+    }
+    barrier();
+    const uint leafCount = passingCount;
+    GeometryChunks chunks = geometryChunksOf(push.modelTable, table);
+    for (uint j = lane; j < leafCount; j += PENUMBRA_AFSM_BIN_GROUP) {
+        const uvec2 leaf = passingLeaves[j];
+        ClusterInfo cluster = loadCluster(table, leaf.x);
+        LeafStrips strips = openLeaf(table, chunks, cluster, leaf.y);
+        uint i0 = 0u, i1 = 0u;
+        vec3 p0 = vec3(0.0), p1 = vec3(0.0);
+        uint position = 0u; // bytes of the current strip so far
+        for (uint k = 0u; k < strips.count; ++k) {
+            uint i2 = uint(strips.strips.bytes[k]);
+            if (i2 == 0xFFu) {
+                position = 0u;
+                continue;
+            }
+            vec3 p2 = decodeVertex(loadVertex(strips.vertices, i2), cluster.boxMin, cluster.step);
+            if (position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
+                bool odd = ((position - 2u) & 1u) != 0u;
+                binCaster(odd ? p1 : p0, odd ? p0 : p1, p2);
+            }
+            i0 = i1;
+            p0 = p1;
+            i1 = i2;
+            p1 = p2;
+            ++position;
+        }
+    }
+}

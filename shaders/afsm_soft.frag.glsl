@@ -1,0 +1,55 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+// Alias-free shadow maps, soft shadows (Sintorn et al. 2008, section 4.2):
+// for one caster and one grid cell of its influence region
+// (afsm_soft.geom.glsl), every sample listed in the cell against the caster
+// (afsm_casters.glsli: afsmTestCellSoft, four table lookups per sample).
+
+#include "config.h"
+#include "shadow_common.glsli"
+#include "shadow_ray.glsli"
+#include "penumbra/light_sampling.h"
+#define AFSM_SOFT 1
+#include "afsm.glsli"
+
+layout(location = 0) flat in vec3 vertex0;
+layout(location = 1) flat in vec3 vertex1;
+layout(location = 2) flat in vec3 vertex2;
+
+// C++: runtime/src/passes/afsm.h (AfsmSoftBinding).
+layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };  // first slot per cell
+layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
+layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };            // per pixel: every light sample hidden
+layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };   // per cell: its farthest sample depth
+layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
+layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed
+
+#include "afsm_casters.glsli"
+
+layout(push_constant) uniform AfsmSoftPush {
+    mat4 viewProj;
+    uint64_t slots;     // AfsmSlot per slot
+    uint64_t masks;     // afsmQuads(samples) uvec4 per pixel
+    uint64_t table;     // afsm_table.comp.glsl
+    uint lightIndex;
+    uint gridSize;
+    float originOffset;
+    uint samples;
+    uint tableSize;     // angles | distances << 16
+    float computeCells;
+    uint pad0, pad1;
+} push;
+
+void main()
+{
+    uvec2 cellXY = uvec2(gl_FragCoord.xy);
+    uint cell = cellXY.y * push.gridSize + cellXY.x;
+    // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_soft.geom.glsl).
+    if (cellAlive[cell] == 0u)
+        return;
+    afsmTestCellSoft(cell, frame.lights[push.lightIndex], AfsmSoftTable(push.slots, push.masks, push.table, push.samples, push.tableSize),
+                     vertex0, vertex1, vertex2);
+}
