@@ -31,11 +31,14 @@
 #define PENUMBRA_AFSM_BIN_GROUP 64       // afsm_bin.comp: BVH nodes per workgroup (their leaves then decoded one per invocation)
 #define PENUMBRA_AFSM_COMPUTE_CELLS 16.0 // afsm: casters whose grown rectangle spans at most this many grid cells are tested in compute
 #define PENUMBRA_AFSM_COMPUTE_BUDGET 384u // ... when their cells and samples take at most this many loop iterations (lavapipe: 65535 per invocation)
-#define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: pairs or nodes per workgroup
+#define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: records or nodes per workgroup
 #define PENUMBRA_RH_MAX_LEVELS 16        // rh: most levels of a cone hierarchy (4^15 leaves: far more than any image's rays)
-#define PENUMBRA_RH_SORT_ORDER 10u      // rh sorted: direction keys on a 2^10 x 2^10 Hilbert grid per layer
-#define PENUMBRA_RH_SORT_CELLS 1024u     // 2^PENUMBRA_RH_SORT_ORDER
-#define PENUMBRA_RH_MIN_ANGLE 1.0e-4     // rh: smallest cone half-angle (radians); the apex moves back by offset / sin(angle)
+#define PENUMBRA_RH_MAX_SORT_ORDER 10u   // rh sorted: at most 2^10 x 2^10 Hilbert cells per face (about 2 cells per pixel's ray, rh.cpp)
+#define PENUMBRA_RH_SORT_SAVING 40.0    // rh --rh-sort auto: cone tests sorting saves a caster per unit of 1 + incoherence (rh_build.comp)
+#define PENUMBRA_RH_SORT_COST 3.0       // rh --rh-sort auto: the sort's cost per ray, in cone tests' time
+#define PENUMBRA_RH_FACE_SPLIT 24u      // rh sorted point lights: each face starts on a subtree of at most 1/24 of the rays (rh_build.comp)
+#define PENUMBRA_RH_MAX_INCOHERENCE 4096.0 // rh: one tile's incoherence counts at most this much
+#define PENUMBRA_RH_MAX_DEPTH_ORDER 9u   // rh: the receivers' depth grid per face: up to 2^9 cells a side (about 4 cells per ray, rh.cpp)
 #define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range
 #define PENUMBRA_CULL_GROUP_SIZE 64     // cull_predicates.comp: draw commands per workgroup
 #define PENUMBRA_CULL_GROUP_CLUSTERS 64 // occlusion culling: largest BVH subtree (clusters) without history queried with one box
@@ -81,14 +84,21 @@
 #define PENUMBRA_AFSM_TABLE_SAMPLES 0u   // the light samples' 2-D positions (penumbra/light_sampling.h)
 #define PENUMBRA_AFSM_TABLE_MASKS 1u     // per (angle, distance) entry, the bitmask of the samples in front of the line
 // rh_rays.comp.glsl modes.
-#define PENUMBRA_RH_RAYS_COUNT 0u        // each tile's padded ray count at its Morton index
-#define PENUMBRA_RH_RAYS_LIST 1u         // after the scan: the rays at their tile's offset
-#define PENUMBRA_RH_RAYS_SORT_COUNT 2u   // sorted (section 3.5): rays per direction key
-#define PENUMBRA_RH_RAYS_SORT_LIST 3u    // after the scan: each ray at its key's next slot
+#define PENUMBRA_RH_RAYS_COUNT 0u        // each tile's padded ray count at its Morton index (and its incoherence)
+#define PENUMBRA_RH_RAYS_KEYS 1u         // sorted (section 3.5): rays per direction key
+#define PENUMBRA_RH_RAYS_LIST 2u         // after the scan: the rays at their key's next slot, or at their tile's offset
 // rh_build.comp.glsl modes.
-#define PENUMBRA_RH_BUILD_INIT 0u        // the hierarchy's levels from the ray count (one invocation)
-#define PENUMBRA_RH_BUILD_LEAVES 1u      // leaves: cones of 4 consecutive rays
-#define PENUMBRA_RH_BUILD_LEVEL 2u       // a level from the 4 children of each node
+#define PENUMBRA_RH_BUILD_DECIDE 0u      // whether to sort, and the sort's indirect dispatches (one invocation)
+#define PENUMBRA_RH_BUILD_INIT 1u        // the hierarchy's levels from the ray count (one invocation)
+#define PENUMBRA_RH_BUILD_LEAVES 2u      // leaves: cones (slabs) of 4 consecutive rays
+#define PENUMBRA_RH_BUILD_LEVEL 3u       // a level from the 4 children of each node
+#define PENUMBRA_RH_BUILD_RESOLVE 4u     // early accept: the rays under covered nodes shadowed
+#define PENUMBRA_RH_BUILD_FACES 5u       // sorted: each face of the list aligned to whole subtrees (one invocation)
+#define PENUMBRA_RH_BUILD_GRID 6u        // a level of the receivers' depth grid from the one below
+// RenderSettings::rhSort, pushed to rh_build.comp's decide mode.
+#define PENUMBRA_RH_SORT_OFF 0u
+#define PENUMBRA_RH_SORT_ON 1u
+#define PENUMBRA_RH_SORT_AUTO 2u
 // rh_casters.geom.glsl: which casters a batch gathers.
 #define PENUMBRA_RH_CASTERS_ALL 0u       // every caster
 #define PENUMBRA_RH_CASTERS_LARGE 1u     // two-pass traversal, first pass: the large ones (good occluders)

@@ -60,8 +60,10 @@ struct RenderArgs {
     bool exrLayers = false;
     bool floors = false;
     std::string coneTest = "precise";
-    std::string rhSort = "on";
+    std::string rhSort = "auto";
     std::string rhTwoPass = "off";
+    std::string rhEarlyAccept = "on";
+    std::string rhClosedMeshes = "off";
 };
 
 struct BenchArgs {
@@ -147,8 +149,10 @@ int runRender(const RenderArgs& args)
     settings.shadows = parseShadowMethod(args.shadows);
     settings.measureFloors = args.floors;
     settings.coneTest = parseConeTest(args.coneTest);
-    settings.rhSort = args.rhSort == "on";
+    settings.rhSort = parseRhSort(args.rhSort);
     settings.rhTwoPass = args.rhTwoPass == "on";
+    settings.rhEarlyAccept = args.rhEarlyAccept == "on";
+    settings.rhClosedMeshes = args.rhClosedMeshes == "on";
     settings.cull = parseCullMode(args.cull);
     const RasterIndices rasterIndices = parseRasterIndices(args.rasterIndices);
     settings.fitShadowMapsToView = args.shadowFit == "view";
@@ -417,7 +421,9 @@ int main(int argc, char** argv)
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
     renderCommand->add_option("--samples", render.samples, "Area lights: light samples per pixel (soft shadows); srt, frt: 4..256 (default 16), afsm: 128..1024 (default 256)")->check(CLI::Range(4, 1024));
     renderCommand->add_option("--cone-test", render.coneTest, "rh: the cone/triangle test: precise (Olsson and Assarsson 2011, section 3.2) or spheres (bounding spheres, for comparison)")->capture_default_str();
-    renderCommand->add_option("--rh-sort", render.rhSort, "rh: order the rays by direction before building the cone hierarchy (section 3.5): on, or off (by pixel)")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+    renderCommand->add_option("--rh-sort", render.rhSort, "rh: order the rays by direction before building the cone hierarchy (section 3.5): on, off (by pixel), or auto (per light layer and frame: sort where the pixels' rays are incoherent)")->capture_default_str()->check(CLI::IsMember({"on", "off", "auto"}));
+    renderCommand->add_option("--rh-closed-meshes", render.rhClosedMeshes, "rh: clusters the preprocessor marked closed cast only their light-back-facing triangles (section 3.6; not while the camera is inside a closed mesh the light is outside of); a receiver within one ray offset of a closed surface may lose its shadow (README): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+    renderCommand->add_option("--rh-early-accept", render.rhEarlyAccept, "rh: a cone that a triangle covers shadows all its rays without descending (section 3.3): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--rh-two-pass", render.rhTwoPass, "rh: the large casters first, then the hierarchy rebuilt without the rays they shadowed, then the others (section 3.4): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--penumbra-maps", render.penumbraMaps, "Area lights, srt: shadow maps whose edges mark the penumbra: 1 (centre) or 5 (centre and corners)")->capture_default_str()->check(CLI::IsMember({1, 5}));
     renderCommand->add_option("--sm-maps", render.smMaps, "Area lights, sm: point-light shadow maps averaged over the light")->capture_default_str()->check(CLI::Range(1, 6));

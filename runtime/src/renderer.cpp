@@ -146,9 +146,6 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
     if (settings.shadows == ShadowMethod::RayHierarchy) {
         if (!device.rayHierarchy)
             fail("render", "rh needs geometry shaders and vertex-stage stores, which " + device.info.name + " lacks");
-        for (const Light& light : lights)
-            if (light.type == LightType::Directional)
-                fail("render", "rh does point and spot lights (rays from one point); a directional light needs sm, srt, frt or afsm");
         if (geometry.encoding != GeometryEncoding::Compressed)
             fail("render", "rh needs the compressed model (the uncompressed reference is for raster benchmarks)");
     }
@@ -682,28 +679,42 @@ struct Renderer::Impl::FrameScript {
                 timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
-        case Step::RayHierarchy:
+        case Step::RayHierarchy: {
             r.afsm.clear(cmd);
             if (rhFrame) {
                 r.rh.beginFrame(cmd);
                 rhFrame = false;
             }
+            // One hierarchy over all the light's rays; the casters of all its views (a point light's six faces).
+            std::vector<std::vector<uint32_t>> clusters;
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
-                const uint32_t view = lightFirstView[light] + layer;
-                const std::vector<uint32_t> clusters = r.shadowCulling.viewClusters(view);
-                r.shadowCulling.markView(cmd, view, false);
-                r.rh.recordLayer(cmd, light, lights[light].position, layer, rayOffset, settings.coneTest == ConeTest::Spheres ? PENUMBRA_RH_TEST_SPHERES
-                                                                                                      : PENUMBRA_RH_TEST_PRECISE,
-                                 settings.rhSort, settings.rhTwoPass,
-                                 r.geometry, *r.shadowCulling.model, clusters, [this] { timer.mark(cmd, PassId::RhBuild); },
-                                 [this] {
-                                     r.submitAndWait(cmd, "rh_traverse");
-                                     beginCommands();
-                                 });
-                r.shadowCulling.markView(cmd, view, true);
-                timer.mark(cmd, PassId::RhTraverse);
+                clusters.push_back(r.shadowCulling.viewClusters(lightFirstView[light] + layer));
+                r.shadowCulling.markView(cmd, lightFirstView[light] + layer, false);
             }
+            passes::RhOptions options;
+            options.test = settings.coneTest == ConeTest::Spheres ? PENUMBRA_RH_TEST_SPHERES : PENUMBRA_RH_TEST_PRECISE;
+            options.sort = settings.rhSort;
+            options.twoPass = settings.rhTwoPass;
+            options.earlyAccept = settings.rhEarlyAccept;
+            options.cullBehindReceivers = settings.rhCullBehindReceivers;
+            // Section 3.6: closed clusters cast only light-back-facing triangles, where that is exact (rh.h).
+            const bool directional = lights[light].type == LightType::Directional;
+            options.closedCulling = settings.rhClosedMeshes && r.model &&
+                                    passes::closedCullingExact(*r.model, view.eye,
+                                                               directional ? -glm::normalize(lights[light].direction) : lights[light].position,
+                                                               directional);
+            r.rh.recordLight(cmd, light, lights[light], rayOffset, options, r.geometry, *r.shadowCulling.model, clusters,
+                             [this](uint32_t cluster) { return (r.model->clusters[cluster].flags & model::kClusterClosed) != 0; },
+                             [this] { timer.mark(cmd, PassId::RhBuild); },
+                             [this] {
+                                 r.submitAndWait(cmd, "rh_traverse");
+                                 beginCommands();
+                             });
+            for (uint32_t layer = 0; layer < layers(light); ++layer)
+                r.shadowCulling.markView(cmd, lightFirstView[light] + layer, true);
+            timer.mark(cmd, PassId::RhTraverse);
             return;
+        }
         case Step::AfsmResolve:
             r.afsm.recordResolve(cmd, light, rayOffset, area);
             timer.mark(cmd, PassId::AfsmSamples);
@@ -859,6 +870,11 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         out.rhBatches = rh.batches;
         out.rhRounds = rh.rounds;
         out.rhPeakPairBytes = rh.peakPairBytes;
+        out.rhLights = rh.lights;
+        out.rhSortedLights = rh.sortedLights;
+        out.rhAcceptedNodes = rh.accepted;
+        out.rhIncoherence = rh.incoherence;
+        out.rhClosedCulled = rh.closedCulled;
     }
     if (r.geometry.paged()) {
         const GeometryPageStats& pages = r.pages.frame;

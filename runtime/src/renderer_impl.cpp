@@ -105,7 +105,8 @@ void Renderer::Impl::ensureRhTargets()
 {
     ensureAfsmTargets();
     FrameTargets& t = targets;
-    const RhTargets rhTargets{t.position.view, t.normal.view, t.frameUniforms.buffer, &t.afsmShadowed, t.width, t.height};
+    const RhTargets rhTargets{t.position.view, t.normal.view, t.frameUniforms.buffer, &t.afsmShadowed, t.width, t.height,
+                              shadowCulling.model ? uint32_t(shadowCulling.model->clusterTriangles.size()) : 0u};
     if (!rh.bound(rhTargets))
         rh.bind(device, rhTargets);
 }

@@ -47,6 +47,15 @@ enum class ConeTest {
 const char* coneTestName(ConeTest test);
 ConeTest parseConeTest(const std::string& name); // throws Error
 
+// rh: the order of the rays before the hierarchy is built (section 3.5).
+enum class RhSort {
+    Off,  // by pixel (8x8 tiles in Morton order): the screen-space hierarchy
+    On,   // by direction from the light (a Hilbert curve over each layer)
+    Auto, // per layer and frame, by the screen-space coherence the GPU measures (README, rh)
+};
+const char* rhSortName(RhSort sort);
+RhSort parseRhSort(const std::string& name); // throws Error
+
 const char* shadowMethodName(ShadowMethod method);
 ShadowMethod parseShadowMethod(const std::string& name); // throws Error
 std::vector<std::string> shadowMethodNames();           // every method's name, in enum order
@@ -141,8 +150,13 @@ struct RenderSettings {
     uint32_t softShadowMaps = 4;        // sm: point-light shadow maps averaged over the light, 1..6
     CullMode cull = CullMode::All;      // culling of the camera and shadow-map raster passes
     ConeTest coneTest = ConeTest::Precise; // rh: the cone/triangle test
-    bool rhSort = true;                    // rh: rays ordered by direction (section 3.5) before the hierarchy, else by pixel
+    RhSort rhSort = RhSort::Auto;          // rh: the rays ordered by direction (section 3.5), by pixel, or chosen per frame
     bool rhTwoPass = false;                // rh: large casters first, then the hierarchy rebuilt without the rays they shadowed (3.4)
+    bool rhEarlyAccept = true;             // rh: a cone a triangle covers shadows its rays without descending (3.3)
+    // rh: clusters marked closed cast only light-back-facing triangles (3.6); off by default: a receiver
+    // within one ray offset of a closed surface may start its ray inside it and lose its shadow (README, rh).
+    bool rhClosedMeshes = false;
+    bool rhCullBehindReceivers = true;     // rh: casters deeper than every receiver they could shadow left out (exact; README, rh)
     // Fit the shadow maps of directional and area lights to what the camera
     // sees (the G-buffer's bounds in each map, read back before the shadow
     // pass) instead of the whole model: finer texels, and frustum culling
@@ -216,6 +230,10 @@ struct FrameStats {
     uint64_t rhCasters = 0;
     uint32_t rhBatches = 0, rhRounds = 0;
     uint64_t rhPeakPairBytes = 0;
+    uint32_t rhLights = 0, rhSortedLights = 0; // hierarchies built (one per light), and those over rays sorted by direction
+    uint64_t rhAcceptedNodes = 0;              // nodes found covered by a triangle and accepted whole (early accept, section 3.3)
+    double rhIncoherence = 0;                  // --rh-sort auto: the last light's measured screen-space incoherence (README, rh)
+    uint32_t rhClosedCulled = 0;               // lights whose closed clusters cast only light-back-facing triangles (3.6)
     // Geometry budget (RendererOptions::geometryBudgetBytes; all 0 without one).
     uint64_t geometryBudgetBytes = 0;   // the pool: whole pages within the budget
     uint64_t geometryBytes = 0;         // every page's contents (the model's paged geometry)
