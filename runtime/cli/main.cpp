@@ -38,6 +38,8 @@ struct RenderArgs {
     std::string shadows = "sm";
     std::string cull = "all";
     std::string rasterIndices = "auto";
+    double geometryBudgetMiB = 0.0;
+    double geometryPageKiB = double(RendererOptions{}.geometryPageBytes) / 1024.0;
     std::string shadowFit = "view";
     uint32_t shadowMapSize = 2048;
     uint32_t samples = 0; // 0: the method's default (srt, frt: RenderSettings' 16; afsm: 256)
@@ -206,6 +208,12 @@ int runRender(const RenderArgs& args)
     options.device = args.device;
     options.validation = args.validation;
     options.rasterIndices = rasterIndices;
+    if (!(args.geometryBudgetMiB >= 0.0) || args.geometryBudgetMiB > 1e9)
+        fail("--geometry-budget", "must be a number of MiB >= 0 (0: no budget)");
+    options.geometryBudgetBytes = uint64_t(args.geometryBudgetMiB * 1048576.0);
+    if (!(args.geometryPageKiB > 0.0) || args.geometryPageKiB > 1048576.0)
+        fail("--geometry-page", "must be a number of KiB, 3 .. 1048576");
+    options.geometryPageBytes = uint64_t(args.geometryPageKiB * 1024.0);
     std::optional<Renderer> renderer(std::in_place, options);
 
     auto loadStart = std::chrono::steady_clock::now();
@@ -375,6 +383,13 @@ int main(int argc, char** argv)
                               "What the raster passes draw of the compressed model: auto (triangles on a CPU device, strips on a "
                               "GPU), strips (the file's strips with primitive restart) or triangles (8-bit lists decoded at load); "
                               "same image")
+        ->capture_default_str();
+    renderCommand->add_option("--geometry-budget", render.geometryBudgetMiB,
+                              "Out of core: at most this many MiB of cluster geometry on the device, in pages streamed as the "
+                              "views and rays need them (0: the whole model in core); same image")
+        ->capture_default_str();
+    renderCommand->add_option("--geometry-page", render.geometryPageKiB,
+                              "Page size of --geometry-budget in KiB (a multiple of 48 bytes)")
         ->capture_default_str();
     renderCommand->add_option("--shadow-fit", render.shadowFit,
                               "Directional and area lights' shadow maps cover: view (what the camera sees: finer texels, and the "

@@ -116,6 +116,15 @@ struct RendererOptions {
     // "device did not finish <passes> in N s", and the renderer refuses further
     // work. The environment variable PENUMBRA_DEVICE_TIMEOUT (seconds) overrides it.
     double deviceTimeoutSeconds = 300.0;
+    // Out of core (runtime/README.md, "Geometry budget"): at most this many
+    // bytes of cluster geometry (vertices, strips, raster triangle lists) on
+    // the device, in pages of geometryPageBytes; the BVH nodes and the
+    // cluster table stay resident besides. 0: the whole model in core.
+    // Pages are uploaded as the frame's views and rays need them; the image
+    // is the same bit for bit as without a budget. A budget smaller than one
+    // view's working set fails the frame with one line.
+    uint64_t geometryBudgetBytes = 0;
+    uint64_t geometryPageBytes = 768 * 1024; // a multiple of 48 bytes (3 KiB .. 1 GiB)
 };
 
 struct RenderSettings {
@@ -225,6 +234,14 @@ struct FrameStats {
     uint64_t rhAcceptedNodes = 0;              // nodes found covered by a triangle and accepted whole (early accept, section 3.3)
     double rhIncoherence = 0;                  // --rh-sort auto: the last light's measured screen-space incoherence (README, rh)
     uint32_t rhClosedCulled = 0;               // lights whose closed clusters cast only light-back-facing triangles (3.6)
+    // Geometry budget (RendererOptions::geometryBudgetBytes; all 0 without one).
+    uint64_t geometryBudgetBytes = 0;   // the pool: whole pages within the budget
+    uint64_t geometryBytes = 0;         // every page's contents (the model's paged geometry)
+    uint64_t residentPeakBytes = 0;     // most pages resident at once this frame, in bytes
+    uint64_t pagesUploaded = 0;         // this frame
+    uint64_t bytesStreamed = 0;         // page contents uploaded this frame
+    uint32_t parkingRounds = 0;         // dispatches that traced parked rays again
+    uint64_t parkedRays = 0;            // rays (pixel entries) parked, summed over the rounds
     uint64_t penumbraPixels = 0;  // pixels whose visibility of an area light is strictly between 0 and 1 (summed over lights)
     double penumbraFraction = 0;  // penumbraPixels / (coveredPixels * area lights)
     uint32_t lightSamples = 0;    // samples per pixel of area lights (0: no area light)
