@@ -21,17 +21,19 @@ Scene importBinaryStl(const std::string& path, const MappedFile& file, uint32_t 
     return scene;
 }
 
-Scene importAsciiStl(const std::string& path, const MappedFile& file)
+// The ASCII STL grammar over any cursor with TextCursor's interface (the
+// mapped file's, or StreamCursor over a FileReader): add(nine) gets each
+// facet's triangles (a polygon is fanned; facets are triangles in practice).
+// Returns how many it gave; fails on the first malformed line.
+template <typename Cursor, typename Add> uint64_t parseAsciiStl(const std::string& path, Cursor& cursor, Add&& add)
 {
-    TextCursor cursor{reinterpret_cast<const char*>(file.data()),
-                      reinterpret_cast<const char*>(file.data()) + file.size()};
     auto lineFail = [&](const std::string& problem) {
         fail(path, "line " + std::to_string(cursor.line) + ": " + problem);
     };
-    std::vector<float> corners;
     std::vector<float> loop;
     bool inLoop = false;
     size_t loopLine = 0;
+    uint64_t complete = 0;
     cursor.skipWhitespace();
     cursor.token();    // "solid"
     cursor.skipLine(); // solid name
@@ -64,11 +66,14 @@ Scene importAsciiStl(const std::string& path, const MappedFile& file)
             if (!inLoop)
                 lineFail("'endloop' without 'outer loop'");
             inLoop = false;
-            size_t n = loop.size() / 3;
+            const size_t n = loop.size() / 3;
             for (size_t k = 2; k < n; ++k) { // fan (facets are triangles in practice)
-                corners.insert(corners.end(), &loop[0], &loop[3]);
-                corners.insert(corners.end(), &loop[(k - 1) * 3], &loop[k * 3]);
-                corners.insert(corners.end(), &loop[k * 3], &loop[k * 3 + 3]);
+                float nine[9];
+                std::memcpy(nine, &loop[0], 12);
+                std::memcpy(nine + 3, &loop[(k - 1) * 3], 12);
+                std::memcpy(nine + 6, &loop[k * 3], 12);
+                add(nine);
+                ++complete;
             }
         } else if (token == "facet" || token == "endfacet" || token == "solid" || token == "endsolid") {
             cursor.skipLine(); // the rest (normal, solid name) is not needed
@@ -78,8 +83,17 @@ Scene importAsciiStl(const std::string& path, const MappedFile& file)
     }
     if (inLoop)
         fail(path, "truncated: file ends inside the facet that starts on line " + std::to_string(loopLine));
-    if (corners.empty())
+    if (complete == 0)
         fail(path, "no triangles (no complete facets)");
+    return complete;
+}
+
+Scene importAsciiStl(const std::string& path, const MappedFile& file)
+{
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()),
+                      reinterpret_cast<const char*>(file.data()) + file.size()};
+    std::vector<float> corners;
+    parseAsciiStl(path, cursor, [&](const float* nine) { corners.insert(corners.end(), nine, nine + 9); });
     Scene scene;
     weldTriangles(corners, scene.mesh);
     return scene;
@@ -290,64 +304,7 @@ class StlStream : public ModelStream {
     {
         in_.seek(0);
         StreamCursor cursor(in_, 1);
-        auto lineFail = [&](const std::string& problem) {
-            fail(path_, "line " + std::to_string(cursor.line) + ": " + problem);
-        };
-        std::vector<float> loop;
-        bool inLoop = false;
-        size_t loopLine = 0;
-        uint64_t complete = 0;
-        cursor.skipWhitespace();
-        cursor.token();    // "solid"
-        cursor.skipLine(); // solid name
-        for (;;) {
-            cursor.skipWhitespace();
-            if (cursor.atEnd())
-                break;
-            std::string_view token = cursor.token();
-            if (token == "vertex") {
-                if (!inLoop)
-                    lineFail("vertex outside an 'outer loop'");
-                for (int c = 0; c < 3; ++c) {
-                    std::string_view number = cursor.token();
-                    float value;
-                    if (number.empty())
-                        lineFail("vertex has fewer than 3 coordinates");
-                    if (!parseFloat(number, value))
-                        lineFail("malformed number " + quoteToken(number));
-                    loop.push_back(value);
-                }
-            } else if (token == "outer") {
-                if (cursor.token() != "loop")
-                    lineFail("expected 'outer loop'");
-                if (inLoop)
-                    lineFail("nested 'outer loop'");
-                inLoop = true;
-                loopLine = cursor.line;
-                loop.clear();
-            } else if (token == "endloop") {
-                if (!inLoop)
-                    lineFail("'endloop' without 'outer loop'");
-                inLoop = false;
-                const size_t n = loop.size() / 3;
-                for (size_t k = 2; k < n; ++k) { // fan (facets are triangles in practice)
-                    float nine[9];
-                    std::memcpy(nine, &loop[0], 12);
-                    std::memcpy(nine + 3, &loop[(k - 1) * 3], 12);
-                    std::memcpy(nine + 6, &loop[k * 3], 12);
-                    add(nine);
-                    ++complete;
-                }
-            } else if (token == "facet" || token == "endfacet" || token == "solid" || token == "endsolid") {
-                cursor.skipLine(); // the rest (normal, solid name) is not needed
-            } else {
-                lineFail("unexpected token " + quoteToken(token));
-            }
-        }
-        if (inLoop)
-            fail(path_, "truncated: file ends inside the facet that starts on line " + std::to_string(loopLine));
-        if (complete == 0)
-            fail(path_, "no triangles (no complete facets)");
+        parseAsciiStl(path_, cursor, add);
     }
 
     FileReader in_;
