@@ -44,6 +44,29 @@ bool parseCorner(std::string_view token, int64_t& index)
     return parseInt(token.substr(0, slash), index);
 }
 
+// The fields of a 'v' record after "v ": x y z into xyz, then up to four
+// optional numbers into extra (w, or the common colour extension r g b, also
+// after a w; anything else after the position is ignored). Returns how many
+// optional numbers there were; lineFail(problem) on a bad position.
+template <typename Fail> size_t parseVertexRecord(TextCursor& cursor, Fail&& lineFail, float xyz[3], float extra[4])
+{
+    for (int i = 0; i < 3; ++i) {
+        std::string_view token = recordToken(cursor);
+        if (token.empty())
+            lineFail("vertex has fewer than 3 coordinates");
+        if (!parseFloat(token, xyz[i]))
+            lineFail("malformed number " + quoteToken(token));
+    }
+    size_t extraCount = 0;
+    for (std::string_view token = recordToken(cursor); !token.empty() && extraCount < 4;
+         token = extraCount < 4 ? recordToken(cursor) : std::string_view{}) {
+        if (!parseFloat(token, extra[extraCount]))
+            break;
+        ++extraCount;
+    }
+    return extraCount;
+}
+
 } // namespace
 
 // True when the record at cursor.p is `keyword` followed by a blank.
@@ -114,23 +137,8 @@ Scene importObj(const std::string& path, const MappedFile& file)
         char c = *cursor.p;
         if (c == 'v' && cursor.p + 1 < cursor.end && (cursor.p[1] == ' ' || cursor.p[1] == '\t')) {
             cursor.p += 2;
-            float xyz[3];
-            for (float& value : xyz) {
-                std::string_view token = recordToken(cursor);
-                if (token.empty())
-                    lineFail("vertex has fewer than 3 coordinates");
-                if (!parseFloat(token, value))
-                    lineFail("malformed number " + quoteToken(token));
-            }
-            // Optional: w, or the common colour extension 'v x y z r g b' (also after a w).
-            float extra[4];
-            size_t extraCount = 0;
-            for (std::string_view token = recordToken(cursor); !token.empty() && extraCount < 4;
-                 token = extraCount < 4 ? recordToken(cursor) : std::string_view{}) {
-                if (!parseFloat(token, extra[extraCount]))
-                    break; // anything else after the position is ignored, as before
-                ++extraCount;
-            }
+            float xyz[3], extra[4];
+            const size_t extraCount = parseVertexRecord(cursor, lineFail, xyz, extra);
             if (extraCount >= 3) {
                 if (mesh.colors.empty())
                     mesh.colors.assign(mesh.positions.size(), 1.0f); // earlier vertices: white
@@ -474,22 +482,8 @@ class ObjStream : public ModelStream {
             };
             if (vertexRecord) {
                 cursor.p += 2;
-                float xyz[3];
-                for (float& value : xyz) {
-                    std::string_view token = recordToken(cursor);
-                    if (token.empty())
-                        lineFail("vertex has fewer than 3 coordinates");
-                    if (!parseFloat(token, value))
-                        lineFail("malformed number " + quoteToken(token));
-                }
-                float extra[4];
-                size_t extraCount = 0;
-                for (std::string_view token = recordToken(cursor); !token.empty() && extraCount < 4;
-                     token = extraCount < 4 ? recordToken(cursor) : std::string_view{}) {
-                    if (!parseFloat(token, extra[extraCount]))
-                        break;
-                    ++extraCount;
-                }
+                float xyz[3], extra[4];
+                const size_t extraCount = parseVertexRecord(cursor, lineFail, xyz, extra);
                 float rgb[3];
                 if (extraCount >= 3)
                     for (size_t k = extraCount - 3, j = 0; k < extraCount; ++k, ++j)
