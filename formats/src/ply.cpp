@@ -777,6 +777,37 @@ class AsciiPlyReader {
     TextCursor cursor_;
 };
 
+// The mesh's elements of a header: the first "vertex", the first "face" and
+// its vertex_indices (or vertex_index) list property; fails on a point cloud
+// or a face element without the list.
+struct MeshElements {
+    const PlyElement* vertex = nullptr;
+    const PlyElement* face = nullptr;
+    int listIndex = -1;
+};
+
+MeshElements findMeshElements(const std::string& path, const PlyHeader& header)
+{
+    MeshElements found;
+    for (const PlyElement& element : header.elements) {
+        if (element.name == "vertex" && !found.vertex)
+            found.vertex = &element;
+        if (element.name == "face" && !found.face) {
+            found.face = &element;
+            found.listIndex = element.find("vertex_indices");
+            if (found.listIndex < 0)
+                found.listIndex = element.find("vertex_index");
+            if (found.listIndex < 0 || !element.properties[size_t(found.listIndex)].isList)
+                fail(path, "face element has no vertex_indices list property");
+        }
+    }
+    if (!found.vertex)
+        fail(path, "no vertex element");
+    if (!found.face || found.face->count == 0)
+        fail(path, "no triangles (point cloud: no faces)");
+    return found;
+}
+
 } // namespace
 
 Scene importPly(const std::string& path, const MappedFile& file)
@@ -785,25 +816,10 @@ Scene importPly(const std::string& path, const MappedFile& file)
     Scene scene;
     Mesh& mesh = scene.mesh;
 
-    const PlyElement* vertexElement = nullptr;
-    const PlyElement* faceElement = nullptr;
-    int listIndex = -1;
-    for (const PlyElement& element : header.elements) {
-        if (element.name == "vertex" && !vertexElement)
-            vertexElement = &element;
-        if (element.name == "face" && !faceElement) {
-            faceElement = &element;
-            listIndex = element.find("vertex_indices");
-            if (listIndex < 0)
-                listIndex = element.find("vertex_index");
-            if (listIndex < 0 || !element.properties[size_t(listIndex)].isList)
-                fail(path, "face element has no vertex_indices list property");
-        }
-    }
-    if (!vertexElement)
-        fail(path, "no vertex element");
-    if (!faceElement || faceElement->count == 0)
-        fail(path, "no triangles (point cloud: no faces)");
+    const MeshElements elements = findMeshElements(path, header);
+    const PlyElement* vertexElement = elements.vertex;
+    const PlyElement* faceElement = elements.face;
+    const int listIndex = elements.listIndex;
     const uint64_t vertexCount = vertexElement->count;
 
     FaceStats stats;
@@ -991,22 +1007,10 @@ class PlyStream : public ModelStream {
     {
         size_t headerLines = 0;
         header_ = readStreamHeader(path_, in_, headerLines);
-        for (const PlyElement& element : header_.elements) {
-            if (element.name == "vertex" && !vertexElement_)
-                vertexElement_ = &element;
-            if (element.name == "face" && !faceElement_) {
-                faceElement_ = &element;
-                listIndex_ = element.find("vertex_indices");
-                if (listIndex_ < 0)
-                    listIndex_ = element.find("vertex_index");
-                if (listIndex_ < 0 || !element.properties[size_t(listIndex_)].isList)
-                    fail(path_, "face element has no vertex_indices list property");
-            }
-        }
-        if (!vertexElement_)
-            fail(path_, "no vertex element");
-        if (!faceElement_ || faceElement_->count == 0)
-            fail(path_, "no triangles (point cloud: no faces)");
+        const MeshElements elements = findMeshElements(path_, header_);
+        vertexElement_ = elements.vertex;
+        faceElement_ = elements.face;
+        listIndex_ = elements.listIndex;
         swap_ = header_.encoding != PlyEncoding::Ascii &&
                 (header_.encoding == PlyEncoding::BinaryBig) == (std::endian::native == std::endian::little);
         vertexCount_ = vertexElement_->count;
