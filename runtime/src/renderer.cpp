@@ -878,7 +878,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     }
     if (r.geometry.paged()) {
         const GeometryPageStats& pages = r.pages.frame;
-        out.geometryBudgetBytes = r.pages.poolBytes();
+        out.geometryBudgetBytes = r.pages.slotBytes();
         out.geometryBytes = r.pages.geometryBytes();
         out.residentPeakBytes = pages.residentPeakBytes;
         out.pagesUploaded = pages.pagesUploaded;

@@ -20,7 +20,7 @@ namespace penumbra {
 namespace {
 
 constexpr uint32_t kSize = 256;
-constexpr uint64_t kPageBytes = 4608; // small pages, so that 1/16 of a 150k-triangle model holds several views
+constexpr uint64_t kPageBytes = 6144; // small pages, so that 1/16 of a 150k-triangle model holds several views
 
 RendererOptions budgetOptions(uint64_t budget)
 {
@@ -229,6 +229,28 @@ TEST(GeometryBudget, ViewsLargerThanTheBudgetDrawnInRanges)
     EXPECT_GT(pages * kPageBytes, city.geometryBytes / 4); // more than the pool holds
 }
 
+// Only the BVH's top (the nodes above the clusters), the cluster table and one
+// word per node stay resident: a cluster's own nodes live in its page, so the
+// device holds far less than the model's BVH besides the pool.
+TEST(GeometryBudget, ClusterNodesLiveInPages)
+{
+    const Budgeted city = preparedCity();
+    const uint64_t budget = city.geometryBytes / 16;
+    Renderer renderer(budgetOptions(budget));
+    renderer.loadModel(city.model);
+    uint64_t topNodes = 0;
+    for (const model::Node& node : city.model.nodes)
+        topNodes += node.cluster == model::kNoCluster ? 1 : 0;
+    ASSERT_LT(topNodes * 10, city.model.nodes.size());
+    const uint64_t pool = budget / kPageBytes * kPageBytes + (topNodes * 80 + 47) / 48 * 48;
+    const uint64_t perCluster = sizeof(model::ClusterRecord) + 20 /* draw */ + 4 /* colour */;
+    EXPECT_EQ(renderer.modelDeviceBytes(), pool + city.model.nodes.size() * 4 + city.model.clusters.size() * perCluster);
+    EXPECT_LT(renderer.modelDeviceBytes(), budget + city.model.nodes.size_bytes() / 3);
+    Renderer unlimited;
+    unlimited.loadModel(city.model);
+    EXPECT_GT(unlimited.modelDeviceBytes(), city.geometryBytes);
+}
+
 // Raster views are drawn in ranges, so what must fit at once is a thin-triangle
 // view's clusters or one ray's: with 2 pages, srt's thin-triangle view of the
 // whole model does not.
@@ -243,7 +265,7 @@ TEST(GeometryBudget, BudgetBelowOneViewFailsWithOneLine)
     } catch (const std::exception& e) {
         const std::string message = e.what();
         EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-        EXPECT_EQ(message.rfind("--geometry-budget: a budget of 9.0 KiB holds 2 pages of 4.5 KiB, smaller than the working set of", 0), 0u)
+        EXPECT_EQ(message.rfind("--geometry-budget: a budget of 12.0 KiB holds 2 pages of 6.0 KiB, smaller than the working set of", 0), 0u)
             << message;
     }
     EXPECT_THROW(Renderer(budgetOptions(kPageBytes - 1)).loadModel(city.model), std::exception); // less than a page
