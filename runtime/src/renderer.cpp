@@ -881,6 +881,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         out.geometryBudgetBytes = r.pages.slotBytes();
         out.geometryBytes = r.pages.geometryBytes();
         out.residentPeakBytes = pages.residentPeakBytes;
+        out.modelDeviceBytes = r.geometry.deviceBytes;
         out.pagesUploaded = pages.pagesUploaded;
         out.bytesStreamed = pages.bytesStreamed;
         out.parkingRounds = pages.parkingRounds;
