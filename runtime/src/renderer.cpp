@@ -415,13 +415,35 @@ struct Renderer::Impl::FrameScript {
     // until none is left. The clusters the last dispatch visited are made
     // resident when they fit together (then its parked rays all finish: a ray
     // traced again visits no cluster it did not visit before); otherwise the
-    // first half of its parked rays is traced alone, and so on down to one ray,
-    // whose working set must fit the budget.
+    // first half of its parked rays (in Z order over the pixels) is traced
+    // alone, and so on down to one ray, whose working set must fit the budget.
+    // After a batch that fit, the next one taken from the rest is twice as large.
     void traceParked(uint32_t light, uint32_t samples)
     {
         GeometryPages& pages = r.pages;
         r.submitAndWait(cmd, timer.passesSinceLastSubmit());
-        std::vector<uint32_t> front(pages.parkedEntries(), pages.parkedEntries() + pages.parkedCount()), rest;
+        // Parked entries arrive in atomic order; sorted along a Z curve over the pixels, a batch's rays are
+        // neighbours whose working sets overlap, so halving leaves fewer, larger batches that fit the pool.
+        const uint32_t width = r.targets.width;
+        auto zOrder = [width](uint32_t entry) {
+            const uint32_t pixel = entry & ~uint32_t(PENUMBRA_RAY_ONE_SAMPLE);
+            uint64_t key = 0;
+            for (uint32_t bit = 0; bit < 16; ++bit)
+                key |= uint64_t(((pixel % width) >> bit) & 1u) << (2 * bit) | uint64_t(((pixel / width) >> bit) & 1u) << (2 * bit + 1);
+            return key;
+        };
+        auto parked = [&] {
+            std::vector<std::pair<uint64_t, uint32_t>> keyed;
+            keyed.reserve(pages.parkedCount());
+            for (uint32_t i = 0; i < pages.parkedCount(); ++i)
+                keyed.push_back({zOrder(pages.parkedEntries()[i]), pages.parkedEntries()[i]});
+            std::sort(keyed.begin(), keyed.end());
+            std::vector<uint32_t> entries(keyed.size());
+            for (size_t i = 0; i < keyed.size(); ++i)
+                entries[i] = keyed[i].second;
+            return entries;
+        };
+        std::vector<uint32_t> front = parked(), rest;
         std::vector<uint32_t> visited = pages.visitedClusters();
         pages.frame.parkedRays += front.size();
         size_t batch = front.size();
@@ -437,6 +459,7 @@ struct Renderer::Impl::FrameScript {
             } else if (pages.fits(visited)) {
                 ensureResident(visited, what, false);
                 toTrace.swap(front);
+                batch = std::max<size_t>(2 * batch, 1); // the next batch from `rest` may be larger again
             } else {
                 if (front.size() == 1)
                     ensureResident(visited, "one ray toward light " + std::to_string(light), false); // fails: the budget is too small
@@ -466,7 +489,7 @@ struct Renderer::Impl::FrameScript {
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
             r.submitAndWait(cmd, "trace (parked rays)");
             ++pages.frame.parkingRounds;
-            front.assign(pages.parkedEntries(), pages.parkedEntries() + pages.parkedCount());
+            front = parked();
             visited = pages.visitedClusters();
             pages.frame.parkedRays += front.size();
         }
