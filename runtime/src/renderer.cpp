@@ -416,7 +416,8 @@ struct Renderer::Impl::FrameScript {
     // resident when they fit together (then its parked rays all finish: a ray
     // traced again visits no cluster it did not visit before); otherwise the
     // first half of its parked rays (in Z order over the pixels) is traced
-    // alone, and so on down to one ray, whose working set must fit the budget.
+    // alone, and so on down to one entry: a single ray is then traced once per
+    // range of its clusters that fits; a pixel's light samples must fit together.
     // After a batch that fit, the next one taken from the rest is twice as large.
     void traceParked(uint32_t light, uint32_t samples)
     {
@@ -448,6 +449,7 @@ struct Renderer::Impl::FrameScript {
         pages.frame.parkedRays += front.size();
         size_t batch = front.size();
         const std::string what = "the rays toward light " + std::to_string(light);
+        auto dispatch = [&](const std::vector<uint32_t>& toTrace) { dispatchParked(light, samples, toTrace); };
         for (uint32_t round = 0; !front.empty() || !rest.empty(); ++round) {
             if (round > 4 * 1024 * 1024)
                 fail("--geometry-budget", "parked rays of light " + std::to_string(light) + " did not finish");
@@ -460,15 +462,44 @@ struct Renderer::Impl::FrameScript {
                 ensureResident(visited, what, false);
                 toTrace.swap(front);
                 batch = std::max<size_t>(2 * batch, 1); // the next batch from `rest` may be larger again
+            } else if (front.size() == 1) {
+                // One entry whose clusters exceed the pool. A single ray (hard shadows, or a pixel outside
+                // the penumbra mask) is any-hit: traced once per range of its clusters that fits, it is
+                // shadowed if one range hits it and lit otherwise (each trace writes its visibility, and a
+                // ray traced again enters the same clusters). A pixel's light samples must fit together.
+                if (samples != 0 && (front[0] & PENUMBRA_RAY_ONE_SAMPLE) == 0)
+                    ensureResident(visited, "one pixel's light samples toward light " + std::to_string(light), false); // fails
+                const std::vector<std::vector<uint32_t>> ranges = pages.cutIntoRanges(visited);
+                const uint32_t entry = front[0];
+                for (const std::vector<uint32_t>& range : ranges) {
+                    ensureResident(range, "one ray toward light " + std::to_string(light), false);
+                    dispatch({entry});
+                    if (pages.parkedCount() == 0)
+                        break; // it hit
+                }
+                front.clear();
+                continue;
             } else {
-                if (front.size() == 1)
-                    ensureResident(visited, "one ray toward light " + std::to_string(light), false); // fails: the budget is too small
                 const size_t half = front.size() / 2;
                 rest.insert(rest.begin(), front.begin() + half, front.end());
                 toTrace.assign(front.begin(), front.begin() + half);
                 batch = half;
             }
             front.clear();
+            dispatch(toTrace);
+            front = parked();
+            visited = pages.visitedClusters();
+            pages.frame.parkedRays += front.size();
+        }
+        beginCommands();
+    }
+
+    // Paged geometry: traces the listed ray-list entries again (one dispatch, submitted and waited for);
+    // the parking buffer then holds what they parked and visited.
+    void dispatchParked(uint32_t light, uint32_t samples, const std::vector<uint32_t>& toTrace)
+    {
+        GeometryPages& pages = r.pages;
+        {
             // The list into the frame's ray list (its header holds the indirect dispatch), then the trace.
             auto* list = static_cast<uint32_t*>(pages.retraceList.mapped);
             const Groups2D groups = spreadGroups(uint32_t((toTrace.size() + PENUMBRA_TRACE_GROUP_SIZE - 1) / PENUMBRA_TRACE_GROUP_SIZE),
@@ -489,11 +520,7 @@ struct Renderer::Impl::FrameScript {
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
             r.submitAndWait(cmd, "trace (parked rays)");
             ++pages.frame.parkingRounds;
-            front = parked();
-            visited = pages.visitedClusters();
-            pages.frame.parkedRays += front.size();
         }
-        beginCommands();
     }
 
     // RenderSettings::measureFloors: a raster pass's floor, every triangle of

@@ -209,6 +209,28 @@ TEST(GeometryBudget, ParkedRaysSameImages)
     compareAlongPaths(city, frames, {ShadowMethod::FullRayTrace}, "parked", true);
 }
 
+// A pool of two pages holds less than what one long shadow ray crosses: such a
+// ray is traced once per range of its clusters that fits (any-hit: shadowed if
+// one range hits it), and the image is still the same.
+TEST(GeometryBudget, OneRayLargerThanThePoolTracedInRanges)
+{
+    const Budgeted city = preparedCity();
+    Renderer unlimited, budgeted(budgetOptions(2 * kPageBytes));
+    unlimited.loadModel(city.model);
+    budgeted.loadModel(city.model);
+    Light sun;
+    sun.type = LightType::Directional;
+    sun.direction = glm::normalize(glm::vec3(0.8f, -0.35f, 0.3f)); // low: long rays across the city
+    sun.intensity = 3.0f;
+    for (Renderer* renderer : {&unlimited, &budgeted})
+        renderer->setLights({sun});
+    const Frame expected = renderFrame(unlimited, ShadowMethod::FullRayTrace);
+    const Frame actual = renderFrame(budgeted, ShadowMethod::FullRayTrace);
+    expectSameImage(expected, actual, "rays larger than the pool");
+    EXPECT_GT(actual.stats.parkingRounds, 0u);
+    EXPECT_LE(actual.stats.residentPeakBytes, 2 * kPageBytes);
+}
+
 // The default camera sees the whole model, far more than 1/16 of it: phase 2
 // of its view (the clusters whose occlusion queries passed) is drawn in
 // ranges, each made resident in turn, in the same order as without a budget.
@@ -251,16 +273,23 @@ TEST(GeometryBudget, ClusterNodesLiveInPages)
     EXPECT_GT(unlimited.modelDeviceBytes(), city.geometryBytes);
 }
 
-// Raster views are drawn in ranges, so what must fit at once is a thin-triangle
-// view's clusters or one ray's: with 2 pages, srt's thin-triangle view of the
-// whole model does not.
+// Raster views and thin-triangle steps are drawn in ranges and single rays
+// traced per range, so what must fit at once is one pixel's light samples: with
+// 2 pages, a soft-shadowed pixel's samples toward a light beside the city do not.
 TEST(GeometryBudget, BudgetBelowOneViewFailsWithOneLine)
 {
     const Budgeted city = preparedCity();
     Renderer renderer(budgetOptions(2 * kPageBytes));
     renderer.loadModel(city.model);
+    const Bounds bounds = modelBounds(city.model);
+    const Camera camera = cameraPath(bounds)[0];
+    Light side = rectangleAbove(camera, bounds, 0.0f);
+    side.position = camera.target + glm::vec3(0.45f, 0.08f, 0.3f) * glm::length(bounds.max - bounds.min); // low: long rays
+    side.direction = glm::normalize(camera.target - side.position);
+    renderer.setCamera(camera);
+    renderer.setLights({side});
     try {
-        renderFrame(renderer, ShadowMethod::Selective);
+        renderFrame(renderer, ShadowMethod::FullRayTrace);
         FAIL() << "expected an error";
     } catch (const std::exception& e) {
         const std::string message = e.what();
