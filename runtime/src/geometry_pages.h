@@ -15,7 +15,8 @@
 //
 // Who asks for pages (renderer.cpp): the camera's culled view before the
 // G-buffer; before each light's passes, the clusters of its culled views and
-// of its thin-triangle views (clusterMayReachView); the tracer, which parks
+// of its thin-triangle views (clusterMayReachView); afsm's binned casters and
+// rh's caster batches, per range of their views' clusters; the tracer, which parks
 // rays that reach a cluster that is not resident (trace.comp.glsl) and marks
 // every cluster it visits, after which the frame script uploads what they
 // need and traces them again (FrameScript::traceParked), until none is left.

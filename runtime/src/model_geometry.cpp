@@ -191,7 +191,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, c
             }
             geometry.nodeTable = vk::createBufferWithData(device, paged->nodeTable.data(), paged->nodeTable.size() * sizeof(uint32_t),
                                                           VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                                          vk::Addressable::No);
+                                                          vk::Addressable::Yes); // afsm_bin.comp reads it by address
             GpuGeometry::Chunk chunk;
             chunk.clusterCount = uint32_t(model.clusters.size());
             chunk.vertices = chunk.indices = geometry.pool;

@@ -150,8 +150,6 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
             fail("render", "rh needs the compressed model (the uncompressed reference is for raster benchmarks)");
     }
     if (geometry.paged()) {
-        if (settings.shadows == ShadowMethod::AliasFree || settings.shadows == ShadowMethod::RayHierarchy)
-            fail("--geometry-budget", std::string(spec.name) + " is not rendered under a geometry budget yet: use sm, srt or frt");
         if (settings.measureFloors)
             fail("--geometry-budget", "floors are measured in core (no budget)");
         if (settings.cull == CullMode::None)
@@ -409,6 +407,37 @@ struct Renderer::Impl::FrameScript {
                                        r.targets.thinMap.layers, thin);
             }
         }
+    }
+
+    // Paged geometry: afsm's compute path bins a layer's casters (its view's
+    // clusters) in ranges whose pages fit the pool, each made resident in turn
+    // (its raster path draws the view in ranges through the culling's hooks).
+    // Empty in core.
+    passes::AfsmPass::PagedCasters afsmPagedCasters(uint32_t light, uint32_t view)
+    {
+        passes::AfsmPass::PagedCasters paged;
+        if (!r.geometry.paged())
+            return paged;
+        paged.ranges = r.pages.cutIntoRanges(r.shadowCulling.viewClusters(view));
+        paged.makeResident = [this, light](const std::vector<uint32_t>& range) {
+            ensureResident(range, "light " + std::to_string(light) + "'s afsm casters", true);
+        };
+        return paged;
+    }
+
+    // Paged geometry: rh's casters are drawn in batches within ranges whose
+    // pages fit the pool, each range made resident before its first batch
+    // (the device is idle then: every batch ends with a wait). Empty in core.
+    passes::RhPaging rhPaging(uint32_t light)
+    {
+        passes::RhPaging paging;
+        if (!r.geometry.paged())
+            return paging;
+        paging.cut = [this](const std::vector<uint32_t>& clusters) { return r.pages.cutIntoRanges(clusters); };
+        paging.makeResident = [this, light](const std::vector<uint32_t>& clusters) {
+            ensureResident(clusters, "light " + std::to_string(light) + "'s rh casters", true);
+        };
+        return paging;
     }
 
     // Paged geometry: after a trace pass, the rays it parked are traced again
@@ -712,9 +741,10 @@ struct Renderer::Impl::FrameScript {
                 for (uint32_t k = 0; k < grid.size(); ++k) {
                     r.afsm.recordSamples(cmd, light, grid[k].index, grid[k].grid, afsmCube[light], rayOffset, true);
                     timer.mark(cmd, PassId::AfsmSamples);
+                    const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + k);
                     r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
                                          {lightFirstView[light] + k, 6 * light + grid[k].index, grid[k].grid, light, rayOffset, true},
-                                         [this] { timer.mark(cmd, PassId::AfsmBin); });
+                                         [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
                     timer.mark(cmd, PassId::AfsmCasters);
                 }
                 return;
@@ -723,9 +753,10 @@ struct Renderer::Impl::FrameScript {
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
                 r.afsm.recordSamples(cmd, light, layer, l.viewProj[layer], layers(light) == 6, rayOffset, false);
                 timer.mark(cmd, PassId::AfsmSamples);
+                const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + layer);
                 r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
                                      {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false},
-                                     [this] { timer.mark(cmd, PassId::AfsmBin); });
+                                     [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
                 timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
@@ -759,7 +790,8 @@ struct Renderer::Impl::FrameScript {
                              [this] {
                                  r.submitAndWait(cmd, "rh_traverse");
                                  beginCommands();
-                             });
+                             },
+                             rhPaging(light));
             for (uint32_t layer = 0; layer < layers(light); ++layer)
                 r.shadowCulling.markView(cmd, lightFirstView[light] + layer, true);
             timer.mark(cmd, PassId::RhTraverse);
