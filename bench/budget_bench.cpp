@@ -4,11 +4,14 @@
 // geometry) render the same path; every frame is compared bit for bit with
 // the unlimited one.
 //   bench_budget MODEL [--size N] [--frames N] [--methods srt,frt] [--divisors 4,16]
-//                      [--budgets MiB,...] [--reference none] [--page KiB] [--out DIR] [--device NAME]
+//                      [--budgets MiB,...] [--reference none] [--view whole] [--page KiB] [--out DIR]
+//                      [--device NAME]
 // MODEL: a .penumbra file, any importable file, or gen:NAME:TRIANGLES.
 // --budgets: absolute budgets instead of divisors; --reference none: no
 // unlimited renderer (for models whose geometry does not fit the device at
 // once): frames are not compared, and their identical column is empty.
+// --view whole: the path starts at the view that frames the whole model
+// (defaultCamera), not at the model's first camera or a patch of it.
 // Writes DIR/budget.csv (one row per frame), DIR/budget_summary.csv (median
 // frame time per method and budget), DIR/budget.gp and, when gnuplot is
 // installed, DIR/budget.png (frame time against budget; bytes streamed per
@@ -67,7 +70,7 @@ int main(int argc, char** argv)
     try {
         if (argc < 2) {
             std::fprintf(stderr, "usage: bench_budget MODEL [--size N] [--frames N] [--methods srt,frt] [--divisors 4,16] "
-                                 "[--budgets MiB,...] [--reference none] [--page KiB] [--out DIR] [--device NAME]\n");
+                                 "[--budgets MiB,...] [--reference none] [--view whole] [--page KiB] [--out DIR] [--device NAME]\n");
             return 2;
         }
         std::string modelSpec = argv[1], out = "bench_budget", device;
@@ -76,7 +79,7 @@ int main(int argc, char** argv)
         std::vector<std::string> methods = {"srt", "frt"};
         std::vector<uint64_t> divisors = {4, 16};
         std::vector<uint64_t> budgets; // bytes; --budgets replaces the divisors
-        bool reference = true;
+        bool reference = true, wholeView = false;
         for (int i = 2; i + 1 < argc; i += 2) {
             const std::string key = argv[i], value = argv[i + 1];
             if (key == "--size") size = uint32_t(std::stoul(value));
@@ -95,6 +98,12 @@ int main(int argc, char** argv)
                     return 2;
                 }
                 reference = false;
+            } else if (key == "--view") {
+                if (value != "whole") {
+                    std::fprintf(stderr, "bench_budget: --view takes only 'whole'\n");
+                    return 2;
+                }
+                wholeView = true;
             } else if (key == "--page") pageBytes = uint64_t(std::stod(value) * 1024.0);
             else if (key == "--out") out = value;
             else if (key == "--device") device = value;
@@ -127,7 +136,9 @@ int main(int argc, char** argv)
         const float diagonal = glm::length(extent);
         // The path: the model's first camera (else a slanted view of a patch) moving along its view direction.
         Camera start;
-        if (!scene.cameras.empty()) {
+        if (wholeView) {
+            start = defaultCamera(bounds);
+        } else if (!scene.cameras.empty()) {
             start = scene.cameras[0];
         } else {
             const glm::vec3 patch(bounds.min.x + 0.3f * extent.x, bounds.min.y, bounds.min.z + 0.35f * extent.z);
