@@ -177,18 +177,27 @@ void GeometryPages::ensureThinMasks(vk::Device& device, uint64_t bytes)
                                  vk::MemoryUse::Upload, vk::Addressable::Yes);
 }
 
+bool GeometryPages::RangeCut::add(uint32_t cluster)
+{
+    const uint32_t page = pages.clusterPage[cluster];
+    if (stamp[page] == range + 1)
+        return true;
+    if (used == pages.slotCount)
+        return false;
+    stamp[page] = range + 1;
+    ++used;
+    return true;
+}
+
 std::vector<std::vector<uint32_t>> GeometryPages::cutIntoRanges(const std::vector<uint32_t>& clusters) const
 {
     std::vector<std::vector<uint32_t>> ranges(1);
-    std::vector<uint32_t> pages; // of the current range, unsorted
+    RangeCut cut(*this);
     for (uint32_t c : clusters) {
-        const uint32_t page = clusterPage[c];
-        if (std::find(pages.begin(), pages.end(), page) == pages.end()) {
-            if (pages.size() == slotCount) {
-                ranges.emplace_back();
-                pages.clear();
-            }
-            pages.push_back(page);
+        if (!cut.add(c)) {
+            ranges.emplace_back();
+            cut.next();
+            cut.add(c);
         }
         ranges.back().push_back(c);
     }

@@ -88,6 +88,19 @@ class GeometryPages {
     void ensureThinMasks(vk::Device& device, uint64_t bytes);
     // Consecutive ranges of `clusters` (in order) whose pages fit the pool together.
     std::vector<std::vector<uint32_t>> cutIntoRanges(const std::vector<uint32_t>& clusters) const;
+    // The same, incrementally (linear in the clusters added): add() says whether a cluster's page still fits
+    // the current range, counting it in if so; next() starts a new range.
+    class RangeCut {
+      public:
+        explicit RangeCut(const GeometryPages& pages) : pages(pages), stamp(pages.pageUsed.size(), 0) {}
+        bool add(uint32_t cluster);
+        void next() { ++range, used = 0; }
+
+      private:
+        const GeometryPages& pages;
+        std::vector<uint32_t> stamp; // range + 1 where the page is in that range
+        uint32_t range = 0, used = 0;
+    };
 
     GeometryPageStats frame; // this frame's counters (reset by beginFrame)
     void beginFrame();

@@ -243,16 +243,18 @@ struct Renderer::Impl::FrameScript {
             auto cutRanges = [this](const std::vector<uint32_t>& drawn) {
                 std::vector<uint32_t> cuts, range;
                 finalRanges.clear();
+                GeometryPages::RangeCut cut(r.pages);
                 for (uint32_t i = 0; i < drawn.size(); ++i) {
                     if (drawn[i] == Culling::kNoQuery)
                         continue;
-                    range.push_back(drawn[i]);
-                    if (!r.pages.fits(range)) {
-                        range.pop_back();
+                    if (!cut.add(drawn[i])) {
                         cuts.push_back(i);
                         finalRanges.push_back(std::move(range));
-                        range = {drawn[i]};
+                        range.clear();
+                        cut.next();
+                        cut.add(drawn[i]);
                     }
+                    range.push_back(drawn[i]);
                 }
                 finalRanges.push_back(std::move(range));
                 return cuts;
@@ -334,17 +336,31 @@ struct Renderer::Impl::FrameScript {
     void ensureResident(const std::vector<uint32_t>& clusters, const std::string& what, bool inFrame)
     {
         GeometryPages& pages = r.pages;
+        // Draw commands follow residency (culling.h). The tracer's rounds change residency without
+        // drawing: they leave the refresh (a pass over every planned draw) to the next raster use.
+        const bool draws = inFrame;
         if (pages.allResident(clusters)) {
             pages.ensure(r.device, r.geometry, *r.model, clusters, what); // the pages' last use only
+            if (draws && drawsStale)
+                refreshDraws();
             return;
         }
         if (inFrame)
             r.submitAndWait(cmd, timer.passesSinceLastSubmit());
         pages.ensure(r.device, r.geometry, *r.model, clusters, what);
-        r.culling.refreshCommands(r.geometry.commands);
-        r.shadowCulling.refreshCommands(r.geometry.commands);
+        drawsStale = true;
+        if (draws)
+            refreshDraws();
         if (inFrame)
             beginCommands();
+    }
+
+    bool drawsStale = false; // residency changed since the culling's draw commands were refreshed
+    void refreshDraws()
+    {
+        r.culling.refreshCommands(r.geometry.commands);
+        r.shadowCulling.refreshCommands(r.geometry.commands);
+        drawsStale = false;
     }
 
     // Paged geometry: a thin-triangle step in ranges. Each view's clusters are
