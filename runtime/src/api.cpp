@@ -421,6 +421,8 @@ std::string summaryLine(const FrameStats& stats)
         std::snprintf(buffer, sizeof(buffer), " | samples %u | penumbra %.2f%%", stats.lightSamples, stats.penumbraFraction * 100.0);
         line += buffer;
     }
+    if (stats.shadows == ShadowMethod::AliasFree)
+        line += " | closed clusters " + std::to_string(stats.afsmClosedClusters) + ": " + stats.afsmClosedCasting;
     for (const PassTiming& pass : stats.passes) {
         std::snprintf(buffer, sizeof(buffer), " | %s %.2f ms", pass.name.c_str(), pass.gpuMs);
         line += buffer;
@@ -460,6 +462,8 @@ std::string statsJson(const FrameStats& stats)
     if (stats.shadows == ShadowMethod::RayHierarchy)
         json["rh"] = {{"casters", stats.rhCasters}, {"cone_tests", stats.nodesVisited}, {"ray_tests", stats.triangleTests},
                       {"batches", stats.rhBatches}, {"rounds", stats.rhRounds}, {"peak_pair_bytes", stats.rhPeakPairBytes}};
+    if (stats.shadows == ShadowMethod::AliasFree)
+        json["afsm"] = {{"closed_clusters", stats.afsmClosedClusters}, {"closed_casting", stats.afsmClosedCasting}};
     nlohmann::ordered_json passes = nlohmann::ordered_json::object();
     for (const PassTiming& pass : stats.passes)
         passes[pass.name + "_ms"] = pass.gpuMs;

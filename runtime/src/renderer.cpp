@@ -177,6 +177,8 @@ struct Renderer::Impl::FrameScript {
     // afsm, area lights: each light's grid layers and whether they are cube faces.
     std::vector<std::vector<AfsmLayer>> afsmLayers;
     std::vector<bool> afsmCube;
+    uint64_t afsmClosedClusters = 0; // afsm: the model's closed clusters
+    bool afsmBackFaces = false;      // afsm: they cast only light-back-facing triangles this frame
 
     FrameScript(Impl& renderer, const RenderSettings& s)
         : r(renderer), settings(s), spec(shadowMethodSpec(s.shadows)), bounds(r.geometry.bounds),
@@ -198,6 +200,10 @@ struct Renderer::Impl::FrameScript {
             r.bindTargets();
         if (s.shadows == ShadowMethod::AliasFree) {
             r.ensureAfsmTargets();
+            // Closed meshes cast only their light-back-facing triangles unless the camera may see inside one.
+            const bool compressed = r.geometry.encoding == GeometryEncoding::Compressed && r.model && r.shadowCulling.model;
+            afsmClosedClusters = r.afsm.prepareModel(r.device, compressed ? &*r.model : nullptr);
+            afsmBackFaces = compressed && r.afsm.closedBackFaces(*r.model, *r.shadowCulling.model, view.eye, view.viewProj);
             afsmLayers.resize(lights.size());
             afsmCube.assign(lights.size(), false);
             for (size_t i = 0; i < lights.size(); ++i)
@@ -446,7 +452,8 @@ struct Renderer::Impl::FrameScript {
                     r.afsm.recordSamples(cmd, light, grid[k].index, grid[k].grid, afsmCube[light], rayOffset, true);
                     timer.mark(cmd, PassId::AfsmSamples);
                     r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
-                                         {lightFirstView[light] + k, 6 * light + grid[k].index, grid[k].grid, light, rayOffset, true},
+                                         {lightFirstView[light] + k, 6 * light + grid[k].index, grid[k].grid, light, rayOffset, true,
+                                          afsmBackFaces},
                                          [this] { timer.mark(cmd, PassId::AfsmBin); });
                     timer.mark(cmd, PassId::AfsmCasters);
                 }
@@ -457,7 +464,8 @@ struct Renderer::Impl::FrameScript {
                 r.afsm.recordSamples(cmd, light, layer, l.viewProj[layer], layers(light) == 6, rayOffset, false);
                 timer.mark(cmd, PassId::AfsmSamples);
                 r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
-                                     {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false},
+                                     {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false,
+                                      afsmBackFaces},
                                      [this] { timer.mark(cmd, PassId::AfsmBin); });
                 timer.mark(cmd, PassId::AfsmCasters);
             }
@@ -630,6 +638,10 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
                                                                                                    : 0;
     out.rayOffset = spec.traces() || settings.shadows == ShadowMethod::AliasFree || settings.shadows == ShadowMethod::RayHierarchy ? rayOffset
                                                                                                                                 : 0.0f;
+    if (settings.shadows == ShadowMethod::AliasFree) {
+        out.afsmClosedClusters = afsmClosedClusters;
+        out.afsmClosedCasting = !afsmClosedClusters ? "none closed" : afsmBackFaces ? "back faces" : "both sides (camera inside a closed mesh)";
+    }
     if (settings.shadows == ShadowMethod::RayHierarchy) {
         const passes::RhFrameStats rh = r.rh.frameStats();
         out.rays = rh.rays;

@@ -53,6 +53,12 @@ Result compareWithOracle(const Mesh& mesh, const Camera& camera, const Light& li
     Result result{test::compareVisibility(oracle, afsm.visibility), test::compareVisibility(oracle, srt.visibility)};
     std::printf("afsm: %zu of %zu light-facing pixels differ from the oracle (srt: %zu)\n", result.afsm.differing, result.afsm.compared,
                 result.srt.differing);
+    std::printf("DIAG missed %zu closed %llu casting %s\n", result.afsm.missedShadow, (unsigned long long)afsm.stats.afsmClosedClusters, afsm.stats.afsmClosedCasting.c_str());
+    for (size_t i = 0, shown = 0; i < oracle.size() && shown < 8; ++i)
+        if (oracle[i] >= 0.0f && oracle[i] != afsm.visibility[i]) {
+            ++shown;
+            std::printf("DIAG px %zu,%zu oracle %g afsm %g pos %g %g %g n %g %g %g\n", i % size, i / size, oracle[i], afsm.visibility[i], afsm.positions[4*i], afsm.positions[4*i+1], afsm.positions[4*i+2], afsm.normals[4*i], afsm.normals[4*i+1], afsm.normals[4*i+2]);
+        }
     bool casters = false;
     for (const PassTiming& pass : afsm.stats.passes)
         casters |= pass.name == "afsm_casters";
@@ -352,6 +358,110 @@ TEST(AliasFreeShadowMaps, SoftShadowsOfALightAmongTheGeometry)
     EXPECT_GT(afsm.stats.penumbraPixels, 100u);
     EXPECT_LE(diff.meanAbs(), 0.001);
     EXPECT_LE(diff.overFraction(), 0.001);
+}
+
+// ---------------------------------------------------------------------------
+// Closed meshes (section 3.3, "Avoiding bias"): clusters flagged
+// kClusterClosed cast only their light-back-facing triangles. Equal to the
+// oracle (every triangle) wherever the camera sees from outside every closed
+// mesh; a camera inside one (or a near plane that cuts one open) sees points
+// whose shadow rays leave it through a front face only, and then the frame
+// casts both sides (FrameStats::afsmClosedCasting).
+
+struct ClosedCase {
+    Mesh mesh;
+    Camera camera;
+    Light light;
+};
+
+// afsm against the oracle (on the quantized model as drawn), with the closed
+// clusters separated (PreprocessOptions::separateClosed); `casting` is what the
+// frame reports.
+test::Comparison closedAgainstOracle(const ClosedCase& c, std::string& casting, uint64_t& closedClusters)
+{
+    PreprocessOptions options;
+    options.separateClosed = true;
+    const CompressedModel model = buildCompressedModel(c.mesh, options);
+    Renderer renderer;
+    renderer.loadModel(model);
+    renderer.setCamera(c.camera);
+    renderer.setLights({c.light});
+    RenderSettings settings;
+    settings.width = settings.height = 256;
+    settings.shadows = ShadowMethod::AliasFree;
+    settings.readbackGBuffer = true;
+    Frame afsm = renderer.render(settings);
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+    casting = afsm.stats.afsmClosedCasting;
+    closedClusters = afsm.stats.afsmClosedClusters;
+    OracleOptions oracleOptions;
+    oracleOptions.originOffset = afsm.stats.rayOffset;
+    const std::vector<float> oracle = EmbreeOracle(decodeMesh(model)).hardShadowVisibility(afsm.positions, afsm.normals, c.light, oracleOptions);
+    return test::compareVisibility(oracle, afsm.visibility);
+}
+
+// Closed boxes (12 outward-facing triangles each; one wound inside out) on an
+// open ground, under a sun: outside every box the back faces alone give the
+// oracle's shadows.
+TEST(AliasFreeShadowMaps, ClosedMeshesCastTheirBackFaces)
+{
+    ClosedCase c;
+    test::addQuad(c.mesh, {-10, 0, -10}, {-10, 0, 10}, {10, 0, 10}, {10, 0, -10}); // open: both sides cast
+    for (int i = 0; i < 9; ++i) {
+        const float x = -6.0f + 4.0f * float(i % 3), z = -6.0f + 4.0f * float(i / 3);
+        test::addBox(c.mesh, {x, 0.5f + 0.3f * float(i), z}, {x + 1.5f, 2.0f + 0.4f * float(i), z + 1.2f});
+    }
+    // The last box wound inside out: its "back faces" are the ones facing the light, the shadows the same.
+    const size_t firstIndex = c.mesh.indices.size() - 36;
+    for (size_t t = firstIndex; t < c.mesh.indices.size(); t += 3)
+        std::swap(c.mesh.indices[t + 1], c.mesh.indices[t + 2]);
+    c.camera.position = {14, 12, 16};
+    c.camera.target = {0, 1, 0};
+    c.light.direction = glm::normalize(glm::vec3(0.4f, -1.0f, 0.3f));
+    std::string casting;
+    uint64_t closed = 0;
+    const test::Comparison r = closedAgainstOracle(c, casting, closed);
+    std::printf("closed boxes under a sun: %zu of %zu light-facing pixels differ from the oracle; %llu closed clusters, %s\n", r.differing,
+                r.compared, (unsigned long long)closed, casting.c_str());
+    EXPECT_GT(closed, 0u);
+    EXPECT_EQ(casting, "back faces");
+    EXPECT_GT(r.compared, 20'000u);
+    EXPECT_LE(r.fraction(), 1e-4);
+}
+
+// A camera inside a closed room lit from outside through its walls: every
+// shadow ray of what it sees leaves through a front face, so the frame casts
+// both sides and the room is dark, as the oracle says; and a camera outside
+// whose near plane cuts the room open sees the same inside.
+TEST(AliasFreeShadowMaps, ReceiversInsideAClosedMeshAreShadowed)
+{
+    ClosedCase c;
+    test::addBox(c.mesh, {-5, 0, -5}, {5, 4, 5});                 // the room, closed
+    test::addBox(c.mesh, {-1, 0, -1}, {1, 1.5f, 1});              // a closed block on its floor
+    test::addQuad(c.mesh, {-20, -0.1f, -20}, {-20, -0.1f, 20}, {20, -0.1f, 20}, {20, -0.1f, -20}); // open ground outside
+    c.light.type = LightType::Point;
+    c.light.position = {2, 12, 3};
+    c.light.intensity = 400;
+    for (int variant = 0; variant < 2; ++variant) {
+        if (variant == 0) {
+            c.camera.position = {3.5f, 3.0f, 4.0f}; // inside the room
+            c.camera.target = {-2, 0.5f, -2};
+        } else {
+            c.camera.position = {0.0f, 2.0f, 7.0f}; // outside, 2 units from the wall, near plane 2.5: the wall is cut away
+            c.camera.target = {0, 1, 0};
+            c.camera.nearPlane = 2.5f;
+        }
+        std::string casting;
+        uint64_t closed = 0;
+        const test::Comparison r = closedAgainstOracle(c, casting, closed);
+        std::printf("%s: %zu of %zu light-facing pixels differ from the oracle; %llu closed clusters, %s\n",
+                    variant == 0 ? "camera inside a closed room" : "near plane cutting a closed room", r.differing, r.compared,
+                    (unsigned long long)closed, casting.c_str());
+        EXPECT_GT(closed, 0u);
+        EXPECT_EQ(casting, "both sides (camera inside a closed mesh)");
+        EXPECT_GT(r.compared, 5'000u);
+        EXPECT_LE(r.fraction(), 1e-4);
+    }
 }
 
 TEST(AliasFreeShadowMaps, RejectsBadSettings)

@@ -207,6 +207,13 @@ struct FrameStats {
     uint64_t rhCasters = 0;
     uint32_t rhBatches = 0, rhRounds = 0;
     uint64_t rhPeakPairBytes = 0;
+    // afsm: clusters of the model flagged closed (kClusterClosed), and how they
+    // cast this frame: "back faces" (the paper's light-back-facing triangles
+    // only), "both sides" (the camera is inside a closed mesh: the rays of what
+    // it sees leave through front faces), "none closed"; open clusters cast both
+    // sides, with the tracer's ray offset (rayOffset) as the only epsilon.
+    uint64_t afsmClosedClusters = 0;
+    std::string afsmClosedCasting;
     uint64_t penumbraPixels = 0;  // pixels whose visibility of an area light is strictly between 0 and 1 (summed over lights)
     double penumbraFraction = 0;  // penumbraPixels / (coveredPixels * area lights)
     uint32_t lightSamples = 0;    // samples per pixel of area lights (0: no area light)
