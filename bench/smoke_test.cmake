@@ -1,4 +1,4 @@
-# ctest bench_quick: runs `penumbra bench SUITE` (default quick; smoke is the
+# ctest bench_smoke: runs `penumbra bench SUITE` (quick by default; ctest passes smoke, the
 # same code paths on tiny inputs), checks that every results file exists and
 # parses, and that bad options fail with one error line. No performance checks.
 #   cmake -DPENUMBRA=<penumbra binary> -DOUT=<folder> [-DSUITE=quick|smoke] -P smoke_test.cmake

@@ -27,6 +27,7 @@ target_compile_features(penumbra_formats PUBLIC cxx_std_20)
 
 # Two export sets, so that formats/preprocess users need no Vulkan: the runtime's
 # targets file is read only when the penumbra component is asked for.
+install(TARGETS penumbra-preprocess RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(TARGETS penumbra_formats penumbra_preprocess EXPORT PenumbraTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

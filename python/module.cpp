@@ -5,6 +5,7 @@
 // Lights are the CLI's strings ('spot position=0,20,0 outer_cone=30') or dicts
 // with the scene file's keys; the camera is a dict with the scene file's keys.
 // Every failure raises penumbra.Error (a RuntimeError) with the CLI's one-line message.
+#include <cstdio>
 #include <mutex>
 #include <optional>
 
@@ -17,6 +18,7 @@
 #include "penumbra/generate.h"
 #include "penumbra/penumbra.h"
 #include "penumbra/preprocess.h"
+#include "penumbra/streamed.h"
 
 namespace py = pybind11;
 using namespace pybind11::literals;
@@ -208,10 +210,52 @@ private:
     std::string statsText;
 };
 
+py::dict streamedStats(const std::string& output, const StreamedStats& stats)
+{
+    return py::dict("output"_a = output, "input_triangles"_a = stats.inputTriangles, "triangles"_a = stats.triangles,
+                    "clusters"_a = stats.clusters, "nodes"_a = stats.nodes, "chunks"_a = stats.chunks,
+                    "largest_chunk"_a = stats.largestChunk, "chunk_capacity"_a = stats.chunkCapacity,
+                    "bvh_depth"_a = stats.bvhDepth, "max_position_error"_a = stats.maxPositionError,
+                    "bytes"_a = stats.fileBytes, "temporary_bytes"_a = stats.temporaryBytes,
+                    "closed_triangles"_a = stats.closedTriangles, "closed_cluster_triangles"_a = stats.closedClusterTriangles,
+                    "vertex_cache_hit_rate"_a = stats.vertexCacheHitRate, "seconds"_a = stats.totalSeconds);
+}
+
 py::dict preprocessFile(const std::filesystem::path& inputPath, const std::filesystem::path& outputPath, float simplify, uint32_t clusterVertices,
-                        uint32_t clusterTriangles, uint32_t leafTriangles, unsigned threads, bool separateClosed)
+                        uint32_t clusterTriangles, uint32_t leafTriangles, unsigned threads, bool separateClosed, uint64_t memoryLimit,
+                        const std::string& tempDir, const std::string& chunk)
 {
     const std::string input = inputPath.string(), output = outputPath.string();
+    if (memoryLimit > 0 || !chunk.empty()) {
+        // Streamed (preprocess --memory-limit) or one chunk of a distributed build (--chunk I/N).
+        if (simplify != 1.0f)
+            fail("simplify", "cannot be combined with memory_limit or chunk (simplification needs the whole mesh in memory)");
+        if (chunk.empty() && !endsWith(output, ".penumbra"))
+            fail(output, "the output must end in .penumbra");
+        StreamedOptions options;
+        options.build.maxClusterVertices = clusterVertices;
+        options.build.maxClusterTriangles = clusterTriangles;
+        options.build.maxLeafTriangles = leafTriangles;
+        options.build.threads = threads;
+        options.build.separateClosed = separateClosed;
+        options.memoryLimit = (memoryLimit ? memoryLimit : 1024) << 20;
+        options.tempDirectory = tempDir;
+        StreamedStats stats;
+        {
+            py::gil_scoped_release unlocked;
+            if (chunk.empty()) {
+                stats = preprocessStreamed(input, output, options);
+            } else {
+                unsigned long long index = 0, count = 0;
+                char slash = 0, extra = 0;
+                if (std::sscanf(chunk.c_str(), "%llu%c%llu%c", &index, &slash, &count, &extra) != 3 || slash != '/' ||
+                    count == 0 || index >= count)
+                    fail("chunk " + chunk, "expected 'I/N' with 0 <= I < N");
+                stats = preprocessChunk(input, output, uint32_t(index), uint32_t(count), options);
+            }
+        }
+        return streamedStats(output, stats);
+    }
     if (!endsWith(output, ".penumbra"))
         fail(output, "the output must end in .penumbra");
     if (!(simplify > 0.0f && simplify <= 1.0f))
@@ -325,8 +369,29 @@ def render(model, size=(1024, 1024), shadows="srt", camera=None, lights=None, gr
           py::arg("cluster_vertices") = PreprocessOptions{}.maxClusterVertices,
           py::arg("cluster_triangles") = PreprocessOptions{}.maxClusterTriangles,
           py::arg("leaf_triangles") = PreprocessOptions{}.maxLeafTriangles, py::arg("threads") = 0u,
-          py::arg("separate_closed") = PreprocessOptions{}.separateClosed,
-          "Compresses a model file into a .penumbra file (as `penumbra preprocess`); returns the build's stats as a dict");
+          py::arg("separate_closed") = PreprocessOptions{}.separateClosed, py::arg("memory_limit") = uint64_t(0),
+          py::arg("temp_dir") = std::string(), py::arg("chunk") = std::string(),
+          "Compresses a model file into a .penumbra file (as `penumbra preprocess`); returns the build's stats as a dict. "
+          "memory_limit (MiB): a streamed build within that memory (--memory-limit); chunk='I/N': write chunk I of N "
+          "of a distributed build to output (--chunk), joined by merge()");
+    m.def(
+        "merge",
+        [](const std::vector<std::filesystem::path>& chunks, const std::filesystem::path& outputPath) {
+            const std::string output = outputPath.string();
+            if (!endsWith(output, ".penumbra"))
+                fail(output, "the output must end in .penumbra");
+            std::vector<std::string> paths;
+            for (const auto& chunk : chunks)
+                paths.push_back(chunk.string());
+            StreamedStats stats;
+            {
+                py::gil_scoped_release unlocked;
+                stats = mergeChunkFiles(paths, output, {});
+            }
+            return streamedStats(output, stats);
+        },
+        py::arg("chunks"), py::arg("output"),
+        "Joins the chunk files of preprocess(..., chunk='I/N') into a .penumbra file (as `penumbra merge`)");
     m.def(
         "generate",
         [](const std::string& name, const std::filesystem::path& path, uint64_t triangles, uint64_t seed) {
@@ -336,7 +401,8 @@ def render(model, size=(1024, 1024), shadows="srt", camera=None, lights=None, gr
             GenerateOptions options;
             options.triangles = triangles;
             options.seed = seed;
-            exportScene(generateScene(name, options), output);
+            if (!writeSceneStreamed(name, options, output, true)) // the scan as binary PLY: row by row
+                exportScene(generateScene(name, options), output);
         },
         py::arg("name"), py::arg("output"), py::kw_only(), py::arg("triangles") = GenerateOptions{}.triangles,
         py::arg("seed") = GenerateOptions{}.seed,

@@ -20,6 +20,8 @@
 // get visibility 0 and no rays.
 
 #include "config.h"
+layout(constant_id = 1) const uint kLightType = PENUMBRA_LIGHT_SPHERE; // rectangle, disk or sphere
+#define PENUMBRA_LIGHT_TYPE kLightType
 #include "shadow_common.glsli"
 #include "penumbra_mask.glsli"
 
@@ -28,10 +30,14 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 #include "pixel_bindings.glsli"
 #include "classify_bindings.glsli"
 
+// One pipeline per mode: llvmpipe runs every branch masked, so a mode read
+// from the push constants would pay for all five.
+layout(constant_id = 0) const uint kMode = PENUMBRA_SOFT_ALL; // push.mode
+
 layout(push_constant) uniform ClassifySoftPush {
     uint lightIndex;
     uint slot;       // map of the light
-    uint mode;       // PENUMBRA_SOFT_* (see above)
+    uint mode;       // PENUMBRA_SOFT_* (see above; = kMode)
     uint first;      // AVERAGE: 1 for the first map (writes instead of adding; counts pixels)
     float weight;    // AVERAGE: 1 / K
     uint mapSize;
@@ -44,29 +50,25 @@ layout(push_constant) uniform ClassifySoftPush {
 // map; thin triangles' splats do not apply to it (penumbra_mask.comp.glsl).
 bool mapHides(LightData light, ShadowLookup s)
 {
-    ivec2 size = textureSize(shadowMap, 0).xy;
-    float deepest = 0.0;
-    for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx)
-            deepest = max(deepest, texelFetch(shadowMap, ivec3(clamp(s.texel + ivec2(dx, dy), ivec2(0), size - 1), 0), 0).r);
+    // Four gathers (the sampler clamps to the edge) instead of nine fetches.
+    vec2 texelSize = 1.0 / vec2(textureSize(shadowMap, 0).xy);
+    vec2 corner = vec2(s.texel) * texelSize;
+    vec4 q = max(max(textureGather(shadowMap, vec3(corner, 0.0)), textureGather(shadowMap, vec3(corner + vec2(texelSize.x, 0.0), 0.0))),
+                 max(textureGather(shadowMap, vec3(corner + vec2(0.0, texelSize.y), 0.0)), textureGather(shadowMap, vec3(corner + texelSize, 0.0))));
+    float deepest = max(max(q.x, q.y), max(q.z, q.w));
     float threshold = frame.pip.x * (lightMapRange(light, push.slot).x - lightMapEye(light, push.slot).w);
     return areaMapLinearDepth(light, push.slot, s.depth) > areaMapLinearDepth(light, push.slot, deepest) + threshold;
 }
 
 // Some splat of `kind` (0: depth discontinuities, 1: thin triangles) over texel
-// t, on any level, reaches light-view depth `depth`.
+// t, on any level, reaches light-view depth `depth`: level 1 holds the
+// minimum over the levels above it (penumbra_mask.comp.glsl pushes them down).
 bool splatReaches(uint kind, uvec2 t, float depth)
 {
-    uint offset = 0u;
-    for (uint level = 0u; level <= push.topLevel; ++level) {
-        uint size = maskLevelSize(push.mapSize, level);
-        uvec2 c = t >> level;
-        uint texel = offset + c.y * size + c.x;
-        if (depth >= uintBitsToFloat(kind == 0u ? mask[1u + texel] : thinMask[texel]))
-            return true;
-        offset += size * size;
-    }
-    return false;
+    uint S = push.mapSize;
+    uint texel0 = t.y * S + t.x, texel1 = S * S + (t.y >> 1u) * maskLevelSize(S, 1u) + (t.x >> 1u);
+    uint nearest = kind == 0u ? min(mask[1u + texel0], mask[1u + texel1]) : min(thinMask[texel0], thinMask[texel1]);
+    return depth >= uintBitsToFloat(nearest);
 }
 
 // In the penumbra mask of the map: some splat over the pixel's texel reaches
@@ -100,7 +102,7 @@ uvec2 classifyPixel()
     ivec2 size = textureSize(shadowMap, 0).xy;
     ShadowLookup s = projectToAreaMap(light, push.slot, p, size);
 
-    if (push.mode == PENUMBRA_SOFT_AVERAGE) {
+    if (kMode == PENUMBRA_SOFT_AVERAGE) {
         // One point-light shadow map of K: the point must be above the pixel's plane.
         vec3 eye = lightMapEye(light, push.slot).xyz;
         bool lit = reached && dot(n, eye - p) > 0.0 && s.inside && s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r;
@@ -110,7 +112,7 @@ uvec2 classifyPixel()
             marks[index] = 0u;
         return uvec2(push.first, 0u);
     }
-    if (push.mode == PENUMBRA_SOFT_RECEIVERS) {
+    if (kMode == PENUMBRA_SOFT_RECEIVERS) {
         if (reached && s.inside) {
             uint tiles = (push.mapSize + PENUMBRA_RECEIVER_TILE - 1u) / PENUMBRA_RECEIVER_TILE;
             uvec2 tile = uvec2(s.texel) / PENUMBRA_RECEIVER_TILE;
@@ -121,14 +123,14 @@ uvec2 classifyPixel()
         }
         return uvec2(0u);
     }
-    if (push.mode == PENUMBRA_SOFT_CORNER_MASK) {
+    if (kMode == PENUMBRA_SOFT_CORNER_MASK) {
         if (reached && (!s.inside || inMask(light, s)))
             marks[index] = 1u;
         return uvec2(0u);
     }
     bool mark;
     float visibility = 0.0;
-    if (push.mode == PENUMBRA_SOFT_ALL)
+    if (kMode == PENUMBRA_SOFT_ALL)
         mark = reached;
     else {
         // The shadow map's own umbra/lit boundary is as uncertain as for hard shadows (3.1): the
@@ -167,7 +169,7 @@ void main()
     uint index = uint(pixel.y * size.x + pixel.x);
     ivec2 texel = pixel * textureSize(shadowMap, 0).xy / size;
     float depth = texelFetch(shadowMap, ivec3(texel, 0), 0).r;
-    uint maskWord = push.mode == PENUMBRA_SOFT_AVERAGE ? 0u : mask[(uint(texel.y) * push.mapSize + uint(texel.x)) >> 5u];
+    uint maskWord = kMode == PENUMBRA_SOFT_AVERAGE ? 0u : mask[(uint(texel.y) * push.mapSize + uint(texel.x)) >> 5u];
     sum += depth + uintBitsToFloat(maskWord) + frame.lights[push.lightIndex].positionType.x;
     // The averaged visibility and the marks are read back by later maps: written unchanged.
     vec4 visibility = imageLoad(visibilityImage, pixel);

@@ -23,20 +23,21 @@ layout(push_constant) uniform CompactPush {
     uint pixelCount;
     uint phase;   // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
     uint width;   // of the image (pixelCount = width x height)
-    uint pad;
+    uint height;  // of the image
 } push;
 
-// Invocation i visits the pixels in 8x8 tiles (row by row inside a tile), so
-// the rays of a SIMD register of the tracer come from one tile: neighbouring
-// points, coherent rays (the list keeps this order). Returns the pixel index,
-// or ~0u outside the image.
-uint tilePixel(uint i)
+// Each workgroup covers four 8x8 tiles side by side (workgroup (x, y): tiles
+// 4x .. 4x + 3 of tile row y), row by row inside a tile, so the rays of a SIMD
+// register of the tracer come from one tile: neighbouring points, coherent
+// rays (the list keeps this order). No integer division: llvmpipe runs it per
+// lane, three of them cost more than the rest of the pass. Returns the pixel
+// index, or ~0u outside the image.
+uint tilePixel()
 {
-    uint tilesX = (push.width + 7u) >> 3;
-    uint tile = i >> 6, inside = i & 63u;
-    uint x = (tile % tilesX) * 8u + (inside & 7u), y = (tile / tilesX) * 8u + (inside >> 3);
-    uint height = push.pixelCount / max(push.width, 1u);
-    return x < push.width && y < height ? y * push.width + x : ~0u;
+    uint inside = gl_LocalInvocationID.x & 63u;
+    uint x = (gl_WorkGroupID.x * 4u + (gl_LocalInvocationID.x >> 6)) * 8u + (inside & 7u);
+    uint y = gl_WorkGroupID.y * 8u + (inside >> 3);
+    return x < push.width && y < push.height ? y * push.width + x : ~0u;
 }
 
 #ifdef PENUMBRA_FLOOR
@@ -66,7 +67,7 @@ void main()
         atomicAdd(stats[PENUMBRA_STAT_PIP], uint64_t(rays[0]));
         return;
     }
-    uint i = tilePixel((gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * PENUMBRA_COMPACT_GROUP_SIZE + gl_LocalInvocationID.x);
+    uint i = tilePixel();
     bool marked = i != ~0u && marks[i] != 0u;
     uvec4 ballot = subgroupBallot(marked);
     uint total = subgroupBallotBitCount(ballot);

@@ -22,6 +22,9 @@
 #define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: rays per workgroup
 #define PENUMBRA_TRACE_STACK_SIZE 100    // BVH traversal stack entries (3 x model::kMaxBvhDepth + 4: 4-wide nodes)
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
+#define PENUMBRA_VIEW_FIT_BLOCK_CPU 16   // view_fit.comp on a CPU device: pixels a side of each invocation's block (its
+                                         // subgroup reductions are loops over the lanes: 1024^2 tiny model 13.6 -> 8.3 ms CPU against 4)
+#define PENUMBRA_VIEW_FIT_BLOCK_GPU 4    // ... on a GPU: more invocations
 #define PENUMBRA_AFSM_SCAN_GROUP 256     // afsm_scan.comp: invocations per workgroup (16 counts each)
 #define PENUMBRA_AFSM_MAX_GRID 4096      // afsm: most grid cells per side (one level of block totals in the scan)
 #define PENUMBRA_AFSM_MIN_SAMPLES 128    // afsm soft shadows: fewest light samples (bits per view sample; section 4.2)
@@ -31,11 +34,14 @@
 #define PENUMBRA_AFSM_BIN_GROUP 64       // afsm_bin.comp: BVH nodes per workgroup (their leaves then decoded one per invocation)
 #define PENUMBRA_AFSM_COMPUTE_CELLS 16.0 // afsm: casters whose grown rectangle spans at most this many grid cells are tested in compute
 #define PENUMBRA_AFSM_COMPUTE_BUDGET 384u // ... when their cells and samples take at most this many loop iterations (lavapipe: 65535 per invocation)
-#define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: pairs or nodes per workgroup
+#define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: records or nodes per workgroup
 #define PENUMBRA_RH_MAX_LEVELS 16        // rh: most levels of a cone hierarchy (4^15 leaves: far more than any image's rays)
-#define PENUMBRA_RH_SORT_ORDER 10u      // rh sorted: direction keys on a 2^10 x 2^10 Hilbert grid per layer
-#define PENUMBRA_RH_SORT_CELLS 1024u     // 2^PENUMBRA_RH_SORT_ORDER
-#define PENUMBRA_RH_MIN_ANGLE 1.0e-4     // rh: smallest cone half-angle (radians); the apex moves back by offset / sin(angle)
+#define PENUMBRA_RH_MAX_SORT_ORDER 10u   // rh sorted: at most 2^10 x 2^10 Hilbert cells per face (about 2 cells per pixel's ray, rh.cpp)
+#define PENUMBRA_RH_SORT_SAVING 40.0    // rh --rh-sort auto: cone tests sorting saves a caster per unit of 1 + incoherence (rh_build.comp)
+#define PENUMBRA_RH_SORT_COST 3.0       // rh --rh-sort auto: the sort's cost per ray, in cone tests' time
+#define PENUMBRA_RH_FACE_SPLIT 24u      // rh sorted point lights: each face starts on a subtree of at most 1/24 of the rays (rh_build.comp)
+#define PENUMBRA_RH_MAX_INCOHERENCE 4096.0 // rh: one tile's incoherence counts at most this much
+#define PENUMBRA_RH_MAX_DEPTH_ORDER 9u   // rh: the receivers' depth grid per face: up to 2^9 cells a side (about 4 cells per ray, rh.cpp)
 #define PENUMBRA_PIP_DELTA_FRACTION 0.002 // PIP: depth discontinuity threshold, fraction of the light's depth range
 #define PENUMBRA_CULL_GROUP_SIZE 64     // cull_predicates.comp: draw commands per workgroup
 #define PENUMBRA_CULL_GROUP_CLUSTERS 64 // occlusion culling: largest BVH subtree (clusters) without history queried with one box
@@ -81,14 +87,21 @@
 #define PENUMBRA_AFSM_TABLE_SAMPLES 0u   // the light samples' 2-D positions (penumbra/light_sampling.h)
 #define PENUMBRA_AFSM_TABLE_MASKS 1u     // per (angle, distance) entry, the bitmask of the samples in front of the line
 // rh_rays.comp.glsl modes.
-#define PENUMBRA_RH_RAYS_COUNT 0u        // each tile's padded ray count at its Morton index
-#define PENUMBRA_RH_RAYS_LIST 1u         // after the scan: the rays at their tile's offset
-#define PENUMBRA_RH_RAYS_SORT_COUNT 2u   // sorted (section 3.5): rays per direction key
-#define PENUMBRA_RH_RAYS_SORT_LIST 3u    // after the scan: each ray at its key's next slot
+#define PENUMBRA_RH_RAYS_COUNT 0u        // each tile's padded ray count at its Morton index (and its incoherence)
+#define PENUMBRA_RH_RAYS_KEYS 1u         // sorted (section 3.5): rays per direction key
+#define PENUMBRA_RH_RAYS_LIST 2u         // after the scan: the rays at their key's next slot, or at their tile's offset
 // rh_build.comp.glsl modes.
-#define PENUMBRA_RH_BUILD_INIT 0u        // the hierarchy's levels from the ray count (one invocation)
-#define PENUMBRA_RH_BUILD_LEAVES 1u      // leaves: cones of 4 consecutive rays
-#define PENUMBRA_RH_BUILD_LEVEL 2u       // a level from the 4 children of each node
+#define PENUMBRA_RH_BUILD_DECIDE 0u      // whether to sort, and the sort's indirect dispatches (one invocation)
+#define PENUMBRA_RH_BUILD_INIT 1u        // the hierarchy's levels from the ray count (one invocation)
+#define PENUMBRA_RH_BUILD_LEAVES 2u      // leaves: cones (slabs) of 4 consecutive rays
+#define PENUMBRA_RH_BUILD_LEVEL 3u       // a level from the 4 children of each node
+#define PENUMBRA_RH_BUILD_RESOLVE 4u     // early accept: the rays under covered nodes shadowed
+#define PENUMBRA_RH_BUILD_FACES 5u       // sorted: each face of the list aligned to whole subtrees (one invocation)
+#define PENUMBRA_RH_BUILD_GRID 6u        // a level of the receivers' depth grid from the one below
+// RenderSettings::rhSort, pushed to rh_build.comp's decide mode.
+#define PENUMBRA_RH_SORT_OFF 0u
+#define PENUMBRA_RH_SORT_ON 1u
+#define PENUMBRA_RH_SORT_AUTO 2u
 // rh_casters.geom.glsl: which casters a batch gathers.
 #define PENUMBRA_RH_CASTERS_ALL 0u       // every caster
 #define PENUMBRA_RH_CASTERS_LARGE 1u     // two-pass traversal, first pass: the large ones (good occluders)
@@ -107,8 +120,11 @@
 #define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list
 #define PENUMBRA_COMPACT_DISPATCH 1u     // the tracer's indirect dispatch size from the list's count
 // penumbra_mask.comp.glsl: values of its push constant `level` past the reductions' levels.
-#define PENUMBRA_MASK_WRITE_DISPATCH 0xFFFFFFFEu // write the splat jobs' indirect dispatch size
-#define PENUMBRA_MASK_SPLAT_JOBS 0xFFFFFFFFu     // splat the listed jobs
+#define PENUMBRA_MASK_STAGE_EDGES 0u          // penumbra_mask.comp stages: edges of the map, level 0 -> 1
+#define PENUMBRA_MASK_STAGE_REDUCE 1u         // a level of the min-depth pyramid, level -> level + 1
+#define PENUMBRA_MASK_STAGE_WRITE_DISPATCH 2u // write the splat jobs' indirect dispatch size
+#define PENUMBRA_MASK_STAGE_SPLAT 3u          // splat the listed jobs
+#define PENUMBRA_MASK_STAGE_PUSH_DOWN 4u      // a mask level's minimum into the finer level, level + 1 -> level
 
 // Counters of one frame (std430 uint64_t array, atomically accumulated).
 #define PENUMBRA_STAT_RAYS 0             // rays traced

@@ -33,14 +33,16 @@
 // on the float bits): lambda, the smallest scale at which the dilated polygon
 // touches the texel, from the separating axes; then with k = lambda kmax,
 // d >= (z - k Rbig) / (1 - k). A pixel is in the mask when its depth in the
-// map is at least the value of its texel on some level.
+// map is at least the value of its texel on some level: a last stage pushes
+// each level's minimum down to the finer one (PENUMBRA_MASK_STAGE_PUSH_DOWN,
+// coarsest first, as far as level 1), so a pixel reads two values.
 //
-// level == 0: edge pass, one invocation per level-1 texel (its 2x2 children);
-// writes the level-1 minimum. level >= 1: the children at `level` of one
+// PENUMBRA_MASK_STAGE_EDGES: one invocation per level-1 texel (its 2x2 children);
+// writes the level-1 minimum. PENUMBRA_MASK_STAGE_REDUCE: the children at `level` of one
 // level+1 texel; writes the level+1 minimum. Both append the blocks that
 // splat (and the top level's) to a job list: splats vary in cost, so they run
-// in a pass of their own over the dense list (level == PENUMBRA_MASK_SPLAT_JOBS, dispatched
-// indirectly; PENUMBRA_MASK_WRITE_DISPATCH writes its size) rather than idling the
+// in a pass of their own over the dense list (PENUMBRA_MASK_STAGE_SPLAT, dispatched
+// indirectly; PENUMBRA_MASK_STAGE_WRITE_DISPATCH writes its size) rather than idling the
 // neighbouring invocations of a SIMD group.
 // Splats skip regions where no camera pixel lies behind the occluder (the
 // receivers buffer, written by classify_soft mode 4 before this pass), and
@@ -61,6 +63,15 @@
 #include "penumbra_mask.glsli"
 
 layout(local_size_x = PENUMBRA_MASK_GROUP_SIZE, local_size_y = PENUMBRA_MASK_GROUP_SIZE) in;
+
+// One pipeline per stage, light type and thin-triangle use: llvmpipe runs
+// every branch of a shader masked, so a stage chosen by a push constant would
+// pay for the splat code in every reduction invocation (and for all three
+// light shapes in every splat).
+layout(constant_id = 0) const uint kStage = PENUMBRA_MASK_STAGE_EDGES; // PENUMBRA_MASK_STAGE_*
+layout(constant_id = 1) const uint kLightType = PENUMBRA_LIGHT_SPHERE;  // rectangle, disk or sphere
+layout(constant_id = 2) const uint kUseThin = 0u;                       // push.useThin
+const uint kKinds = kUseThin != 0u ? 2u : 1u; // edge kinds that can splat: discontinuities, thin triangles
 
 layout(set = 0, binding = 0) uniform sampler2DArray shadowMap;
 layout(set = 0, binding = 1, r32ui) uniform readonly uimage2DArray thinMap; // last layer: per-texel sliver depths
@@ -83,10 +94,10 @@ layout(push_constant) uniform MaskPush {
     mat4 invViewProj;  // inverse of the map's viewProj
     uint lightIndex;
     uint slot;         // which map of the light (viewProj[slot], mapEye[slot])
-    uint level;        // 0: edge pass; else the source level of this reduction; or PENUMBRA_MASK_WRITE_DISPATCH, PENUMBRA_MASK_SPLAT_JOBS
+    uint level;        // STAGE_EDGES: 0; STAGE_REDUCE: the source level of this reduction
     uint mapSize;      // texels per side
     uint topLevel;     // level of size 1
-    uint useThin;      // 1: thin triangles (thin map) are edges too
+    uint useThin;      // 1: thin triangles (thin map) are edges too (= kUseThin)
     float edgeDelta;   // depth discontinuity threshold, model units
     uint maxJobs;      // capacity of the job list
 } push;
@@ -163,7 +174,7 @@ void splat(uvec2 c, uint level, float z, uint kind)
     vec3 e = world.xyz / world.w - eye;
     float k = kMax(z);
     vec3 toCentre = gLight.positionType.xyz - eye;
-    uint type = uint(gLight.positionType.w);
+    const uint type = kLightType;
 
     vec3 corners[8];
     uint count = 8u;
@@ -281,33 +292,48 @@ float linearDepth(float ndc)
     return gFar * gNear / (gFar - ndc * (gFar - gNear));
 }
 
+// The 4x4 map depths around the 2x2 level-0 children of level-1 texel p
+// (texels 2p - 1 .. 2p + 2 per axis, clamped to the map as texelFetch would:
+// the sampler clamps to the edge), as four rows, from four gathers (a gather
+// costs about what one fetch does on llvmpipe; nine fetches per child cost
+// 2.2x more).
+void loadBlock(uvec2 p, out vec4 rows[4])
+{
+    vec2 texelSize = 1.0 / vec2(float(push.mapSize));
+    vec2 corner = vec2(2u * p) * texelSize; // gather footprint: the texels either side of each corner coordinate
+    vec4 g00 = textureGather(shadowMap, vec3(corner, 0.0));
+    vec4 g10 = textureGather(shadowMap, vec3(corner + vec2(2.0 * texelSize.x, 0.0), 0.0));
+    vec4 g01 = textureGather(shadowMap, vec3(corner + vec2(0.0, 2.0 * texelSize.y), 0.0));
+    vec4 g11 = textureGather(shadowMap, vec3(corner + 2.0 * texelSize, 0.0));
+    // Gather components: w (i0, j0), z (i1, j0), x (i0, j1), y (i1, j1).
+    rows[0] = vec4(g00.w, g00.z, g10.w, g10.z);
+    rows[1] = vec4(g00.x, g00.y, g10.x, g10.y);
+    rows[2] = vec4(g01.w, g01.z, g11.w, g11.z);
+    rows[3] = vec4(g01.x, g01.y, g11.x, g11.y);
+}
+
 // Level 0: the depth of texel t when it is the near side of an edge (it
 // occludes, so it splats), else kNoEdge; x: depth discontinuities, y: thin
-// triangles. An edge is a depth discontinuity: a
+// triangles. r0, r1, r2: the map depths of its 3x3 neighbourhood, rows
+// y - 1, y, y + 1. An edge is a depth discontinuity: a
 // neighbour of the 3x3 neighbourhood deeper by more than the threshold, where
 // the depths are not the slope of one plane. NDC depth is affine in the texel
 // coordinates over a plane, so its second difference along each of the four
 // lines through the centre vanishes there (receivers seen at grazing angles
 // are no edges); it is scaled back to model units with the derivative of
 // linear depth by NDC depth at the centre. The far side of an edge does not
-// splat: its occluder is the neighbour, which does.
-vec2 edgeDepths(ivec2 t)
+// splat: its occluder is the neighbour, which does. linearDepth is monotonic
+// (in floating point too), so the largest and smallest linear depths of the
+// nine are those of the largest and smallest map depths.
+vec2 edgeDepths(ivec2 t, vec3 r0, vec3 r1, vec3 r2)
 {
-    int S = int(push.mapSize);
-    float d[9];
-    for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-            ivec2 n = clamp(t + ivec2(dx, dy), ivec2(0), ivec2(S - 1));
-            d[(dy + 1) * 3 + dx + 1] = texelFetch(shadowMap, ivec3(n, 0), 0).r;
-        }
-    float centre = d[4];
+    float centre = r1.y;
     float zc = linearDepth(centre);
-    float deeper = 0.0;
-    for (int i = 0; i < 9; ++i)
-        deeper = max(deeper, linearDepth(d[i]) - zc);
+    vec3 hi3 = max(max(r0, r1), r2), lo3 = min(min(r0, r1), r2);
+    float deeper = max(linearDepth(max(max(hi3.x, hi3.y), hi3.z)) - zc, 0.0);
     float scale = zc * zc * (gFar - gNear) / (gFar * gNear);
-    float bend = max(max(abs(d[3] + d[5] - 2.0 * centre), abs(d[1] + d[7] - 2.0 * centre)),
-                     max(abs(d[0] + d[8] - 2.0 * centre), abs(d[2] + d[6] - 2.0 * centre)));
+    float bend = max(max(abs(r1.x + r1.z - 2.0 * centre), abs(r0.y + r2.y - 2.0 * centre)),
+                     max(abs(r0.x + r2.z - 2.0 * centre), abs(r0.z + r2.x - 2.0 * centre)));
     vec2 edges = vec2(deeper > push.edgeDelta && bend * scale > push.edgeDelta ? zc : kNoEdge, kNoEdge);
     // A thin triangle is an edge where it lies in front of everything the map
     // sampled around it: an occluder the rasterizer dropped (slivers of
@@ -315,12 +341,10 @@ vec2 edgeDepths(ivec2 t)
     // threshold: a thin occluder just above a surface (a railing's bars near
     // the ground) has a penumbra there too, and its splats reach only the
     // pixels the map does not hide (the second mask).
-    if (push.useThin != 0u) {
+    if (kUseThin != 0u) {
         // The last layer: each texel's own depth of the slivers over it (thin_triangles.comp.glsl).
         float thin = linearDepth(uintBitsToFloat(imageLoad(thinMap, ivec3(t, imageSize(thinMap).z - 1)).r));
-        float nearest = zc;
-        for (int i = 0; i < 9; ++i)
-            nearest = min(nearest, linearDepth(d[i]));
+        float nearest = min(zc, linearDepth(min(min(lo3.x, lo3.y), lo3.z)));
         if (thin < nearest)
             edges.y = thin;
     }
@@ -356,7 +380,7 @@ void main()
     gTexelAngle = lightMapRange(gLight, push.slot).y / float(push.mapSize);
     uint S = push.mapSize;
 
-    if (push.level == PENUMBRA_MASK_WRITE_DISPATCH) {
+    if (kStage == PENUMBRA_MASK_STAGE_WRITE_DISPATCH) {
         if (gl_GlobalInvocationID.x == 0u && gl_GlobalInvocationID.y == 0u) {
             uint groups = (min(jobCount, push.maxJobs) + 63u) / 64u;
             uint x = min(groups, 65535u);
@@ -366,7 +390,20 @@ void main()
         }
         return;
     }
-    if (push.level == PENUMBRA_MASK_SPLAT_JOBS) {
+    if (kStage == PENUMBRA_MASK_STAGE_PUSH_DOWN) {
+        uint size = maskLevelSize(S, push.level), parentSize = maskLevelSize(S, push.level + 1u);
+        uvec2 t = gl_GlobalInvocationID.xy;
+        if (t.x >= size || t.y >= size)
+            return;
+        uint texel = maskLevelOffset(S, push.level) + t.y * size + t.x;
+        uint parent = maskLevelOffset(S, push.level + 1u) + (t.y >> 1u) * parentSize + (t.x >> 1u);
+        // Non-negative float bits order as the floats do (+inf: not reached).
+        mask[1u + texel] = min(mask[1u + texel], mask[1u + parent]);
+        if (kUseThin != 0u)
+            thinMask[texel] = min(thinMask[texel], thinMask[parent]);
+        return;
+    }
+    if (kStage == PENUMBRA_MASK_STAGE_SPLAT) {
         uint index = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u + gl_LocalInvocationIndex;
         if (index >= min(jobCount, push.maxJobs))
             return;
@@ -381,23 +418,32 @@ void main()
     bool inside = p.x < parentSize && p.y < parentSize;
     uint childSize = maskLevelSize(S, push.level);
     vec2 nearest = vec2(kNoEdge);
+    vec4 rows[4];
+    if (kStage == PENUMBRA_MASK_STAGE_EDGES)
+        loadBlock(p, rows);
     for (uint j = 0u; j < 4u; ++j) {
         uvec2 c = p * 2u + uvec2(j & 1u, j >> 1u);
         vec2 z = vec2(kNoEdge);
-        if (inside && c.x < childSize && c.y < childSize)
-            z = push.level == 0u ? edgeDepths(ivec2(c))
-                                 : vec2(pyramid[pyramidIndex(S, 0u, push.level, c)], pyramid[pyramidIndex(S, 1u, push.level, c)]);
+        if (inside && c.x < childSize && c.y < childSize) {
+            if (kStage == PENUMBRA_MASK_STAGE_EDGES) {
+                // Rows y - 1 .. y + 1 of child c and its columns x - 1 .. x + 1 (selects, not indexing).
+                bool right = (j & 1u) != 0u, up = j >= 2u;
+                vec4 a = up ? rows[1] : rows[0], b = up ? rows[2] : rows[1], d = up ? rows[3] : rows[2];
+                z = edgeDepths(ivec2(c), right ? a.yzw : a.xyz, right ? b.yzw : b.xyz, right ? d.yzw : d.xyz);
+            } else
+                z = vec2(pyramid[pyramidIndex(S, 0u, push.level, c)], pyramid[pyramidIndex(S, 1u, push.level, c)]);
+        }
         nearest = min(nearest, z);
-        for (uint kind = 0u; kind < 2u; ++kind) {
+        for (uint kind = 0u; kind < kKinds; ++kind) {
             float r = z[kind] < kNoEdge ? splatRadius(z[kind], push.level) : 0.0;
-            appendJob(z[kind] < kNoEdge && (push.level == 0u ? r < 4.0 : (r >= 2.0 && r < 4.0)), c, push.level, z[kind], kind);
+            appendJob(z[kind] < kNoEdge && (kStage == PENUMBRA_MASK_STAGE_EDGES ? r < 4.0 : (r >= 2.0 && r < 4.0)), c, push.level, z[kind], kind);
         }
     }
     if (inside) {
         pyramid[pyramidIndex(S, 0u, parentLevel, p)] = nearest.x;
         pyramid[pyramidIndex(S, 1u, parentLevel, p)] = nearest.y;
     }
-    for (uint kind = 0u; kind < 2u; ++kind)
+    for (uint kind = 0u; kind < kKinds; ++kind)
         appendJob(inside && parentLevel == push.topLevel && nearest[kind] < kNoEdge && splatRadius(nearest[kind], parentLevel) >= 2.0, p,
                   parentLevel, nearest[kind], kind);
 }

@@ -1,34 +1,49 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 #extension GL_EXT_shader_atomic_int64 : require
-#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
-// Cone ray hierarchies, the rays of one layer of the light (rh.glsli): every
-// light-facing pixel whose point lies in the layer (a point light's cube
-// face by the major axis of its direction from the light; inside a spot
-// light's cone) is listed. Each 8x8 tile lists its rays in Morton order, its
-// range padded to a multiple of 4 with RH_NO_RAY, so the hierarchy's leaves
-// (4 consecutive rays) never span two tiles and are 2x2 blocks of pixels
-// where all four are lit; the tiles follow each other in Morton order too
-// (push.mode: PENUMBRA_RH_RAYS_COUNT writes each tile's padded count at its
-// Morton index, afsm_scan.comp turns the counts into offsets, then
-// PENUMBRA_RH_RAYS_LIST writes the rays there), so the levels above are
-// quads of tiles: the screen-space hierarchy of the paper's unsorted
-// variant. The sorted variant (section 3.5) lists the rays by direction
-// instead: the ray's point in the layer's projection from the light (a cube
-// face, or the spot's cone) falls in one cell of a 1024 x 1024 grid, whose
-// index on a Hilbert curve is the ray's key; a counting sort over the keys
-// (PENUMBRA_RH_RAYS_SORT_COUNT: rays per key, afsm_scan.comp: offsets,
-// PENUMBRA_RH_RAYS_SORT_LIST: each ray at its key's next slot) puts rays of
-// one cell together in any order, and the cells along the curve. A cell is
-// 0.09 degrees of a cube face: about a pixel's angle at 1024^2, so the order
-// inside a cell costs little. The ray itself is never stored: rh_build and
-// rh_traverse rebuild it from the G-buffer and the light.
+// Cone ray hierarchies, the rays of one light (rh.glsli): every light-facing
+// pixel the light reaches (a spot light: inside its frustum) is a ray. One
+// workgroup per 8x8 tile, its pixels in Morton order (4 consecutive
+// invocations are a 2x2 block). Modes (push.mode):
+//  PENUMBRA_RH_RAYS_COUNT: each tile's ray count, padded to a multiple of 4,
+//    at the tile's Morton index (rh_scan.comp turns the counts into offsets);
+//    the receivers' depth grid (rh.glsli);
+//    with push.measure, the tile's incoherence for the per-frame choice of
+//    order (below);
+//  PENUMBRA_RH_RAYS_KEYS: the rays per direction key and per face
+//    (dispatched only when the rays are sorted; rh_scan.comp turns the
+//    counts into each key's first slot, rh_build.comp's faces mode moves
+//    each face to the start of a whole subtree, padding the one before);
+//  PENUMBRA_RH_RAYS_LIST: the rays listed: sorted, each at its key's next
+//    slot (the keys in order; a key's rays from one subgroup together, in
+//    pixel order, the subgroups' in any order), moved by its face's shift; else at their
+//    tile's offset, in Morton order, the tile padded with RH_NO_RAY, so the
+//    hierarchy's leaves are 2x2 blocks and the levels above quads of tiles
+//    (the paper's screen-space hierarchy).
+// The key (section 3.5): a point light's ray falls on the face of its
+// direction's major axis, a spot or directional light's in its shadow-map
+// projection; the face is split into 2^order x 2^order cells, and the key is
+// the face and the cell's index on a Hilbert curve. The ray itself is never
+// stored: rh_build and rh_traverse rebuild it from the G-buffer and the light.
+//
+// Incoherence (RenderSettings::rhSort auto): the tile's rays' spread (the
+// largest distance of a ray's coordinate, its unit direction from the light
+// or its origin across a directional light, from the tile's first ray's)
+// against the spread of one pixel (the smallest, over the tile, of a ray's
+// larger distance to its horizontal and vertical neighbours). On one smooth
+// surface the tile spans about 10 pixels' spread (7 sqrt 2), so
+// (spread / (10 pixel)))^2, the tile's cone area over what its rays would
+// need in direction order, is about 1; a tile across a depth discontinuity
+// mixes far-apart directions and scores orders of magnitude more.
+// rh_build.comp's decide mode weighs the tiles by their rays.
 
 #include "config.h"
 #include "shadow_common.glsli"
 #include "shadow_ray.glsli"
-#include "afsm.glsli"
+#include "rh.glsli"
 
 layout(local_size_x = 64) in;
 
@@ -37,20 +52,26 @@ layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
 layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
 layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 3, std430) writeonly buffer Rays { uint rayPixels[]; };
-layout(set = 0, binding = 5, std430) buffer TileOffsets { uint tileOffsets[]; }; // per tile at its Morton index: count, then offset
-layout(set = 0, binding = 6, std430) buffer KeySlots { uint keySlots[]; };       // per key: rays, then (scan) next slot
-#include "rh.glsli"
 #define RH_STATE_BINDING 4
 RH_STATE_DECLARE();
+layout(set = 0, binding = 5, std430) buffer TileOffsets { uint tileOffsets[]; }; // per tile at its Morton index: count, then offset
+layout(set = 0, binding = 6, std430) buffer KeySlots { uint keySlots[]; };       // per key: rays, then (scan) next slot
+layout(set = 0, binding = 7, std430) buffer DepthGrid { uint depthGrid[]; };     // the receivers' depth grid (rh.glsli)
 
 layout(push_constant) uniform RhRaysPush {
     uint lightIndex;
-    uint layer;
+    uint mode;      // PENUMBRA_RH_RAYS_*
     float originOffset;
-    uint mode; // PENUMBRA_RH_RAYS_*
+    uint order;     // keys: 2^order x 2^order cells per face
+    uint measure;   // PENUMBRA_RH_RAYS_COUNT: 1 measures the incoherence
+    uint gridFaces; // PENUMBRA_RH_RAYS_COUNT: the depth grid's faces (0: none, spot lights)
+    uint gridOrder; // ... and its order (2^order cells a side)
+    uint pad0;
 } push;
 
 shared uint subgroupTotals[64];
+shared vec4 tileCoords[64]; // incoherence: xyz the ray's coordinate, w 1 when listed
+shared uint firstListed, pixelSpread, tileSpread;
 
 // The tile's index on a Morton curve over the tiles (16 bits per axis).
 uint mortonIndex(uvec2 tile)
@@ -80,15 +101,6 @@ uint hilbertIndex(uvec2 p, uint order)
     return d;
 }
 
-// The sorted variant's key of a ray from the light to p: its cell in the layer's projection.
-uint directionKey(LightData light, vec3 p)
-{
-    vec4 clip = lightViewProj(light, push.layer) * vec4(p, 1.0);
-    vec2 ndc = clamp(clip.xy / max(clip.w, 1e-30), vec2(-1.0), vec2(1.0));
-    uvec2 cell = uvec2(min((ndc * 0.5 + 0.5) * float(PENUMBRA_RH_SORT_CELLS), vec2(float(PENUMBRA_RH_SORT_CELLS) - 1.0)));
-    return hilbertIndex(cell, PENUMBRA_RH_SORT_ORDER);
-}
-
 // Morton order inside the tile: bits of x and y interleaved.
 uvec2 mortonPixel(uint i)
 {
@@ -102,23 +114,78 @@ void main()
     uint local = gl_LocalInvocationIndex;
     ivec2 pixel = ivec2(gl_WorkGroupID.xy * 8u + mortonPixel(local));
     ivec2 size = imageSize(gPosition);
+    uint type = uint(frame.lights[push.lightIndex].positionType.w);
+    vec3 light = frame.lights[push.lightIndex].positionType.xyz;
+    vec3 toLight = -normalize(frame.lights[push.lightIndex].directionRange.xyz);
     bool listed = false;
-    uint index = 0u, key = 0u;
+    uint index = 0u;
+    vec3 p = vec3(0.0), origin = vec3(0.0);
     if (all(lessThan(pixel, size))) {
         index = uint(pixel.y * size.x + pixel.x);
         vec4 position = imageLoad(gPosition, pixel);
         if (position.w != 0.0) {
-            LightData light = frame.lights[push.lightIndex];
+            p = position.xyz;
+            vec3 n = imageLoad(gNormal, pixel).xyz;
             ShadowRay ray;
-            if (afsmSampleRay(light, position.xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray))
-                listed = afsmCell(light, push.layer, position.xyz, ray.origin, 2u) != AFSM_NOT_BINNED;
-            if (listed && push.mode >= PENUMBRA_RH_RAYS_SORT_COUNT)
-                key = directionKey(light, position.xyz);
+            listed = type == PENUMBRA_LIGHT_DIRECTIONAL ? rhParallelRay(toLight, p, n, push.originOffset, ray)
+                                                        : rhShadowRay(light, p, n, push.originOffset, ray);
+            origin = ray.origin;
+            if (listed && type == PENUMBRA_LIGHT_SPOT) {
+                // Inside the spot's frustum (its map's), as the other methods light it.
+                vec4 clip = frame.lights[push.lightIndex].viewProj[0] * vec4(origin, 1.0);
+                listed = clip.w > 0.0 && all(lessThanEqual(abs(clip.xy), vec2(clip.w)));
+            }
         }
     }
-    if (push.mode == PENUMBRA_RH_RAYS_SORT_LIST) {
+    bool sorted = state.sorted != 0u; // rh_build.comp's decide mode
+    // The key: the face and the Hilbert index of the ray's cell on it.
+    uint key = 0u;
+    PENUMBRA_SKIP_UNLESS(push.mode == PENUMBRA_RH_RAYS_KEYS || (push.mode == PENUMBRA_RH_RAYS_LIST && sorted))
+    {
+        uint face = 0u;
+        vec2 ndc;
+        if (type == PENUMBRA_LIGHT_POINT) {
+            vec3 d = p - light;
+            face = cubeFace(d);
+            uint axis = face % 3u;
+            ndc = (axis == 0u ? d.yz : axis == 1u ? d.zx : d.xy) / max(abs(d[axis]), 1e-30);
+        } else {
+            vec4 clip = frame.lights[push.lightIndex].viewProj[0] * vec4(p, 1.0);
+            ndc = clip.xy / max(clip.w, 1e-30);
+        }
+        float cells = float(1u << push.order);
+        uvec2 cell = uvec2(clamp((ndc * 0.5 + 0.5) * cells, vec2(0.0), vec2(cells - 1.0)));
+        key = (face << (2u * push.order)) + hilbertIndex(cell, push.order);
+    }
+    uint face = key >> (2u * push.order);
+    if (push.mode == PENUMBRA_RH_RAYS_KEYS) {
+        if (listed) {
+            atomicAdd(keySlots[key], 1u);
+            atomicAdd(state.faceCount[face >> 2u][face & 3u], 1u);
+        }
+        return;
+    }
+    if (push.mode == PENUMBRA_RH_RAYS_LIST && sorted) {
+        // The subgroup's rays of one key take consecutive slots, in pixel order (one atomic per key):
+        // a key's cell holds several rays where they are dense, and neighbouring pixels among them
+        // then stay together, so the leaves over them are tight.
+        uint mine = listed ? key : 0xFFFFFFFFu;
+        uvec4 same = uvec4(0u);
+        for (uint lane = 0u; lane < gl_SubgroupSize; ++lane) {
+            uvec4 ballot = subgroupBallot(subgroupShuffle(mine, lane) == mine);
+            same = lane == gl_SubgroupInvocationID ? ballot : same;
+        }
+        uint leader = subgroupBallotFindLSB(same);
+        uint rank = subgroupBallotExclusiveBitCount(same);
+        uint base = 0u;
+        if (listed && leader == gl_SubgroupInvocationID)
+            base = atomicAdd(keySlots[key], subgroupBallotBitCount(same));
+        base = subgroupShuffle(base, leader);
         if (listed)
-            rayPixels[atomicAdd(keySlots[key], 1u)] = index;
+            rayPixels[base + rank + state.faceShift[face >> 2u][face & 3u]] = index;
+        uint count = subgroupAdd(listed ? 1u : 0u);
+        if (subgroupElect() && count != 0u)
+            atomicAdd(state.raysListed, count); // the list's length: rh_build.comp's faces mode
         return;
     }
     // Prefix in the subgroup (a ballot), then over the subgroups (in order).
@@ -126,6 +193,11 @@ void main()
     uint before = subgroupBallotExclusiveBitCount(ballot);
     if (subgroupElect())
         subgroupTotals[gl_SubgroupID] = subgroupBallotBitCount(ballot);
+    if (local == 0u) {
+        firstListed = 64u;
+        pixelSpread = floatBitsToUint(uintBitsToFloat(0x7F800000u));
+        tileSpread = 0u;
+    }
     barrier();
     uint offset = 0u, total = 0u;
     for (uint s = 0u; s < gl_NumSubgroups; ++s) {
@@ -133,20 +205,60 @@ void main()
         offset += s < gl_SubgroupID ? count : 0u;
         total += count;
     }
-    if (push.mode == PENUMBRA_RH_RAYS_SORT_COUNT) {
-        if (listed)
-            atomicAdd(keySlots[key], 1u);
-        if (local == 0u && total != 0u) {
-            atomicAdd(state.rayCount, total);
-            atomicAdd(state.raysListed, total);
-        }
-        return;
-    }
     uint padded = (total + 3u) & ~3u;
     uint tile = mortonIndex(gl_WorkGroupID.xy);
     if (push.mode == PENUMBRA_RH_RAYS_COUNT) {
-        if (local == 0u)
+        // The receivers' depth grid: the deepest ray per cell (rh.glsli).
+        PENUMBRA_SKIP_UNLESS(listed && push.gridFaces != 0u)
+        {
+            uint face = 0u;
+            vec2 coordinates;
+            float depth;
+            if (type == PENUMBRA_LIGHT_POINT) {
+                vec3 d = p - light;
+                face = cubeFace(d);
+                coordinates = cubeFaceCoordinates(d, face);
+                depth = length(d);
+            } else {
+                coordinates = (frame.lights[push.lightIndex].viewProj[0] * vec4(origin, 1.0)).xy;
+                depth = -dot(origin, toLight);
+            }
+            uint side = 1u << push.gridOrder;
+            uvec2 cell = uvec2(clamp((coordinates * 0.5 + 0.5) * float(side), vec2(0.0), vec2(float(side) - 1.0)));
+            atomicMax(depthGrid[(face * side + cell.y) * side + cell.x], orderedDepth(depth));
+        }
+        if (local == 0u) {
             tileOffsets[tile] = padded;
+            if (total != 0u)
+                atomicAdd(state.countedRays, total);
+        }
+        PENUMBRA_SKIP_UNLESS(push.measure != 0u)
+        {
+            vec3 coordinate = type == PENUMBRA_LIGHT_DIRECTIONAL ? vec3(toParallel(parallelFrame(toLight), origin).xy, 0.0)
+                                                                 : normalize(p - light);
+            tileCoords[local] = vec4(coordinate, listed ? 1.0 : 0.0);
+            if (listed)
+                atomicMin(firstListed, local);
+            barrier();
+            const float none = uintBitsToFloat(0x7F800000u);
+            vec4 across = tileCoords[local ^ 1u], down = tileCoords[local ^ 2u], first = tileCoords[min(firstListed, 63u)];
+            float mine = listed && across.w != 0.0 && down.w != 0.0
+                             ? max(distance(coordinate, across.xyz), distance(coordinate, down.xyz)) : none;
+            float spread = listed ? distance(coordinate, first.xyz) : 0.0;
+            mine = subgroupMin(mine);
+            spread = subgroupMax(spread);
+            if (subgroupElect()) {
+                atomicMin(pixelSpread, floatBitsToUint(mine));
+                atomicMax(tileSpread, floatBitsToUint(spread));
+            }
+            barrier();
+            if (local == 0u && total >= 16u && pixelSpread < 0x7F800000u) {
+                float ratio = uintBitsToFloat(tileSpread) / (10.0 * max(uintBitsToFloat(pixelSpread), 1e-30));
+                float incoherence = min(ratio * ratio, float(PENUMBRA_RH_MAX_INCOHERENCE));
+                atomicAdd(state.incoherence, uint64_t(incoherence * 256.0) * uint64_t(total));
+                atomicAdd(state.coherenceRays, uint64_t(total));
+            }
+        }
         return;
     }
     if (padded == 0u)

@@ -1,13 +1,12 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-#extension GL_EXT_shader_atomic_int64 : require
-#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Cone ray hierarchies, one step of the bounded breadth-first traversal
 // (rh.glsli; Olsson and Assarsson 2011, section 4.2), one invocation: drop
-// the deepest segments whose pairs are all tested, pick a chunk of the
-// deepest one left (depth 0: the batch's triangles against the root), open
-// the segment its output goes to, and write rh_traverse's indirect dispatch.
-// A chunk is at most an eighth of the free room of the arena: each pair
+// the deepest segments whose records are all processed, pick a chunk of the
+// deepest one left (depth 0: the batch's triangles with the root level's
+// nodes, not stored), open the
+// segment its output goes to, and write rh_traverse's indirect dispatch. A
+// chunk is at most an eighth of the free room of the arena: each record
 // makes at most 4, so the output fits and room is left for the depths below.
 // When nothing is left the batch is done and the dispatch is empty.
 
@@ -21,7 +20,7 @@ layout(local_size_x = 1) in;
 RH_STATE_DECLARE();
 
 layout(push_constant) uniform RhStepPush {
-    uint pairCapacity;     // pairs the arena holds
+    uint pairCapacity;     // records the arena holds
     uint triangleCapacity; // triangles the batch's list holds
     uint pad0, pad1;
 } push;
@@ -46,12 +45,14 @@ void main()
     while (depth > 0u && state.cursor[depth] >= state.segEnd[depth])
         --depth;
     state.deepest = depth;
-    uint remaining = depth == 0u ? triangles - state.rootCursor : state.segEnd[depth] - state.cursor[depth];
+    // The root's records: every triangle with every node of the root level.
+    uint rootRecords = triangles * RH_LEVEL_WORD(state.levelCount, state.levels - 1u);
+    uint remaining = depth == 0u ? rootRecords - state.rootCursor : state.segEnd[depth] - state.cursor[depth];
     if (remaining == 0u) {
         finish();
         return;
     }
-    uint top = depth > 0u ? state.segEnd[depth] : 0u; // first free pair
+    uint top = depth > 0u ? state.segEnd[depth] : 0u; // first free record
     state.peakPairs = max(state.peakPairs, top);
     uint level = state.levels - 1u - depth;
     uint chunk = min(remaining, 65535u * PENUMBRA_RH_GROUP_SIZE);
@@ -76,7 +77,6 @@ void main()
         state.cursor[depth] += chunk;
     }
     state.stepCount = chunk;
-    state.pairsTested += uint64_t(chunk);
     state.steps += 1u;
     state.dispatchX = (chunk + PENUMBRA_RH_GROUP_SIZE - 1u) / PENUMBRA_RH_GROUP_SIZE;
     state.dispatchY = 1u;

@@ -1,19 +1,24 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_atomic_int64 : require
-#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_ballot : require
 // Cone ray hierarchies, one traversal step (rh.glsli; Olsson and Assarsson
-// 2011, sections 3.1-3.2): each (triangle, node) pair of the chunk rh_step
-// picked is tested with the cone/triangle test of the push constant. A pair
-// that passes above the leaves becomes the pairs of the node's children,
-// appended to the next depth's segment (one atomic per subgroup, no
-// workgroup barriers: they are expensive on CPU drivers); at a leaf
-// each of its rays not yet shadowed gets the tracer's exact watertight
-// ray/triangle test (rhShadowRay: the same ray as trace.comp's), and a hit
-// sets the pixel's shadow flag (the afsm resolve turns the flags into the
-// light's visibility).
+// 2011, sections 3.1-3.3): each record (triangle, node) of the chunk
+// rh_step picked tests the node's 4 children with the test of the push
+// constant: cones (point and spot lights) or slabs (directional lights:
+// this shader compiled with PENUMBRA_RH_PARALLEL). A child that passes
+// becomes a record of the next depth (one atomic per subgroup, no workgroup
+// barriers: they are expensive on CPU drivers); a child the triangle covers
+// (early accept, push.earlyAccept) is marked covered and its rays are
+// shadowed later, whole (rh_build.comp's resolve mode); a record whose node
+// was covered meanwhile is dropped. Below a leaf each of its rays not yet
+// shadowed gets the tracer's exact watertight ray/triangle test on the
+// tracer's ray (rhShadowRay, rhParallelRay), and a hit sets the pixel's
+// shadow flag (afsm's resolve turns the flags into the light's visibility).
+// The four children of a node are tested by one invocation: one record and
+// one triangle load for four tests, and records are written only for the
+// children that pass (llvmpipe loads and stores lane by lane).
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -26,94 +31,180 @@ layout(local_size_x = PENUMBRA_RH_GROUP_SIZE) in;
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
 layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
 layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
-layout(set = 0, binding = 3, std430) readonly buffer Rays { uint rayPixels[]; };
-layout(set = 0, binding = 4, std430) readonly buffer Nodes { vec4 nodes[]; };
-layout(set = 0, binding = 5, std430) readonly buffer Triangles { uvec2 triangles[]; }; // 5 per triangle (rh_casters.geom)
-layout(set = 0, binding = 6, std430) buffer Pairs { uvec2 pairs[]; };
-layout(set = 0, binding = 7, std430) buffer Shadowed { uint shadowed[]; };
-#define RH_STATE_BINDING 8
+layout(set = 0, binding = 3, std430) readonly buffer Rays { uvec4 rayQuads[]; }; // 4 rays (one leaf) per element
+layout(set = 0, binding = 4, std430) buffer Nodes { u64vec4 nodes[]; };
+layout(set = 0, binding = 5, std430) readonly buffer TrianglesA { u64vec4 trianglesA[]; }; // v0, v1, v2.xy (rh_casters.geom)
+layout(set = 0, binding = 6, std430) readonly buffer TrianglesB { uvec2 trianglesB[]; };   // v2.z, faces (rh_casters.geom)
+layout(set = 0, binding = 7, std430) buffer Records { uint64_t records[]; };              // triangle | node << 32
+layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };
+#define RH_STATE_BINDING 9
 RH_STATE_DECLARE();
+#define RH_STEP_BINDING 10
+RH_STEP_DECLARE();
 
 layout(push_constant) uniform RhTraversePush {
     uint lightIndex;
     uint test;          // PENUMBRA_RH_TEST_*
     float originOffset; // the rays' origin offset (the cones grow by it)
-    uint pad;
+    uint earlyAccept;   // 1: covered children are accepted whole (section 3.3)
+    uint faces;         // the light's faces (6: a point light's cube faces)
+    uint pad0, pad1, pad2;
 } push;
 
-// The triangle's 9 coordinates in 64-bit words: llvmpipe loads each
-// component of a divergent address lane by lane, so wider words cost less.
-void loadTriangle(uint triangle, out vec3 v0, out vec3 v1, out vec3 v2)
-{
-    uint base = 5u * triangle;
-    vec2 a = uintBitsToFloat(triangles[base]), b = uintBitsToFloat(triangles[base + 1u]), c = uintBitsToFloat(triangles[base + 2u]);
-    vec2 d = uintBitsToFloat(triangles[base + 3u]), e = uintBitsToFloat(triangles[base + 4u]);
-    v0 = vec3(a, b.x);
-    v1 = vec3(b.y, c);
-    v2 = vec3(d, e.x);
-}
 
 void main()
 {
     uint i = gl_GlobalInvocationID.x;
-    uint depth = state.stepDepth;
-    uint level = state.levels - 1u - depth;
-    bool inStep = i < state.stepCount;
+    uint depth = stepInfo.stepDepth;
+    uint level = stepInfo.levels - 1u - depth;
+    bool live = i < stepInfo.stepCount;
     uint triangle = 0u, node = 0u;
-    if (inStep) {
-        if (depth == 0u) {
-            triangle = state.stepBegin + i;
-        } else {
-            uvec2 pair = pairs[state.stepBegin + i];
-            triangle = pair.x;
-            node = pair.y;
-        }
+    if (depth == 0u) {
+        // The root's records: every triangle with every node of the root level.
+        uint rootNodes = RH_LEVEL_WORD(stepInfo.levelCount, level);
+        uint index = stepInfo.stepBegin + i;
+        triangle = index / rootNodes;
+        node = index - triangle * rootNodes;
+    } else {
+        uvec2 record = unpack32(records[stepInfo.stepBegin + (live ? i : 0u)]);
+        triangle = record.x;
+        node = record.y;
     }
     vec3 v0, v1, v2;
-    loadTriangle(triangle, v0, v1, v2);
-    vec4 node0 = nodes[2u * (state.levelOffset[level] + node)];
-    vec4 node1 = nodes[2u * (state.levelOffset[level] + node) + 1u];
-    vec3 light = frame.lights[push.lightIndex].positionType.xyz;
-    bool pass = inStep && node0.w >= 0.0;
-    PENUMBRA_SKIP_UNLESS(pass && node0.w < 3.14159)
+    uvec2 b = trianglesB[triangle];
+    unpackTriangle(trianglesA[triangle], uintBitsToFloat(b.x), v0, v1, v2);
+    // The cube faces whose rays this caster may shadow (its cluster's culled views, rh_casters.geom).
+    bool gate = push.faces > 1u;
+    uint casterFaces = b.y;
+    // A record whose node was covered since it was written: every ray below is in shadow.
+    PENUMBRA_SKIP_UNLESS(push.earlyAccept != 0u && depth > 0u && live)
     {
-        ConeFrame f = coneFrame(node0, node1, light, push.originOffset);
-        pass = push.test == PENUMBRA_RH_TEST_SPHERES ? sphereMayMeetCone(f, v0, v1, v2) : preciseMayMeetCone(f, v0, v1, v2);
+        live = unpack32(nodes[RH_LEVEL_WORD(stepInfo.levelOffset, level) + node].w).y != floatBitsToUint(-1.0);
     }
-    // Inner nodes: the children's pairs, one atomic per subgroup.
-    uint children = 0u;
-    if (pass && level > 0u)
-        children = min(4u, state.levelCount[level - 1u] - 4u * node);
-    uint slot = subgroupExclusiveAdd(children);
-    uint total = subgroupAdd(children);
-    uint base = 0u;
-    if (subgroupElect() && total != 0u)
-        base = atomicAdd(state.segEnd[depth + 1u], total);
-    base = subgroupBroadcastFirst(base);
-    for (uint k = 0u; k < children; ++k)
-        pairs[base + slot + k] = uvec2(triangle, 4u * node + k);
-    // Leaves: the exact test of each ray not yet in shadow.
-    uint tests = 0u;
-    PENUMBRA_SKIP_UNLESS(pass && level == 0u)
+#ifdef PENUMBRA_RH_PARALLEL
+    vec3 toLight = -normalize(frame.lights[push.lightIndex].directionRange.xyz);
+    ParallelFrame frameL = parallelFrame(toLight);
+    vec3 t0 = toParallel(frameL, v0), t1 = toParallel(frameL, v1), t2 = toParallel(frameL, v2);
+#else
+    vec3 light = frame.lights[push.lightIndex].positionType.xyz;
+#endif
+    uint tested = 0u, accepted = 0u, passing = 0u, hits = 0u; // passing: bit k for child k
+    // Inner node: its four children.
+    PENUMBRA_SKIP_UNLESS(level > 0u)
     {
-        int width = imageSize(gPosition).x;
+        uint childOffset = RH_LEVEL_WORD(stepInfo.levelOffset, level - 1u);
+        uint childCount = RH_LEVEL_WORD(stepInfo.levelCount, level - 1u);
+        bool accept = push.earlyAccept != 0u;
+        // What the tests need of the triangle, once; then each child in turn (few values live at once:
+        // llvmpipe keeps every vector of all 8 lanes in registers or on the stack).
+#ifdef PENUMBRA_RH_PARALLEL
+        SlabTriangle slab;
+        PENUMBRA_SKIP_UNLESS(live && push.test == PENUMBRA_RH_TEST_PRECISE)
+        {
+            slab = slabTriangle(t0, t1, t2);
+        }
+#else
+        ConeTriangle cone;
+        SphereTriangle sphere;
+        PENUMBRA_SKIP_UNLESS(live && push.test == PENUMBRA_RH_TEST_PRECISE)
+        {
+            cone = coneTriangle(v0, v1, v2, light, push.originOffset);
+        }
+        PENUMBRA_SKIP_UNLESS(live && push.test == PENUMBRA_RH_TEST_SPHERES)
+        {
+            sphere = sphereTriangle(v0, v1, v2, light, push.originOffset);
+        }
+#endif
         for (uint k = 0u; k < 4u; ++k) {
-            uint r = 4u * node + k;
-            uint pixelIndex = r < state.rayCount ? rayPixels[r] : RH_NO_RAY;
-            if (pixelIndex == RH_NO_RAY || shadowed[pixelIndex] != 0u)
-                continue;
+            uint child = 4u * node + k;
+            Node c = unpackNode(nodes[childOffset + min(child, childCount - 1u)]);
+            bool faced = !gate || (casterFaces & nodeFaces(c)) != 0u;
+#ifdef PENUMBRA_RH_PARALLEL
+            bool valid = live && faced && child < childCount && c.a.x <= c.a.z && !nodeCovered(c);
+#else
+            bool valid = live && faced && child < childCount && c.a.w >= 0.0 && !nodeCovered(c);
+#endif
+            tested += valid ? 1u : 0u;
+            uint result = RH_MISS;
+#ifdef PENUMBRA_RH_PARALLEL
+            PENUMBRA_SKIP_UNLESS(valid && push.test == PENUMBRA_RH_TEST_PRECISE)
+            {
+                result = preciseSlabTest(slab, c, accept);
+            }
+            PENUMBRA_SKIP_UNLESS(valid && push.test == PENUMBRA_RH_TEST_SPHERES)
+            {
+                result = sphereMayMeetSlab(c, t0, t1, t2) ? RH_MAY : RH_MISS;
+            }
+#else
+            PENUMBRA_SKIP_UNLESS(valid && push.test == PENUMBRA_RH_TEST_PRECISE)
+            {
+                result = preciseConeTest(cone, c, push.originOffset, accept);
+            }
+            PENUMBRA_SKIP_UNLESS(valid && push.test == PENUMBRA_RH_TEST_SPHERES)
+            {
+                result = sphereMayMeetCone(sphere, c, push.originOffset) ? RH_MAY : RH_MISS;
+            }
+#endif
+            PENUMBRA_SKIP_UNLESS(result == RH_COVERS)
+            {
+                nodes[childOffset + child].w = coveredWord(c);
+                ++accepted;
+            }
+            passing |= result == RH_MAY ? 1u << k : 0u;
+        }
+        // The passing children's records, one atomic per subgroup.
+        uint count = bitCount(passing);
+        uint slot = subgroupExclusiveAdd(count);
+        uint total = subgroupAdd(count);
+        uint base = 0u;
+        if (subgroupElect() && total != 0u)
+            base = atomicAdd(state.segEnd[depth + 1u], total);
+        base = subgroupBroadcastFirst(base) + slot;
+        for (uint m = passing; m != 0u; m &= m - 1u)
+            records[base++] = pack64(uvec2(triangle, 4u * node + uint(findLSB(m))));
+    }
+    // Leaf: the exact test of each of its rays not yet in shadow.
+    PENUMBRA_SKIP_UNLESS(level == 0u)
+    {
+        uvec4 pixels = live ? rayQuads[node] : uvec4(RH_NO_RAY);
+        uint open = 0u;
+        for (uint k = 0u; k < 4u; ++k)
+            if (pixels[k] != RH_NO_RAY && shadowed[pixels[k]] == 0u)
+                open |= 1u << k;
+        tested = bitCount(open);
+        hits = 0u;
+        int width = imageSize(gPosition).x;
+        for (uint m = open; m != 0u; m &= m - 1u) {
+            uint pixelIndex = pixels[findLSB(m)];
             ivec2 pixel = ivec2(int(pixelIndex % uint(width)), int(pixelIndex / uint(width)));
             ShadowRay ray;
-            if (!rhShadowRay(light, imageLoad(gPosition, pixel).xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray))
-                continue;
-            ++tests;
-            if (hitsTriangle(ray, shearVertex(ray, v0), shearVertex(ray, v1), shearVertex(ray, v2)))
+#ifdef PENUMBRA_RH_PARALLEL
+            bool lit = rhParallelRay(toLight, imageLoad(gPosition, pixel).xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray);
+#else
+            bool lit = rhShadowRay(light, imageLoad(gPosition, pixel).xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray);
+#endif
+            if (lit && hitsTriangle(ray, shearVertex(ray, v0), shearVertex(ray, v1), shearVertex(ray, v2))) {
                 shadowed[pixelIndex] = 1u;
+                ++hits;
+            }
         }
     }
-    if (level == 0u) {
-        uint subgroupTests = subgroupAdd(tests);
-        if (subgroupElect() && subgroupTests != 0u)
-            atomicAdd(state.rayTests, uint64_t(subgroupTests));
+    uint subgroupTested = subgroupAdd(tested);
+    uint subgroupAccepted = subgroupAdd(accepted);
+    uint subgroupHits = subgroupAdd(hits);
+    if (subgroupElect()) {
+        if (subgroupTested != 0u) {
+            atomicAdd(state.depthTests[min(depth, PENUMBRA_RH_MAX_LEVELS - 1u)], subgroupTested);
+            if (level == 0u)
+                atomicAdd(state.rayTests, uint64_t(subgroupTested));
+            else
+                atomicAdd(state.pairsTested, uint64_t(subgroupTested));
+        }
+        if (subgroupHits != 0u)
+            atomicAdd(state.rayHits, uint64_t(subgroupHits));
+        if (subgroupAccepted != 0u) {
+            atomicAdd(state.accepted, uint64_t(subgroupAccepted));
+            atomicAdd(state.lightAccepted, subgroupAccepted);
+        }
     }
 }

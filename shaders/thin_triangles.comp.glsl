@@ -42,6 +42,10 @@ layout(constant_id = 1) const uint kLocalDepths = 0u;
 layout(constant_id = 2) const uint kPhase = PENUMBRA_THIN_LIST;
 // 1: the vertices' texel view is R16_UINT, three texels a vertex (GpuGeometry::vertexTexelsSplit).
 layout(constant_id = 3) const uint kSplitVertexTexels = 0u;
+// 1: paged geometry (geometry_pages.h): clusters that are not resident are skipped. The frame
+// script made every cluster that can reach this view resident (clusterMayReachView); the others
+// write no texel of it.
+layout(constant_id = 4) const uint kGeometryBudget = 0u;
 // The slivers of this view: count, the fill's indirect dispatch, then per sliver its cluster and
 // strip position (the byte of its third vertex, relative to the cluster's strips) | odd << 16.
 // Written by the host once: capacity (entries the list holds); cleared per view: count.
@@ -397,8 +401,12 @@ void main()
         const uint cluster = nodeCluster(node);
         // A cluster whose footprint lies 2 texels or more from every camera pixel's
         // point cannot write a texel that is read (receiver masks, culling.h).
-        const bool near = cluster != PENUMBRA_NO_CLUSTER &&
-                          (push.clusterMask == 0ul || (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u);
+        bool near = cluster != PENUMBRA_NO_CLUSTER &&
+                    (push.clusterMask == 0ul || (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u);
+        if (kGeometryBudget != 0u && near) {
+            const uint64_t firstVertex = kTexelAccess != 0u ? clusterTexels(cluster).firstVertex : loadCluster(table, cluster).firstVertex;
+            near = (firstVertex >> 63) == 0ul;
+        }
         for (uint slot = 0u; slot < 4u; ++slot)
             if (near && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF && mayHoldSlivers(table, 4u * index + slot, cluster))
                 passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);

@@ -18,12 +18,28 @@
 layout(constant_id = 0) const uint kTexelAccess = 0u;
 // 1: the vertices' texel view is R16_UINT, three texels a vertex (GpuGeometry::vertexTexelsSplit).
 layout(constant_id = 1) const uint kSplitVertexTexels = 0u;
+// Specialized per light as well: llvmpipe runs every branch of a shader, taken or not.
+layout(constant_id = 2) const uint kSoft = 0u;                          // push.samples != 0
+layout(constant_id = 3) const uint kLightType = PENUMBRA_LIGHT_POINT; // PENUMBRA_LIGHT_*
+// 1: paged geometry (RendererOptions::geometryBudgetBytes, geometry_pages.h): a ray that reaches a
+// cluster that is not resident is parked; 0 (no budget): the check is compiled out.
+layout(constant_id = 4) const uint kGeometryBudget = 0u;
 layout(set = 0, binding = 6) uniform usamplerBuffer modelNodes;
 layout(set = 0, binding = 7) uniform usamplerBuffer modelClusters;
 layout(set = 0, binding = 8) uniform usamplerBuffer modelVertices;
 layout(set = 0, binding = 9) uniform usamplerBuffer modelStrips;
 #include "bvh_traversal.glsli"
 #include "bvh_texels.glsli"
+
+// GeometryPages' parking buffer: the parked count, one bit per cluster any ray of the dispatch
+// visited (resident or not), then the parked rays' list entries.
+layout(buffer_reference, std430, buffer_reference_align = 16) buffer Parking
+{
+    uint parkedCount;
+    uint parkingPad[3];
+    uint parkingWords[]; // push.clusterWords visited bits, then the parked entries
+};
+bool gParked = false;
 
 // The model's access for bvh_wide.glsli: texel fetches, or device addresses
 // through the model table (set up in main).
@@ -39,6 +55,7 @@ ClusterInfo traversalCluster(uint cluster)
 {
     return kTexelAccess != 0u ? clusterTexels(cluster) : loadCluster(gTable, cluster);
 }
+bool traversalResident(ClusterInfo cluster);
 bool traversalLeaf(ShadowRay ray, ClusterInfo cluster, uint leaf, inout TraceCounters counters)
 {
     return kTexelAccess != 0u ? leafOccludesTexels(ray, cluster, leaf, counters) : leafOccludes(gTable, gChunks, ray, cluster, leaf, counters);
@@ -67,14 +84,34 @@ layout(push_constant) uniform Push
     uint lightIndex;      // into frame.lights
     float originOffset;   // model units along the normal
     uint samples;         // area lights: light samples per pixel (soft shadows); 0: one ray to the light
-    uint pad0, pad1, pad2;
+    uint clusterWords;    // kGeometryBudget: words of the visited bits
+    uint64_t parking;     // kGeometryBudget: Parking's device address
     vec4 boundsMin;       // the root node's box (xyz)
     vec4 boundsMax;
 } push;
 
+bool traversalResident(ClusterInfo cluster)
+{
+    if (kGeometryBudget == 0u)
+        return true;
+    Parking parking = Parking(push.parking);
+    atomicOr(parking.parkingWords[cluster.index >> 5], 1u << (cluster.index & 31u));
+    const bool resident = (cluster.firstVertex >> 63) == 0ul;
+    gParked = gParked || !resident;
+    return resident;
+}
+
+// Paged geometry: a ray that skipped a cluster that is not resident is parked,
+// unless it hit (any-hit: a hit is exact whatever it skipped).
 bool occluded(ShadowRay ray, inout TraceCounters counters)
 {
-    return modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters);
+    if (kGeometryBudget == 0u)
+        return modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters);
+    const bool parkedBefore = gParked;
+    gParked = false;
+    const bool hit = modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters);
+    gParked = parkedBefore || (gParked && !hit);
+    return hit;
 }
 
 // Soft shadows (area lights): the fraction of the pixel's light samples
@@ -85,7 +122,7 @@ float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, boo
 {
     if (!inFrontOfEmitter(light, p))
         return 0.0;
-    uint shape = uint(light.positionType.w);
+    const uint shape = kLightType;
     uint seed = sampleSeed(uint(pixel.x), uint(pixel.y), push.lightIndex);
     uint visible = 0u;
     uint traced = oneSample ? 1u : push.samples;
@@ -116,9 +153,9 @@ float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout Tr
     vec3 normal = imageLoad(normalImage, pixel).xyz;
 
     LightData light = frame.lights[push.lightIndex];
-    if (push.samples != 0u)
+    if (kSoft != 0u)
         return traceSoftVisibility(pixel, position.xyz, normal, light, oneSample, rays, counters);
-    uint type = uint(light.positionType.w);
+    const uint type = kLightType;
     vec3 direction;
     float tMax;
     if (type == PENUMBRA_LIGHT_DIRECTIONAL) {
@@ -157,6 +194,11 @@ void main()
         float visibility = traceVisibility(pixelIndex, (entry & PENUMBRA_RAY_ONE_SAMPLE) != 0u, rays, counters);
         uint width = uint(imageSize(visibilityImage).x);
         imageStore(visibilityImage, ivec2(pixelIndex % width, pixelIndex / width), vec4(visibility));
+        if (kGeometryBudget != 0u && gParked) {
+            // Its visibility is written again when it is traced again (an any-hit ray that hit is exact and never parked).
+            Parking parking = Parking(push.parking);
+            parking.parkingWords[push.clusterWords + atomicAdd(parking.parkedCount, 1u)] = entry;
+        }
     }
     uint totalRays = subgroupAdd(rays);
     uint totalNodes = subgroupAdd(counters.nodes);

@@ -37,7 +37,9 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 
 // Pixels per invocation, a side: a workgroup covers PENUMBRA_SHADE_GROUP_SIZE *
 // VIEW_BOUNDS_BLOCK pixels a side; each subgroup adds its bounds with one atomic per key.
-#define VIEW_BOUNDS_BLOCK 4
+// PENUMBRA_VIEW_FIT_BLOCK_CPU or _GPU, chosen by the device type (view_fit.cpp).
+layout(constant_id = 4) const int kBlock = PENUMBRA_VIEW_FIT_BLOCK_GPU;
+#define VIEW_BOUNDS_BLOCK kBlock
 
 // C++: runtime/src/passes/view_fit.h (ViewFitBinding).
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;

@@ -5,6 +5,7 @@
 // The JSON is parsed with nlohmann::json; every index, offset and length is
 // range-checked against the arrays and buffers before it is used.
 #include <cmath>
+#include <functional>
 #include <map>
 #include <memory>
 #include <span>
@@ -29,6 +30,10 @@ constexpr uint32_t kChunkJson = 0x4E4F534A;           // "JSON"
 constexpr uint32_t kChunkBin = 0x004E4942;            // "BIN\0"
 constexpr uint64_t kMaxTriangles = uint64_t(1) << 30; // after instancing; bounds memory for hostile node graphs
 constexpr uint64_t kMaxVertices = uint64_t(1) << 30;  // after instancing
+// Streaming: the primitive in memory stays below the in-core limits; the whole
+// scene may expand to this many (a hostile node graph still ends in finite time).
+constexpr uint64_t kMaxStreamTriangles = uint64_t(1) << 40;
+constexpr uint64_t kMaxStreamRead = uint64_t(1) << 34; // bytes of one accessor range or Draco primitive
 constexpr size_t kMaxNodeDepth = 1024;
 // Accessors without a bufferView (zeros plus sparse values) may take at most
 // this many times the input size (plus 1 MiB), so a tiny file cannot claim gigabytes.
@@ -137,17 +142,67 @@ struct PendingCamera {
     bool hasTargetDistance = false;
 };
 
+// Where a buffer's bytes are: in memory (mapped, decoded from a data: URI or,
+// streaming, the GLB's BIN chunk is not), or in a file read with pread (streaming).
+struct BufferSource {
+    std::span<const uint8_t> memory;
+    FileReader* file = nullptr;
+    uint64_t base = 0;   // file offset of byte 0 (file sources)
+    uint64_t length = 0; // the buffer's byteLength
+};
+
+// A bufferView: its buffer and its byte range there (checked against the buffer's length).
+struct ViewRange {
+    uint64_t buffer = 0;
+    uint64_t offset = 0;
+    uint64_t length = 0;
+};
+
 class GltfReader {
   public:
     GltfReader(const std::string& path, const MappedFile& file, bool binary) : path_(path), binary_(binary)
     {
-        size_t slash = path.find_last_of('/');
-        directory_ = slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
         std::string_view jsonText;
         if (binary)
             jsonText = parseGlbContainer(file);
         else
             jsonText = file.text();
+        init(jsonText, file.size());
+    }
+
+    // Streaming (model_stream.h): nothing is mapped; the JSON is read whole, buffer bytes with pread
+    // as accessors need them, and each primitive goes to the sink instead of into one mesh.
+    GltfReader(const std::string& path, FileReader& file, bool binary) : path_(path), binary_(binary), streaming_(true)
+    {
+        if (file.size() == 0)
+            fail(path, "empty file");
+        glbFile_ = &file;
+        if (binary) {
+            parseGlbStream(file);
+        } else {
+            if (file.size() > (uint64_t(1) << 32))
+                fail(path, "a .gltf file (JSON) of more than 4 GiB; put the buffers in .bin files or use .glb");
+            jsonStorage_.resize(size_t(file.size()));
+            file.readAt(0, jsonStorage_.data(), jsonStorage_.size());
+        }
+        init(jsonStorage_, file.size());
+    }
+
+    // Streaming: receives each primitive instance (positions in world space, its indices, with the
+    // winding fixed for mirroring transforms) and its material; the mesh is cleared after the call.
+    using PrimitiveSink = std::function<void(const Mesh& primitive, uint32_t material, const std::string& where)>;
+    void setSink(PrimitiveSink sink) { sink_ = std::move(sink); }
+
+    // Streaming: what read() does with the finished mesh, from the traversal's results.
+    uint64_t streamedTriangles() const { return streamedTriangles_; }
+    bool materialUsed() const { return materialUsed_; }
+
+  private:
+    void init(std::string_view jsonText, uint64_t fileSize)
+    {
+        const std::string& path = path_;
+        size_t slash = path.find_last_of('/');
+        directory_ = slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
         try {
             doc_ = json::parse(jsonText.begin(), jsonText.end());
         } catch (const json::exception& e) {
@@ -171,15 +226,63 @@ class GltfReader {
                     fail(path, "requires unsupported extension " + quoteToken(extension));
             }
         }
-        materializeBudget_ = (uint64_t(1) << 20) + kMaterializeFactor * file.size();
+        materializeBudget_ = (uint64_t(1) << 20) + kMaterializeFactor * fileSize;
         buffers_.resize(arraySize("buffers"));
         bufferLoaded_.resize(buffers_.size(), false);
     }
 
+  public:
     Scene read()
     {
         Scene scene;
         std::vector<PendingCamera> cameras;
+        traverse(scene, cameras);
+        // Materials: only when some primitive names one (the others get a white default).
+        if (!materialUsed_) {
+            scene.mesh.materials.clear();
+            scene.mesh.triangleMaterials.clear();
+        }
+        if (scene.mesh.indices.empty())
+            failNoTriangles();
+        warnSkipped();
+        finishCameras(cameras, computeBounds(scene.mesh).center(), scene);
+        return scene;
+    }
+
+    [[noreturn]] void failNoTriangles()
+    {
+        if (nonTriangle_ > 0)
+            fail(path_, "no triangles (points or lines only)");
+        fail(path_, "no triangles (the scene has no mesh primitives)");
+    }
+
+    void warnSkipped()
+    {
+        if (nonTriangle_ > 0)
+            importWarning(path_, "gltf-modes", "skipped " + std::to_string(nonTriangle_) + " point and line primitives");
+        if (instancedNodes_ > 0)
+            importWarning(path_, "gltf-instancing",
+                          "ignored EXT_mesh_gpu_instancing on " + std::to_string(instancedNodes_) +
+                              " nodes (each mesh is placed once, at its node)");
+    }
+
+    // Cameras without a stored target distance aim at the scene's centre distance.
+    static void finishCameras(std::vector<PendingCamera>& cameras, glm::vec3 center, Scene& scene)
+    {
+        for (PendingCamera& pending : cameras) {
+            if (!pending.hasTargetDistance) {
+                float distance = glm::length(center - pending.camera.position);
+                pending.camera.target =
+                    pending.camera.position +
+                    pending.forward * (distance > 1e-6f && std::isfinite(distance) ? distance : 1.0f);
+            }
+            scene.cameras.push_back(pending.camera);
+        }
+    }
+
+    // The node hierarchy: meshes into scene.mesh (or the sink), cameras (pending their targets), lights.
+    void traverse(Scene& scene, std::vector<PendingCamera>& cameras)
+    {
         std::vector<uint64_t> roots = rootNodes();
         const size_t nodeCount = arraySize("nodes");
         std::vector<bool> visited(nodeCount, false);
@@ -224,35 +327,6 @@ class GltfReader {
                     stack.push_back({index((*children)[c], where + " child"), world, pending.depth + 1});
             }
         }
-        // Materials: only when some primitive names one (the others get a white default).
-        if (!materialUsed_) {
-            scene.mesh.materials.clear();
-            scene.mesh.triangleMaterials.clear();
-        }
-        if (scene.mesh.indices.empty()) {
-            if (nonTriangle_ > 0)
-                fail(path_, "no triangles (points or lines only)");
-            fail(path_, "no triangles (the scene has no mesh primitives)");
-        }
-        if (nonTriangle_ > 0)
-            importWarning(path_, "gltf-modes",
-                          "skipped " + std::to_string(nonTriangle_) + " point and line primitives");
-        if (instancedNodes_ > 0)
-            importWarning(path_, "gltf-instancing",
-                          "ignored EXT_mesh_gpu_instancing on " + std::to_string(instancedNodes_) +
-                              " nodes (each mesh is placed once, at its node)");
-        // Cameras without a stored target distance aim at the scene's centre distance.
-        glm::vec3 center = computeBounds(scene.mesh).center();
-        for (PendingCamera& pending : cameras) {
-            if (!pending.hasTargetDistance) {
-                float distance = glm::length(center - pending.camera.position);
-                pending.camera.target =
-                    pending.camera.position +
-                    pending.forward * (distance > 1e-6f && std::isfinite(distance) ? distance : 1.0f);
-            }
-            scene.cameras.push_back(pending.camera);
-        }
-        return scene;
     }
 
   private:
@@ -298,6 +372,45 @@ class GltfReader {
             }
         }
         return jsonText;
+    }
+
+    // The GLB container read with pread: the JSON chunk into memory, the BIN chunk's place.
+    void parseGlbStream(FileReader& file)
+    {
+        const uint64_t size = file.size();
+        if (size < 12)
+            fail(path_, "not a glTF binary (file too short for the header)");
+        uint32_t head[5] = {0, 0, 0, 0, 0};
+        file.readAt(0, head, size_t(std::min<uint64_t>(size, 20)));
+        if (head[0] != kGlbMagic)
+            fail(path_, "not a glTF binary (bad magic)");
+        if (head[1] != 2)
+            fail(path_, "unsupported glTF binary version " + std::to_string(head[1]));
+        const uint64_t length = head[2];
+        if (length > size)
+            fail(path_, "truncated: header says " + std::to_string(length) + " bytes, file has " + std::to_string(size));
+        if (length < 20)
+            fail(path_, "truncated: no JSON chunk");
+        const uint64_t jsonLength = head[3];
+        if (head[4] != kChunkJson)
+            fail(path_, "malformed glTF binary: first chunk is not JSON");
+        if (jsonLength > length - 20)
+            fail(path_, "truncated: JSON chunk of " + std::to_string(jsonLength) + " bytes runs past the end of the file");
+        jsonStorage_.resize(size_t(jsonLength));
+        file.readAt(20, jsonStorage_.data(), jsonStorage_.size());
+        const uint64_t offset = 20 + ((jsonLength + 3) & ~uint64_t(3));
+        if (offset + 8 <= length) {
+            uint32_t chunk[2];
+            file.readAt(offset, chunk, 8);
+            if (chunk[1] == kChunkBin) {
+                if (chunk[0] > length - offset - 8)
+                    fail(path_, "truncated: BIN chunk of " + std::to_string(chunk[0]) +
+                                    " bytes runs past the end of the file");
+                binOffset_ = offset + 8;
+                binLength_ = chunk[0];
+                haveBin_ = true;
+            }
+        }
     }
 
     // ---- JSON helpers ----
@@ -382,19 +495,27 @@ class GltfReader {
 
     // ---- buffers and accessors ----
 
-    std::span<const uint8_t> buffer(uint64_t i, const std::string& where)
+    const BufferSource& buffer(uint64_t i, const std::string& where)
     {
         const json& b = item("buffers", i, where);
         if (bufferLoaded_[i])
             return buffers_[i];
         const std::string name = "buffer " + std::to_string(i);
         uint64_t byteLength = requiredUint(b, "byteLength", name);
-        std::span<const uint8_t> bytes;
+        BufferSource source;
+        uint64_t present = 0;
         const json* uri = member(b, "uri");
         if (!uri) {
             if (!binary_ || i != 0 || !haveBin_)
                 fail(path_, name + " has no uri and there is no GLB BIN chunk");
-            bytes = bin_;
+            if (streaming_) {
+                source.file = glbFile_;
+                source.base = binOffset_;
+                present = binLength_;
+            } else {
+                source.memory = bin_;
+                present = bin_.size();
+            }
         } else {
             if (!uri->is_string())
                 fail(path_, name + ": uri is not a string");
@@ -403,44 +524,75 @@ class GltfReader {
                 size_t comma = text.find(',');
                 if (comma == std::string::npos || text.substr(0, comma).find(";base64") == std::string::npos)
                     fail(path_, name + ": data URI is not base64");
-                if ((text.size() - comma - 1) / 4 * 3 > byteLength + 3 && byteLength < text.size()) {
-                    // Decoding is bounded by the text size anyway; nothing to guard.
-                }
                 decoded_.emplace_back();
                 if (!decodeBase64(std::string_view(text).substr(comma + 1), decoded_.back()))
                     fail(path_, name + ": malformed base64 data URI");
-                bytes = decoded_.back();
+                source.memory = decoded_.back();
+                present = source.memory.size();
             } else {
                 std::string file = directory_ + percentDecode(text);
                 try {
-                    external_.push_back(std::make_unique<MappedFile>(file));
+                    if (streaming_) {
+                        externalFiles_.push_back(std::make_unique<FileReader>(file, 4096));
+                        source.file = externalFiles_.back().get();
+                        present = source.file->size();
+                    } else {
+                        external_.push_back(std::make_unique<MappedFile>(file));
+                        source.memory = std::span<const uint8_t>(external_.back()->data(), external_.back()->size());
+                        present = source.memory.size();
+                    }
                 } catch (const Error& e) {
                     fail(path_, name + ": " + e.what());
                 }
-                bytes = std::span<const uint8_t>(external_.back()->data(), external_.back()->size());
             }
         }
-        if (bytes.size() < byteLength)
+        if (present < byteLength)
             fail(path_, "truncated: " + name + " declares " + std::to_string(byteLength) + " bytes but only " +
-                            std::to_string(bytes.size()) + " are present");
-        buffers_[i] = bytes.first(size_t(byteLength));
+                            std::to_string(present) + " are present");
+        if (!source.file)
+            source.memory = source.memory.first(size_t(byteLength));
+        source.length = byteLength;
+        buffers_[i] = source;
         bufferLoaded_[i] = true;
         return buffers_[i];
     }
 
-    std::span<const uint8_t> bufferView(uint64_t i, const std::string& where, size_t* byteStride)
+    // Bytes [offset, offset + length) of buffer i (the caller checked the range): a view of the
+    // buffer in memory, or (streaming) a copy read with pread that lives until releaseScratch().
+    std::span<const uint8_t> bytes(uint64_t i, uint64_t offset, uint64_t length, const std::string& where)
+    {
+        const BufferSource& source = buffer(i, where);
+        if (!source.file)
+            return source.memory.subspan(size_t(offset), size_t(length));
+        if (length > kMaxStreamRead)
+            fail(path_, where + ": " + std::to_string(length) + " bytes in one accessor or Draco primitive, more than " +
+                            std::to_string(kMaxStreamRead) + " (streaming reads one primitive at a time)");
+        scratch_.emplace_back(size_t(length));
+        source.file->readAt(source.base + offset, scratch_.back().data(), size_t(length));
+        return scratch_.back();
+    }
+
+    // Streaming: forgets what one primitive read.
+    void releaseScratch()
+    {
+        scratch_.clear();
+        materialized_.clear();
+    }
+
+    ViewRange bufferView(uint64_t i, const std::string& where, size_t* byteStride)
     {
         const json& view = item("bufferViews", i, where);
         const std::string name = "bufferView " + std::to_string(i);
-        std::span<const uint8_t> bytes = buffer(requiredUint(view, "buffer", name), name);
+        const uint64_t bufferIndex = requiredUint(view, "buffer", name);
+        const uint64_t bufferLength = buffer(bufferIndex, name).length;
         uint64_t offset = optionalUint(view, "byteOffset", 0, name);
         uint64_t length = requiredUint(view, "byteLength", name);
-        if (offset > bytes.size() || length > bytes.size() - offset)
+        if (offset > bufferLength || length > bufferLength - offset)
             fail(path_, name + " (bytes " + std::to_string(offset) + "+" + std::to_string(length) +
-                            ") runs past the end of its buffer (" + std::to_string(bytes.size()) + " bytes)");
+                            ") runs past the end of its buffer (" + std::to_string(bufferLength) + " bytes)");
         if (byteStride)
             *byteStride = size_t(optionalUint(view, "byteStride", 0, name));
-        return bytes.subspan(size_t(offset), size_t(length));
+        return {bufferIndex, offset, length};
     }
 
     AccessorView accessor(uint64_t i, const std::string& where)
@@ -490,7 +642,7 @@ class GltfReader {
         const bool hasView = member(a, "bufferView") != nullptr;
         if (hasView) {
             size_t stride = 0;
-            std::span<const uint8_t> bytes = bufferView(requiredUint(a, "bufferView", name), name, &stride);
+            const ViewRange range = bufferView(requiredUint(a, "bufferView", name), name, &stride);
             if (stride == 0)
                 stride = elementSize;
             if (stride < elementSize)
@@ -498,13 +650,13 @@ class GltfReader {
                                 std::to_string(elementSize));
             uint64_t offset = optionalUint(a, "byteOffset", 0, name);
             if (view.count > 0) {
-                if (offset > bytes.size() || view.count - 1 > (bytes.size() - offset) / stride ||
-                    (view.count - 1) * stride + elementSize > bytes.size() - offset)
+                if (offset > range.length || view.count - 1 > (range.length - offset) / stride ||
+                    (view.count - 1) * stride + elementSize > range.length - offset)
                     fail(path_, "truncated: " + name + " (" + std::to_string(view.count) + " elements of " +
                                     std::to_string(elementSize) + " bytes, stride " + std::to_string(stride) +
-                                    ") runs past the end of its bufferView (" + std::to_string(bytes.size()) +
+                                    ") runs past the end of its bufferView (" + std::to_string(range.length) +
                                     " bytes)");
-                view.data = bytes.data() + offset;
+                view.data = bytes(range.buffer, range.offset + offset, (view.count - 1) * stride + elementSize, name).data();
             }
             view.stride = stride;
             if (!sparse)
@@ -540,13 +692,13 @@ class GltfReader {
     // Bytes [offset, offset + size) of bufferView `viewIndex` (glTF sparse indices and values).
     const uint8_t* viewBytes(const json& object, uint64_t size, const std::string& where)
     {
-        std::span<const uint8_t> bytes = bufferView(requiredUint(object, "bufferView", where), where, nullptr);
+        const ViewRange range = bufferView(requiredUint(object, "bufferView", where), where, nullptr);
         uint64_t offset = optionalUint(object, "byteOffset", 0, where);
-        if (offset > bytes.size() || size > bytes.size() - offset)
+        if (offset > range.length || size > range.length - offset)
             fail(path_, "truncated: " + where + " (" + std::to_string(size) + " bytes at offset " +
                             std::to_string(offset) + ") runs past the end of its bufferView (" +
-                            std::to_string(bytes.size()) + " bytes)");
-        return bytes.data() + offset;
+                            std::to_string(range.length) + " bytes)");
+        return bytes(range.buffer, range.offset + offset, size, where).data();
     }
 
     // Replaces the elements listed by a sparse accessor's indices with its values.
@@ -692,6 +844,24 @@ class GltfReader {
             const json* extensions = member(primitive, "extensions");
             const json* draco = extensions ? member(*extensions, "KHR_draco_mesh_compression") : nullptr;
             const uint32_t material = primitiveMaterial(primitive, where, out);
+            if (sink_) {
+                // Streaming: one primitive at a time.
+                primitive_.positions.clear();
+                primitive_.indices.clear();
+                if (draco)
+                    appendDracoPrimitive(*draco, where, matrix, flip, primitive_);
+                else
+                    appendPlainPrimitive(primitive, mode, where, matrix, flip, primitive_);
+                streamedTriangles_ += primitive_.triangleCount();
+                streamedVertices_ += primitive_.vertexCount();
+                if (streamedTriangles_ > kMaxStreamTriangles || streamedVertices_ > kMaxStreamTriangles)
+                    fail(path_, where + ": scene expands to more than " + std::to_string(kMaxStreamTriangles) +
+                                    " triangles or vertices after instancing");
+                if (primitive_.triangleCount() > 0)
+                    sink_(primitive_, material, where);
+                releaseScratch();
+                continue;
+            }
             if (draco)
                 appendDracoPrimitive(*draco, where, matrix, flip, out);
             else
@@ -702,6 +872,12 @@ class GltfReader {
 
     void reserveTriangles(uint64_t triangles, uint64_t vertices, const std::string& where, const Mesh& out)
     {
+        if (sink_) {
+            // Streaming: the primitive alone is held in memory; totals are checked by appendMesh.
+            if (triangles > kMaxTriangles || vertices > kMaxVertices)
+                fail(path_, where + ": one primitive of more than " + std::to_string(kMaxTriangles) + " triangles");
+            return;
+        }
         if (out.triangleCount() + triangles > kMaxTriangles)
             fail(path_, where + ": scene expands to more than " + std::to_string(kMaxTriangles) +
                             " triangles after instancing");
@@ -730,8 +906,9 @@ class GltfReader {
                               Mesh& out)
     {
         size_t stride = 0;
-        std::span<const uint8_t> bytes =
+        const ViewRange range =
             bufferView(requiredUint(draco, "bufferView", where + " KHR_draco_mesh_compression"), where, &stride);
+        std::span<const uint8_t> bytes = this->bytes(range.buffer, range.offset, range.length, where);
         const json* attributes = member(draco, "attributes");
         const json* position = attributes ? member(*attributes, "POSITION") : nullptr;
         if (!position)
@@ -1003,11 +1180,20 @@ class GltfReader {
 
     const std::string& path_;
     bool binary_;
+    bool streaming_ = false;
     std::string directory_;
     json doc_;
+    std::string jsonStorage_; // streaming: the JSON text
     std::span<const uint8_t> bin_;
     bool haveBin_ = false;
-    std::vector<std::span<const uint8_t>> buffers_;
+    FileReader* glbFile_ = nullptr; // streaming: the input file
+    uint64_t binOffset_ = 0, binLength_ = 0;
+    std::vector<std::unique_ptr<FileReader>> externalFiles_;
+    std::vector<std::vector<uint8_t>> scratch_;
+    PrimitiveSink sink_;
+    Mesh primitive_;
+    uint64_t streamedTriangles_ = 0, streamedVertices_ = 0;
+    std::vector<BufferSource> buffers_;
     std::vector<bool> bufferLoaded_;
     std::vector<std::vector<uint8_t>> decoded_;
     std::vector<std::unique_ptr<MappedFile>> external_;
@@ -1230,6 +1416,108 @@ void exportGltf(const Scene& scene, const std::string& path, AtomicFileWriter& o
     uint32_t binHeader[2] = {uint32_t(paddedPayload), kChunkBin};
     out.write(binHeader, sizeof(binHeader));
     writePayload(out);
+}
+
+// ---- streaming (model_stream.h) ----
+
+namespace {
+
+class GltfStream : public ModelStream {
+  public:
+    GltfStream(const std::string& path, const ModelStreamOptions& options, bool binary)
+        : file_(path, options.bufferBytes), options_(options), binary_(binary)
+    {
+        path_ = path;
+    }
+
+    void scan(const std::function<void(const float*, size_t)>& onVertices) override
+    {
+        try {
+            GltfReader reader(path_, file_, binary_);
+            store_ = std::make_unique<TemporaryVertexStore>(temporaryDirectory(path_, options_),
+                                                            "the vertices of " + path_, false);
+            Bounds bounds;
+            uint64_t triangles = 0;
+            reader.setSink([&](const Mesh& primitive, uint32_t, const std::string&) {
+                const float* p = primitive.positions.data();
+                for (size_t v = 0; v < primitive.vertexCount(); ++v) {
+                    const float* xyz = p + 3 * v;
+                    if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2])) {
+                        char text[160];
+                        std::snprintf(text, sizeof(text), "vertex %llu has a non-finite position (%g, %g, %g)",
+                                      (unsigned long long)(store_->count()), double(xyz[0]), double(xyz[1]),
+                                      double(xyz[2]));
+                        fail(path_, text);
+                    }
+                    store_->append(xyz, nullptr);
+                    bounds.min = glm::min(bounds.min, glm::vec3(xyz[0], xyz[1], xyz[2]));
+                    bounds.max = glm::max(bounds.max, glm::vec3(xyz[0], xyz[1], xyz[2]));
+                }
+                onVertices(p, primitive.vertexCount());
+                triangles += primitive.triangleCount();
+            });
+            Scene scene;
+            std::vector<PendingCamera> cameras;
+            reader.traverse(scene, cameras);
+            if (triangles == 0)
+                reader.failNoTriangles();
+            reader.warnSkipped();
+            GltfReader::finishCameras(cameras, bounds.center(), scene);
+            store_->finish();
+            vertexCount_ = store_->count();
+            triangleCount_ = triangles;
+            if (reader.materialUsed())
+                materials_ = scene.mesh.materials;
+            cameras_ = scene.cameras;
+            lights_ = scene.lights;
+        } catch (const json::exception& e) {
+            fail(path_, std::string("malformed glTF: ") + e.what());
+        }
+    }
+
+    void triangles(const std::function<void(const StreamTriangles&)>& onTriangles) override
+    {
+        if (!store_)
+            fail(path_, "internal error: triangles() before scan()");
+        try {
+            GltfReader reader(path_, file_, binary_);
+            TriangleBatcher batcher{onTriangles};
+            batcher.withMaterials = !materials_.empty();
+            uint64_t base = 0;
+            reader.setSink([&](const Mesh& primitive, uint32_t material, const std::string&) {
+                const uint32_t* idx = primitive.indices.data();
+                for (size_t t = 0; t < primitive.triangleCount(); ++t)
+                    batcher.add(base + idx[3 * t], base + idx[3 * t + 1], base + idx[3 * t + 2], material);
+                base += primitive.vertexCount();
+            });
+            Scene scene;
+            std::vector<PendingCamera> cameras;
+            reader.traverse(scene, cameras);
+            batcher.flush();
+        } catch (const json::exception& e) {
+            fail(path_, std::string("malformed glTF: ") + e.what());
+        }
+    }
+
+    void readVertices(uint64_t first, uint64_t count, float* positions, float*) override
+    {
+        if (!store_)
+            fail(path_, "internal error: readVertices() before scan()");
+        store_->read(first, count, positions, nullptr);
+    }
+
+  private:
+    FileReader file_;
+    ModelStreamOptions options_;
+    bool binary_;
+    std::unique_ptr<TemporaryVertexStore> store_;
+};
+
+} // namespace
+
+std::unique_ptr<ModelStream> openGltfStream(const std::string& path, const ModelStreamOptions& options, bool binary)
+{
+    return std::make_unique<GltfStream>(path, options, binary);
 }
 
 } // namespace penumbra::detail

@@ -12,6 +12,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 
 #include "io_internal.h"
@@ -57,86 +58,6 @@ MappedFile::~MappedFile()
 {
     if (mapped_)
         ::munmap(const_cast<uint8_t*>(data_), size_);
-}
-
-AtomicFileWriter::AtomicFileWriter(const std::string& path)
-    : path_(path), tempPath_(path + ".tmp-" + std::to_string(::getpid())), buffer_(kBufferSize)
-{
-    fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd_ < 0)
-        fail(path_, std::string("cannot create '") + tempPath_ + "': " + std::strerror(errno));
-}
-
-AtomicFileWriter::~AtomicFileWriter()
-{
-    if (fd_ >= 0)
-        ::close(fd_);
-    if (!committed_)
-        ::unlink(tempPath_.c_str());
-}
-
-void AtomicFileWriter::flush()
-{
-    size_t done = 0;
-    while (done < used_) {
-        ssize_t n = ::write(fd_, buffer_.data() + done, used_ - done);
-        if (n < 0 && errno == EINTR)
-            continue;
-        if (n <= 0)
-            fail(path_, std::string("write failed: ") + std::strerror(errno));
-        done += size_t(n);
-    }
-    used_ = 0;
-}
-
-void AtomicFileWriter::write(const void* data, size_t size)
-{
-    const char* bytes = static_cast<const char*>(data);
-    if (used_ + size <= buffer_.size()) {
-        std::memcpy(buffer_.data() + used_, bytes, size);
-        used_ += size;
-        return;
-    }
-    flush();
-    if (size < buffer_.size()) {
-        std::memcpy(buffer_.data(), bytes, size);
-        used_ = size;
-        return;
-    }
-    // Large block: write straight from the caller's memory.
-    size_t done = 0;
-    while (done < size) {
-        ssize_t n = ::write(fd_, bytes + done, std::min<size_t>(size - done, size_t(1) << 30));
-        if (n < 0 && errno == EINTR)
-            continue;
-        if (n <= 0)
-            fail(path_, std::string("write failed: ") + std::strerror(errno));
-        done += size_t(n);
-    }
-}
-
-void AtomicFileWriter::commit(Durability durability)
-{
-    flush();
-    if (durability == Durability::Synced && ::fsync(fd_) != 0)
-        fail(path_, std::string("fsync failed: ") + std::strerror(errno));
-    int fd = fd_;
-    fd_ = -1;
-    if (::close(fd) != 0)
-        fail(path_, std::string("write failed: ") + std::strerror(errno));
-    if (std::rename(tempPath_.c_str(), path_.c_str()) != 0)
-        fail(path_, std::string("cannot rename temporary file: ") + std::strerror(errno));
-    committed_ = true;
-    if (durability == Durability::Synced) {
-        // The rename itself is durable once the folder's entry is.
-        size_t slash = path_.find_last_of('/');
-        std::string folder = slash == std::string::npos ? "." : slash == 0 ? "/" : path_.substr(0, slash);
-        int dir = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-        if (dir >= 0) {
-            ::fsync(dir);
-            ::close(dir);
-        }
-    }
 }
 
 namespace {
@@ -402,6 +323,268 @@ void exportScene(const Scene& scene, const std::string& path, const ExportOption
         break;
     }
     out.commit();
+}
+
+AtomicFileWriter::AtomicFileWriter(const std::string& path)
+    : path_(path), tempPath_(path + ".tmp-" + std::to_string(::getpid())), buffer_(kBufferSize)
+{
+    fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd_ < 0)
+        fail(path_, std::string("cannot create '") + tempPath_ + "': " + std::strerror(errno));
+}
+
+AtomicFileWriter::~AtomicFileWriter()
+{
+    if (fd_ >= 0)
+        ::close(fd_);
+    if (!committed_)
+        ::unlink(tempPath_.c_str());
+}
+
+void AtomicFileWriter::flush()
+{
+    size_t done = 0;
+    while (done < used_) {
+        ssize_t n = ::write(fd_, buffer_.data() + done, used_ - done);
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0)
+            fail(path_, std::string("write failed: ") + std::strerror(errno));
+        done += size_t(n);
+    }
+    flushed_ += used_;
+    used_ = 0;
+}
+
+void AtomicFileWriter::writeAt(uint64_t offset, const void* data, size_t size)
+{
+    if (offset > written() || size > written() - offset)
+        fail(path_, "internal error: writeAt past the end of the written bytes");
+    flush();
+    const char* bytes = static_cast<const char*>(data);
+    size_t done = 0;
+    while (done < size) {
+        ssize_t n = ::pwrite(fd_, bytes + done, size - done, off_t(offset + done));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0)
+            fail(path_, std::string("write failed: ") + std::strerror(errno));
+        done += size_t(n);
+    }
+}
+
+void AtomicFileWriter::write(const void* data, size_t size)
+{
+    const char* bytes = static_cast<const char*>(data);
+    if (used_ + size <= buffer_.size()) {
+        std::memcpy(buffer_.data() + used_, bytes, size);
+        used_ += size;
+        return;
+    }
+    flush();
+    if (size < buffer_.size()) {
+        std::memcpy(buffer_.data(), bytes, size);
+        used_ = size;
+        return;
+    }
+    // Large block: write straight from the caller's memory.
+    size_t done = 0;
+    while (done < size) {
+        ssize_t n = ::write(fd_, bytes + done, std::min<size_t>(size - done, size_t(1) << 30));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0)
+            fail(path_, std::string("write failed: ") + std::strerror(errno));
+        done += size_t(n);
+    }
+    flushed_ += size;
+}
+
+void AtomicFileWriter::commit(Durability durability)
+{
+    flush();
+    if (durability == Durability::Synced && ::fsync(fd_) != 0)
+        fail(path_, std::string("fsync failed: ") + std::strerror(errno));
+    int fd = fd_;
+    fd_ = -1;
+    if (::close(fd) != 0)
+        fail(path_, std::string("write failed: ") + std::strerror(errno));
+    if (std::rename(tempPath_.c_str(), path_.c_str()) != 0)
+        fail(path_, std::string("cannot rename temporary file: ") + std::strerror(errno));
+    committed_ = true;
+    if (durability == Durability::Synced) {
+        // The rename itself is durable once the folder's entry is.
+        size_t slash = path_.find_last_of('/');
+        std::string folder = slash == std::string::npos ? "." : slash == 0 ? "/" : path_.substr(0, slash);
+        int dir = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+        if (dir >= 0) {
+            ::fsync(dir);
+            ::close(dir);
+        }
+    }
+}
+
+
+void readExactly(int fd, uint64_t offset, void* out, size_t size, const std::string& name)
+{
+    uint8_t* bytes = static_cast<uint8_t*>(out);
+    size_t done = 0;
+    while (done < size) {
+        ssize_t n = ::pread(fd, bytes + done, std::min<size_t>(size - done, size_t(1) << 30), off_t(offset + done));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n < 0)
+            fail(name, std::string("read failed: ") + std::strerror(errno));
+        if (n == 0)
+            fail(name, "truncated: the file ends at byte " + std::to_string(offset + done) + " (it changed while it was read?)");
+        done += size_t(n);
+    }
+}
+
+FileReader::FileReader(const std::string& path, size_t bufferBytes) : path_(path)
+{
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd_ < 0) {
+        int err = errno;
+        if (err == ENOENT)
+            fail(path, "file not found");
+        fail(path, std::string("cannot open: ") + std::strerror(err));
+    }
+    struct stat st {};
+    if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
+        ::close(fd_);
+        fd_ = -1;
+        fail(path, "not a regular file");
+    }
+    size_ = uint64_t(st.st_size);
+    buffer_.resize(std::max<size_t>(bufferBytes, 4096));
+#ifdef POSIX_FADV_SEQUENTIAL
+    ::posix_fadvise(fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
+#endif
+}
+
+FileReader::~FileReader()
+{
+    if (fd_ >= 0)
+        ::close(fd_);
+}
+
+void FileReader::seek(uint64_t offset)
+{
+    if (offset >= bufferOffset_ && offset <= bufferOffset_ + filled_) {
+        position_ = size_t(offset - bufferOffset_);
+        return;
+    }
+    bufferOffset_ = offset;
+    position_ = filled_ = 0;
+}
+
+bool FileReader::ensure(size_t n)
+{
+    if (filled_ - position_ >= n)
+        return true;
+    if (n > buffer_.size())
+        fail(path_, "internal error: a read of " + std::to_string(n) + " bytes does not fit the buffer");
+    // Keep the unread bytes, then fill the rest of the buffer.
+    const size_t keep = filled_ - position_;
+    std::memmove(buffer_.data(), buffer_.data() + position_, keep);
+    bufferOffset_ += position_;
+    position_ = 0;
+    filled_ = keep;
+    while (filled_ < buffer_.size() && bufferOffset_ + filled_ < size_) {
+        const size_t want = size_t(std::min<uint64_t>(buffer_.size() - filled_, size_ - bufferOffset_ - filled_));
+        ssize_t got = ::pread(fd_, buffer_.data() + filled_, want, off_t(bufferOffset_ + filled_));
+        if (got < 0 && errno == EINTR)
+            continue;
+        if (got < 0)
+            fail(path_, std::string("read failed: ") + std::strerror(errno));
+        if (got == 0)
+            break; // the file shrank
+        filled_ += size_t(got);
+        if (filled_ >= n)
+            break;
+    }
+    return filled_ >= n;
+}
+
+void FileReader::readAt(uint64_t offset, void* out, size_t size) const
+{
+    if (offset > size_ || size > size_ - offset)
+        fail(path_, "truncated: " + std::to_string(size) + " bytes at offset " + std::to_string(offset) +
+                        " run past the end of the file (" + std::to_string(size_) + " bytes)");
+    readExactly(fd_, offset, out, size, path_);
+}
+
+TemporaryFile::TemporaryFile(const std::string& directory, const std::string& purpose, size_t bufferBytes)
+    : name_(purpose + " (temporary file in " + (directory.empty() ? std::string(".") : directory) + ")")
+{
+    const std::string folder = directory.empty() ? std::string(".") : directory;
+#ifdef O_TMPFILE
+    fd_ = ::open(folder.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+#endif
+    if (fd_ < 0) {
+        std::string pattern = folder + "/.penumbra-tmp-XXXXXX";
+        std::vector<char> name(pattern.begin(), pattern.end());
+        name.push_back('\0');
+        fd_ = ::mkstemp(name.data());
+        if (fd_ >= 0)
+            ::unlink(name.data());
+    }
+    if (fd_ < 0)
+        fail(folder, std::string("cannot create a temporary file for ") + purpose + ": " + std::strerror(errno));
+    buffer_.resize(std::max<size_t>(bufferBytes, 4096));
+}
+
+TemporaryFile::~TemporaryFile()
+{
+    if (fd_ >= 0)
+        ::close(fd_);
+}
+
+void TemporaryFile::append(const void* data, size_t size)
+{
+    const uint8_t* bytes = static_cast<const uint8_t*>(data);
+    if (buffer_.empty() && size > 0)
+        fail(name_, "internal error: append after finish");
+    while (size > 0) {
+        if (used_ == buffer_.size())
+            flush();
+        const size_t take = std::min(size, buffer_.size() - used_);
+        std::memcpy(buffer_.data() + used_, bytes, take);
+        used_ += take;
+        bytes += take;
+        size -= take;
+    }
+}
+
+void TemporaryFile::flush()
+{
+    size_t done = 0;
+    while (done < used_) {
+        ssize_t n = ::pwrite(fd_, buffer_.data() + done, used_ - done, off_t(flushed_ + done));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0)
+            fail(name_, std::string("write failed: ") + std::strerror(errno));
+        done += size_t(n);
+    }
+    flushed_ += used_;
+    used_ = 0;
+}
+
+void TemporaryFile::readAt(uint64_t offset, void* out, size_t size)
+{
+    if (offset + size > flushed_)
+        flush();
+    if (offset > flushed_ || size > flushed_ - offset)
+        fail(name_, "internal error: read past the end of a temporary file");
+    readExactly(fd_, offset, out, size, name_);
+}
+
+void TemporaryFile::finish()
+{
+    flush();
+    std::vector<uint8_t>().swap(buffer_);
 }
 
 } // namespace penumbra

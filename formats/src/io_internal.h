@@ -5,13 +5,17 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "penumbra/error.h"
+#include "penumbra/file_io.h"
 #include "penumbra/io.h"
 #include "penumbra/mesh.h"
+#include "penumbra/model_format.h"
+#include "penumbra/model_stream.h"
 
 namespace penumbra::detail {
 
@@ -37,45 +41,9 @@ class MappedFile {
     bool mapped_ = false;
 };
 
-// Buffered writer to "<path>.tmp-<pid>"; commit() flushes, closes and renames
-// it over path. Destroying an uncommitted writer removes the temporary file.
-// Every failure throws Error naming path.
-class AtomicFileWriter {
-  public:
-    explicit AtomicFileWriter(const std::string& path);
-    ~AtomicFileWriter();
-    AtomicFileWriter(const AtomicFileWriter&) = delete;
-    AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
-
-    void write(const void* data, size_t size);
-    void write(std::string_view text) { write(text.data(), text.size()); }
-    // Returns space for at least `size` bytes (size <= kBufferSize); finish
-    // with advance(bytesUsed).
-    char* reserve(size_t size)
-    {
-        if (used_ + size > buffer_.size())
-            flush();
-        return buffer_.data() + used_;
-    }
-    void advance(size_t size) { used_ += size; }
-    // Durability::Synced also fsyncs the file before the rename and its folder
-    // after it, so a crash never leaves a renamed file whose data is not on disk.
-    enum class Durability { Buffered, Synced };
-    void commit(Durability durability = Durability::Buffered);
-    const std::string& path() const { return path_; }
-
-    static constexpr size_t kBufferSize = size_t(4) << 20;
-
-  private:
-    void flush();
-
-    std::string path_;
-    std::string tempPath_;
-    int fd_ = -1;
-    std::vector<char> buffer_;
-    size_t used_ = 0;
-    bool committed_ = false;
-};
+using penumbra::AtomicFileWriter;
+using penumbra::FileReader;
+using penumbra::TemporaryFile;
 
 // Appends the shortest round-trip decimal form of value plus `separator`.
 inline char* formatFloat(char* out, float value, char separator)
@@ -217,5 +185,131 @@ DecodedDraco decodeDraco(const std::string& path, const std::string& what, const
 // id, encodedPoints/encodedFaces the counts the decoder will produce.
 std::vector<char> encodeDracoMesh(const std::string& path, const Mesh& mesh, const ExportOptions& options,
                                   uint32_t* positionId, size_t* encodedPoints, size_t* encodedFaces);
+
+// Writes a whole .penumbra file image of model (header, sections, padding) at the
+// writer's position, validated first as writeModelFile does; returns its size.
+uint64_t writeModelImage(const CompressedModel& model, AtomicFileWriter& out, const std::string& path);
+
+// ---- streaming (model_stream.h) ----
+
+// TextCursor's reading over a FileReader: tokens, blanks and lines of a file
+// read through a buffer. A token (at most the buffer size) stays valid until
+// the next call.
+class StreamCursor {
+  public:
+    explicit StreamCursor(FileReader& in, size_t line = 1) : in_(in), line(line) {}
+    bool atEnd() { return !in_.ensure(1); }
+    // Skips spaces and tabs (and '\r'), not newlines.
+    void skipBlanks();
+    // Skips all whitespace including newlines.
+    void skipWhitespace();
+    // Moves past the next '\n'.
+    void skipLine();
+    // Next whitespace-delimited token (does not cross newlines; empty at end of line).
+    std::string_view token();
+    uint64_t offset() const { return in_.offset(); }
+
+  private:
+    FileReader& in_;
+
+  public:
+    size_t line;
+};
+
+// Whole lines of a text file (without the '\n'), read through a buffer;
+// a line may be at most the buffer size. line() is the number of the last one.
+class LineReader {
+  public:
+    explicit LineReader(FileReader& in) : in_(in) {}
+    bool next(std::string_view& line);
+    size_t line() const { return line_; }
+
+  private:
+    FileReader& in_;
+    size_t line_ = 0;
+    size_t pending_ = 0; // bytes of the previous line still to skip
+};
+
+// Random access to the vertices a streamed model stores (ModelStream::readVertices).
+class VertexStore {
+  public:
+    virtual ~VertexStore() = default;
+    virtual void read(uint64_t first, uint64_t count, float* positions, float* colors) = 0;
+};
+
+// A temporary file of float records: x y z, plus r g b when it keeps colours.
+class TemporaryVertexStore : public VertexStore {
+  public:
+    TemporaryVertexStore(const std::string& directory, const std::string& purpose, bool colors);
+    void append(const float* xyz, const float* rgb);
+    void finish() { file_.finish(); }
+    uint64_t count() const { return count_; }
+    bool colors() const { return colors_; }
+    void read(uint64_t first, uint64_t count, float* positions, float* colors) override;
+
+  private:
+    TemporaryFile file_;
+    bool colors_;
+    uint64_t count_ = 0;
+    std::vector<float> scratch_;
+};
+
+// The folder for temporary files: options.tempDirectory, else path's folder.
+std::string temporaryDirectory(const std::string& path, const ModelStreamOptions& options);
+
+// Batches of triangles for ModelStream::triangles: filled one triangle at a
+// time, handed on when full and at the end.
+struct TriangleBatcher {
+    const std::function<void(const StreamTriangles&)>& sink;
+    bool withMaterials = false;
+    std::vector<uint64_t> vertices;
+    std::vector<float> corners;
+    std::vector<uint32_t> materials;
+    size_t count = 0;
+    static constexpr size_t kBatch = 1 << 15;
+    void add(uint64_t a, uint64_t b, uint64_t c, uint32_t material)
+    {
+        if (vertices.empty())
+            vertices.resize(3 * kBatch);
+        vertices[3 * count] = a;
+        vertices[3 * count + 1] = b;
+        vertices[3 * count + 2] = c;
+        addMaterial(material);
+    }
+    void addCorners(const float* nine, uint32_t material)
+    {
+        if (corners.empty())
+            corners.resize(9 * kBatch);
+        std::memcpy(&corners[9 * count], nine, 36);
+        addMaterial(material);
+    }
+    void addMaterial(uint32_t material)
+    {
+        if (withMaterials) {
+            if (materials.empty())
+                materials.resize(kBatch);
+            materials[count] = material;
+        }
+        if (++count == kBatch)
+            flush();
+    }
+    void flush()
+    {
+        if (count == 0)
+            return;
+        StreamTriangles batch;
+        batch.count = count;
+        batch.vertices = vertices.empty() ? nullptr : vertices.data();
+        batch.corners = corners.empty() ? nullptr : corners.data();
+        batch.materials = withMaterials ? materials.data() : nullptr;
+        count = 0;
+        sink(batch);
+    }
+};
+
+std::unique_ptr<ModelStream> openPlyStream(const std::string& path, const ModelStreamOptions& options);
+std::unique_ptr<ModelStream> openObjStream(const std::string& path, const ModelStreamOptions& options);
+std::unique_ptr<ModelStream> openStlStream(const std::string& path, const ModelStreamOptions& options);
+std::unique_ptr<ModelStream> openGltfStream(const std::string& path, const ModelStreamOptions& options, bool binary);
 
 } // namespace penumbra::detail

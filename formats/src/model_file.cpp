@@ -29,7 +29,9 @@ void writeZeros(detail::AtomicFileWriter& out, uint64_t count)
 
 } // namespace
 
-void writeModelFile(const CompressedModel& model, const std::string& path)
+namespace detail {
+
+uint64_t writeModelImage(const CompressedModel& model, AtomicFileWriter& out, const std::string& path)
 {
     if (model.clusters.size() > std::numeric_limits<uint32_t>::max() ||
         model.nodes.size() > std::numeric_limits<uint32_t>::max())
@@ -90,7 +92,6 @@ void writeModelFile(const CompressedModel& model, const std::string& path)
     header.headerChecksum = XXH64(&header, sizeof(header), 0);
 
     // Payloads go straight from the caller's memory to write(2).
-    detail::AtomicFileWriter out(path);
     out.write(&header, sizeof(header));
     uint64_t written = sizeof(header);
     for (uint32_t i = 0; i < payloads.size(); ++i) {
@@ -99,6 +100,15 @@ void writeModelFile(const CompressedModel& model, const std::string& path)
         written = header.sections[i].offset + header.sections[i].size;
     }
     writeZeros(out, header.fileSize - written);
+    return header.fileSize;
+}
+
+} // namespace detail
+
+void writeModelFile(const CompressedModel& model, const std::string& path)
+{
+    detail::AtomicFileWriter out(path);
+    detail::writeModelImage(model, out, path);
     out.commit(detail::AtomicFileWriter::Durability::Synced);
 }
 

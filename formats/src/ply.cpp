@@ -777,6 +777,37 @@ class AsciiPlyReader {
     TextCursor cursor_;
 };
 
+// The mesh's elements of a header: the first "vertex", the first "face" and
+// its vertex_indices (or vertex_index) list property; fails on a point cloud
+// or a face element without the list.
+struct MeshElements {
+    const PlyElement* vertex = nullptr;
+    const PlyElement* face = nullptr;
+    int listIndex = -1;
+};
+
+MeshElements findMeshElements(const std::string& path, const PlyHeader& header)
+{
+    MeshElements found;
+    for (const PlyElement& element : header.elements) {
+        if (element.name == "vertex" && !found.vertex)
+            found.vertex = &element;
+        if (element.name == "face" && !found.face) {
+            found.face = &element;
+            found.listIndex = element.find("vertex_indices");
+            if (found.listIndex < 0)
+                found.listIndex = element.find("vertex_index");
+            if (found.listIndex < 0 || !element.properties[size_t(found.listIndex)].isList)
+                fail(path, "face element has no vertex_indices list property");
+        }
+    }
+    if (!found.vertex)
+        fail(path, "no vertex element");
+    if (!found.face || found.face->count == 0)
+        fail(path, "no triangles (point cloud: no faces)");
+    return found;
+}
+
 } // namespace
 
 Scene importPly(const std::string& path, const MappedFile& file)
@@ -785,25 +816,10 @@ Scene importPly(const std::string& path, const MappedFile& file)
     Scene scene;
     Mesh& mesh = scene.mesh;
 
-    const PlyElement* vertexElement = nullptr;
-    const PlyElement* faceElement = nullptr;
-    int listIndex = -1;
-    for (const PlyElement& element : header.elements) {
-        if (element.name == "vertex" && !vertexElement)
-            vertexElement = &element;
-        if (element.name == "face" && !faceElement) {
-            faceElement = &element;
-            listIndex = element.find("vertex_indices");
-            if (listIndex < 0)
-                listIndex = element.find("vertex_index");
-            if (listIndex < 0 || !element.properties[size_t(listIndex)].isList)
-                fail(path, "face element has no vertex_indices list property");
-        }
-    }
-    if (!vertexElement)
-        fail(path, "no vertex element");
-    if (!faceElement || faceElement->count == 0)
-        fail(path, "no triangles (point cloud: no faces)");
+    const MeshElements elements = findMeshElements(path, header);
+    const PlyElement* vertexElement = elements.vertex;
+    const PlyElement* faceElement = elements.face;
+    const int listIndex = elements.listIndex;
     const uint64_t vertexCount = vertexElement->count;
 
     FaceStats stats;
@@ -883,6 +899,583 @@ void exportPly(const Scene& scene, AtomicFileWriter& out, bool binary)
         p = formatUint(p, mesh.indices[t * 3 + 2], '\n');
         out.advance(size_t(p - start));
     }
+}
+
+// ---- streaming (model_stream.h) ----
+
+namespace {
+
+// The header of a PLY file read through `in` (from offset 0): the bytes up to
+// the end_header line, at most 1 MiB, parsed as importPly does.
+PlyHeader readStreamHeader(const std::string& path, FileReader& in, size_t& headerLines)
+{
+    if (in.size() == 0)
+        fail(path, "empty file");
+    const size_t limit = std::min<size_t>(size_t(1) << 20, in.bufferSize());
+    size_t want = std::min<size_t>(4096, limit);
+    for (;;) {
+        const bool complete = in.ensure(want);
+        const char* text = reinterpret_cast<const char*>(in.data());
+        const std::string_view view(text, in.available());
+        size_t at = 0;
+        while ((at = view.find("end_header", at)) != std::string_view::npos) {
+            const bool lineStart = at > 0 && view[at - 1] == '\n';
+            const size_t newline = view.find('\n', at);
+            if (lineStart && newline != std::string_view::npos) {
+                MappedFile head(path, in.data(), newline + 1);
+                headerLines = size_t(std::count(view.begin(), view.begin() + long(newline + 1), '\n'));
+                return parseHeader(path, head);
+            }
+            if (lineStart)
+                break; // end_header without its newline yet: read more
+            at += 10;
+        }
+        if (!complete || in.available() >= limit) {
+            MappedFile head(path, in.data(), in.available());
+            parseHeader(path, head); // fails: no end_header line
+            fail(path, "header longer than " + std::to_string(limit) + " bytes");
+        }
+        want = std::min<size_t>(want * 4, limit);
+    }
+}
+
+// Positions (and colours) of fixed-size binary vertex records.
+struct VertexLayout {
+    size_t stride = 0;
+    size_t offsets[3] = {0, 0, 0};
+    PlyType types[3] = {PlyType::Float32, PlyType::Float32, PlyType::Float32};
+    bool colors = false;
+    size_t colorOffsets[3] = {0, 0, 0};
+    PlyType colorTypes[3] = {PlyType::Uint8, PlyType::Uint8, PlyType::Uint8};
+    bool swap = false;
+    bool plainFloats = false; // float x, y, z in order, native byte order
+
+    void decode(const uint8_t* record, float* xyz, float* rgb) const
+    {
+        if (plainFloats)
+            std::memcpy(xyz, record + offsets[0], 12);
+        else
+            for (int c = 0; c < 3; ++c)
+                xyz[c] = float(loadNumber(record + offsets[c], types[c], swap));
+        if (colors && rgb)
+            for (int c = 0; c < 3; ++c)
+                rgb[c] = colorValue(loadNumber(record + colorOffsets[c], colorTypes[c], swap), colorTypes[c]);
+    }
+};
+
+// The vertex store of a binary PLY: its own vertex records, read in place.
+class PlyInPlaceStore : public VertexStore {
+  public:
+    PlyInPlaceStore(const std::string& path, uint64_t offset, uint64_t count, const VertexLayout& layout)
+        : reader_(path, 4096), offset_(offset), count_(count), layout_(layout)
+    {
+    }
+    void read(uint64_t first, uint64_t count, float* positions, float* colors) override
+    {
+        if (first > count_ || count > count_ - first)
+            fail(reader_.path(), "internal error: vertices " + std::to_string(first) + "+" + std::to_string(count) +
+                                     " outside the " + std::to_string(count_) + " stored");
+        scratch_.resize(size_t(count) * layout_.stride);
+        reader_.readAt(offset_ + first * layout_.stride, scratch_.data(), scratch_.size());
+        for (uint64_t v = 0; v < count; ++v)
+            layout_.decode(scratch_.data() + v * layout_.stride, positions + 3 * v, colors ? colors + 3 * v : nullptr);
+    }
+
+  private:
+    FileReader reader_;
+    uint64_t offset_, count_;
+    VertexLayout layout_;
+    std::vector<uint8_t> scratch_;
+};
+
+[[noreturn]] void failNonFinite(const std::string& path, uint64_t v, const float* p)
+{
+    char text[160];
+    std::snprintf(text, sizeof(text), "vertex %llu has a non-finite position (%g, %g, %g)", (unsigned long long)v,
+                  double(p[0]), double(p[1]), double(p[2]));
+    fail(path, text);
+}
+
+class PlyStream : public ModelStream {
+  public:
+    PlyStream(const std::string& path, const ModelStreamOptions& options) : in_(path, options.bufferBytes), options_(options)
+    {
+        path_ = path;
+    }
+
+    void scan(const std::function<void(const float*, size_t)>& onVertices) override
+    {
+        size_t headerLines = 0;
+        header_ = readStreamHeader(path_, in_, headerLines);
+        const MeshElements elements = findMeshElements(path_, header_);
+        vertexElement_ = elements.vertex;
+        faceElement_ = elements.face;
+        listIndex_ = elements.listIndex;
+        swap_ = header_.encoding != PlyEncoding::Ascii &&
+                (header_.encoding == PlyEncoding::BinaryBig) == (std::endian::native == std::endian::little);
+        vertexCount_ = vertexElement_->count;
+        faceColors_ = findColors(*faceElement_).present();
+        const PlyProperty& list = faceElement_->properties[size_t(listIndex_)];
+        if (header_.encoding != PlyEncoding::Ascii && !isIntegerType(list.type))
+            fail(path_, "face property '" + list.name + "' has non-integer type");
+        faceIndexSigned_ = list.type == PlyType::Int32 || list.type == PlyType::Int16 || list.type == PlyType::Int8;
+
+        in_.seek(header_.dataOffset);
+        StreamCursor cursor(in_, 1 + headerLines); // line numbers count the header's lines, as importPly's
+        for (const PlyElement& element : header_.elements) {
+            if (&element == vertexElement_) {
+                if (header_.encoding == PlyEncoding::Ascii)
+                    readAsciiVertices(element, cursor, onVertices);
+                else
+                    readBinaryVertices(element, onVertices);
+            } else if (&element == faceElement_) {
+                faceOffset_ = in_.offset();
+                faceLine_ = cursor.line;
+                readFaces(element, cursor, nullptr);
+            } else if (header_.encoding == PlyEncoding::Ascii) {
+                readAsciiOther(element, cursor);
+            } else {
+                skipBinary(element);
+            }
+        }
+        if (triangleCount_ == 0)
+            fail(path_, "no triangles (all " + std::to_string(faceElement_->count) + " faces have fewer than 3 vertices)");
+        if (degenerate_ > 0)
+            warn(path_, "skipped " + std::to_string(degenerate_) + " faces with fewer than 3 vertices");
+        std::string skipped;
+        for (const PlyElement& element : header_.elements)
+            if (&element != vertexElement_ && &element != faceElement_ && element.count > 0)
+                skipped += (skipped.empty() ? "'" : ", '") + element.name + "' (" + std::to_string(element.count) + ")";
+        if (!skipped.empty())
+            warn(path_, "skipped elements " + skipped);
+        scanned_ = true;
+    }
+
+    void triangles(const std::function<void(const StreamTriangles&)>& onTriangles) override
+    {
+        if (!scanned_)
+            fail(path_, "internal error: triangles() before scan()");
+        in_.seek(faceOffset_);
+        StreamCursor cursor(in_, faceLine_);
+        TriangleBatcher batcher{onTriangles};
+        batcher.withMaterials = faceColors_;
+        readFaces(*faceElement_, cursor, &batcher);
+        batcher.flush();
+    }
+
+    void readVertices(uint64_t first, uint64_t count, float* positions, float* colors) override
+    {
+        if (!store_)
+            fail(path_, "internal error: readVertices() before scan()");
+        store_->read(first, count, positions, vertexColors_ ? colors : nullptr);
+    }
+
+  private:
+    // ---- vertices ----
+
+    void readBinaryVertices(const PlyElement& element, const std::function<void(const float*, size_t)>& onVertices)
+    {
+        const int ix = element.find("x"), iy = element.find("y"), iz = element.find("z");
+        if (ix < 0 || iy < 0 || iz < 0)
+            fail(path_, "vertex element has no x, y and z properties");
+        for (int i : {ix, iy, iz})
+            if (element.properties[size_t(i)].isList)
+                fail(path_, "vertex property '" + element.properties[size_t(i)].name + "' is a list");
+        const ColorProperties colors = findColors(element);
+        vertexColors_ = colors.present();
+        const size_t stride = element.fixedStride();
+        std::vector<float> batch;
+        const size_t batchVertices = 1 << 14;
+        batch.reserve(batchVertices * 3);
+        uint64_t v = 0;
+        auto deliver = [&](const float* xyz) {
+            if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2]))
+                failNonFinite(path_, v, xyz);
+            batch.insert(batch.end(), xyz, xyz + 3);
+            if (batch.size() == batchVertices * 3) {
+                onVertices(batch.data(), batchVertices);
+                batch.clear();
+            }
+            ++v;
+        };
+        if (stride > in_.bufferSize() / 2)
+            fail(path_, "vertex records of " + std::to_string(stride) + " bytes are larger than the read buffer");
+        if (stride != 0) {
+            // Fixed-size records: the vertex store is the file itself.
+            VertexLayout layout;
+            layout.stride = stride;
+            layout.swap = swap_;
+            layout.colors = vertexColors_;
+            size_t running = 0;
+            for (size_t i = 0; i < element.properties.size(); ++i) {
+                const PlyType type = element.properties[i].type;
+                for (int c = 0; c < 3; ++c)
+                    if (int(i) == (c == 0 ? ix : c == 1 ? iy : iz)) {
+                        layout.offsets[c] = running;
+                        layout.types[c] = type;
+                    }
+                if (colors.channel(i) >= 0) {
+                    layout.colorOffsets[colors.channel(i)] = running;
+                    layout.colorTypes[colors.channel(i)] = type;
+                }
+                running += plyTypeSize(type);
+            }
+            layout.plainFloats = !swap_ && layout.types[0] == PlyType::Float32 && layout.types[1] == PlyType::Float32 &&
+                                 layout.types[2] == PlyType::Float32 && layout.offsets[1] == layout.offsets[0] + 4 &&
+                                 layout.offsets[2] == layout.offsets[0] + 8;
+            const uint64_t start = in_.offset();
+            if (element.count > (in_.size() - std::min(in_.size(), start)) / stride)
+                fail(path_, "truncated: header claims " + std::to_string(element.count) + " vertices (" +
+                                std::to_string(element.count) + " x " + std::to_string(stride) + " bytes) but only " +
+                                std::to_string(in_.size() - std::min(in_.size(), start)) + " bytes of data follow");
+            const size_t perRead = std::max<size_t>(1, in_.bufferSize() / stride / 2);
+            float xyz[3];
+            for (uint64_t done = 0; done < element.count;) {
+                const size_t n = size_t(std::min<uint64_t>(perRead, element.count - done));
+                if (!in_.ensure(n * stride))
+                    fail(path_, "truncated: file ends inside vertex " + std::to_string(done));
+                const uint8_t* p = in_.data();
+                for (size_t r = 0; r < n; ++r) {
+                    layout.decode(p + r * stride, xyz, nullptr);
+                    deliver(xyz);
+                }
+                in_.advance(n * stride);
+                done += n;
+            }
+            store_ = std::make_unique<PlyInPlaceStore>(path_, start, element.count, layout);
+        } else {
+            // Records with lists: parsed one by one into a temporary store.
+            auto temporary = std::make_unique<TemporaryVertexStore>(temporaryDirectory(path_, options_),
+                                                                    "the vertices of " + path_, vertexColors_);
+            BinaryRecord record{in_, path_, swap_};
+            for (uint64_t r = 0; r < element.count; ++r) {
+                float xyz[3] = {0, 0, 0}, rgb[3] = {1, 1, 1};
+                for (size_t i = 0; i < element.properties.size(); ++i) {
+                    const PlyProperty& property = element.properties[i];
+                    const int c = int(i) == ix ? 0 : int(i) == iy ? 1 : int(i) == iz ? 2 : -1;
+                    if (!property.isList && (c >= 0 || colors.channel(i) >= 0)) {
+                        const double value = record.number(property.type, "vertex", r);
+                        if (c >= 0)
+                            xyz[c] = float(value);
+                        else
+                            rgb[colors.channel(i)] = colorValue(value, property.type);
+                    } else {
+                        record.skip(element, r, property);
+                    }
+                }
+                deliver(xyz);
+                temporary->append(xyz, rgb);
+            }
+            temporary->finish();
+            store_ = std::move(temporary);
+        }
+        if (!batch.empty())
+            onVertices(batch.data(), batch.size() / 3);
+    }
+
+    void readAsciiVertices(const PlyElement& element, StreamCursor& cursor,
+                           const std::function<void(const float*, size_t)>& onVertices)
+    {
+        const int ix = element.find("x"), iy = element.find("y"), iz = element.find("z");
+        if (ix < 0 || iy < 0 || iz < 0)
+            fail(path_, "vertex element has no x, y and z properties");
+        const ColorProperties colors = findColors(element);
+        vertexColors_ = colors.present();
+        auto temporary = std::make_unique<TemporaryVertexStore>(temporaryDirectory(path_, options_),
+                                                                "the vertices of " + path_, vertexColors_);
+        std::vector<float> batch;
+        const size_t batchVertices = 1 << 14;
+        for (uint64_t r = 0; r < element.count; ++r) {
+            float xyz[3] = {0, 0, 0}, rgb[3] = {1, 1, 1};
+            for (size_t i = 0; i < element.properties.size(); ++i) {
+                const PlyProperty& property = element.properties[i];
+                if (!property.isList) {
+                    std::string_view token = next(cursor, element, r);
+                    const int c = int(i) == ix ? 0 : int(i) == iy ? 1 : int(i) == iz ? 2 : -1;
+                    if (c >= 0 || colors.channel(i) >= 0) {
+                        float value;
+                        if (!parseFloat(token, value))
+                            malformed(cursor, token);
+                        if (c >= 0)
+                            xyz[c] = value;
+                        else
+                            rgb[colors.channel(i)] = colorValue(value, property.type);
+                    }
+                    continue;
+                }
+                int64_t n = 0;
+                std::string_view countToken = next(cursor, element, r);
+                if (!parseInt(countToken, n) || n < 0)
+                    malformed(cursor, countToken);
+                for (int64_t k = 0; k < n; ++k)
+                    next(cursor, element, r);
+            }
+            if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2]))
+                failNonFinite(path_, r, xyz);
+            temporary->append(xyz, rgb);
+            batch.insert(batch.end(), xyz, xyz + 3);
+            if (batch.size() == batchVertices * 3) {
+                onVertices(batch.data(), batchVertices);
+                batch.clear();
+            }
+        }
+        if (!batch.empty())
+            onVertices(batch.data(), batch.size() / 3);
+        temporary->finish();
+        store_ = std::move(temporary);
+    }
+
+    // ---- other elements ----
+
+    void readAsciiOther(const PlyElement& element, StreamCursor& cursor)
+    {
+        for (uint64_t r = 0; r < element.count; ++r)
+            for (const PlyProperty& property : element.properties) {
+                if (!property.isList) {
+                    next(cursor, element, r);
+                    continue;
+                }
+                int64_t n = 0;
+                std::string_view countToken = next(cursor, element, r);
+                if (!parseInt(countToken, n) || n < 0)
+                    malformed(cursor, countToken);
+                for (int64_t k = 0; k < n; ++k)
+                    next(cursor, element, r);
+            }
+    }
+
+    void skipBinary(const PlyElement& element)
+    {
+        const size_t stride = element.fixedStride();
+        if (stride != 0 || element.properties.empty()) {
+            const uint64_t start = in_.offset();
+            const uint64_t left = in_.size() - std::min(in_.size(), start);
+            if (stride != 0 && element.count > left / stride)
+                fail(path_, "truncated: header claims " + std::to_string(element.count) + " '" + element.name +
+                                "' records records (" + std::to_string(element.count) + " x " + std::to_string(stride) +
+                                " bytes) but only " + std::to_string(left) + " bytes of data follow");
+            in_.seek(start + element.count * stride);
+            return;
+        }
+        BinaryRecord record{in_, path_, swap_};
+        for (uint64_t r = 0; r < element.count; ++r)
+            for (const PlyProperty& property : element.properties)
+                record.skip(element, r, property);
+    }
+
+    // ---- faces ----
+
+    // Parses the face element at the reader's position: counts and checks (out null, the scan) or
+    // hands on the triangles (out set).
+    void readFaces(const PlyElement& element, StreamCursor& cursor, TriangleBatcher* out)
+    {
+        const PlyProperty& list = element.properties[size_t(listIndex_)];
+        const ColorProperties colors = findColors(element);
+        uint64_t triangles = 0;
+        auto emit = [&](uint64_t a, uint64_t b, uint64_t c, const glm::vec3& color) {
+            ++triangles;
+            uint32_t material = 0;
+            if (faceColors_) {
+                const uint32_t key = uint32_t(std::lround(color.r * 255.0f)) | uint32_t(std::lround(color.g * 255.0f)) << 8 |
+                                     uint32_t(std::lround(color.b * 255.0f)) << 16;
+                auto [it, added] = colorMaterials_.emplace(key, uint32_t(materials_.size()));
+                if (added)
+                    materials_.push_back({glm::vec4(float(key & 255) / 255.0f, float(key >> 8 & 255) / 255.0f,
+                                                    float(key >> 16) / 255.0f, 1.0f),
+                                          ""});
+                material = it->second;
+            }
+            if (out)
+                out->add(a, b, c, material);
+        };
+        const uint64_t vertexCount = vertexCount_;
+        auto checkIndex = [&](uint64_t face, int64_t index) {
+            if (index < 0 || uint64_t(index) >= vertexCount)
+                failIndex(path_, face, index, vertexCount);
+        };
+        if (header_.encoding == PlyEncoding::Ascii) {
+            for (uint64_t r = 0; r < element.count; ++r) {
+                glm::vec3 color(1.0f);
+                bool polygon = false;
+                std::vector<uint64_t>& corners = corners_;
+                corners.clear();
+                for (size_t i = 0; i < element.properties.size(); ++i) {
+                    const PlyProperty& property = element.properties[i];
+                    if (!property.isList) {
+                        std::string_view token = next(cursor, element, r);
+                        if (colors.present() && colors.channel(i) >= 0) {
+                            float value;
+                            if (!parseFloat(token, value))
+                                malformed(cursor, token);
+                            color[colors.channel(i)] = colorValue(value, property.type);
+                        }
+                        continue;
+                    }
+                    int64_t n = 0;
+                    std::string_view countToken = next(cursor, element, r);
+                    if (!parseInt(countToken, n) || n < 0)
+                        malformed(cursor, countToken);
+                    if (int(i) != listIndex_) {
+                        for (int64_t k = 0; k < n; ++k)
+                            next(cursor, element, r);
+                        continue;
+                    }
+                    if (n < 3 && !out)
+                        ++degenerate_;
+                    for (int64_t k = 0; k < n; ++k) {
+                        std::string_view token = next(cursor, element, r);
+                        int64_t index = 0;
+                        if (!parseInt(token, index))
+                            malformed(cursor, token);
+                        checkIndex(r, index);
+                        corners.push_back(uint64_t(index));
+                    }
+                    polygon = true;
+                }
+                // The colour may follow the list, so the triangles go out at the end of the record.
+                if (polygon)
+                    for (size_t k = 2; k < corners.size(); ++k)
+                        emit(corners[0], corners[k - 1], corners[k], color);
+            }
+        } else {
+            BinaryRecord record{in_, path_, swap_};
+            const size_t countSize = plyTypeSize(list.countType);
+            const size_t itemSize = plyTypeSize(list.type);
+            const bool fast = element.properties.size() == 1 && list.countType == PlyType::Uint8 &&
+                              (list.type == PlyType::Int32 || list.type == PlyType::Uint32) && !swap_;
+            for (uint64_t f = 0; f < element.count; ++f) {
+                if (fast && in_.ensure(1 + 12) && in_.data()[0] == 3) {
+                    uint32_t v[3];
+                    std::memcpy(v, in_.data() + 1, 12);
+                    for (uint32_t index : v)
+                        if (uint64_t(index) >= vertexCount)
+                            failIndex(path_, f, badIndexValue(index), vertexCount);
+                    in_.advance(13);
+                    emit(v[0], v[1], v[2], glm::vec3(1.0f));
+                    continue;
+                }
+                glm::vec3 color(1.0f);
+                corners_.clear();
+                bool polygon = false;
+                for (size_t i = 0; i < element.properties.size(); ++i) {
+                    const PlyProperty& property = element.properties[i];
+                    if (int(i) != listIndex_) {
+                        if (colors.present() && colors.channel(i) >= 0 && !property.isList)
+                            color[colors.channel(i)] = colorValue(record.number(property.type, "face", f), property.type);
+                        else
+                            record.skip(element, f, property);
+                        continue;
+                    }
+                    if (!in_.ensure(countSize))
+                        record.truncated("face", f);
+                    const int64_t n = loadInteger(in_.data(), list.countType, swap_);
+                    in_.advance(countSize);
+                    if (n < 0)
+                        fail(path_, "face " + std::to_string(f) + " has a negative vertex count");
+                    if (n < 3 && !out)
+                        ++degenerate_;
+                    for (int64_t k = 0; k < n; ++k) {
+                        if (!in_.ensure(itemSize))
+                            record.truncated("face", f);
+                        int64_t index = loadInteger(in_.data(), list.type, swap_);
+                        in_.advance(itemSize);
+                        if (index < 0 || uint64_t(index) >= vertexCount)
+                            failIndex(path_, f, index, vertexCount);
+                        corners_.push_back(uint64_t(index));
+                    }
+                    polygon = true;
+                }
+                if (polygon)
+                    for (size_t k = 2; k < corners_.size(); ++k)
+                        emit(corners_[0], corners_[k - 1], corners_[k], color);
+            }
+        }
+        if (!out)
+            triangleCount_ = triangles;
+    }
+
+    int64_t badIndexValue(uint32_t raw) const { return faceIndexSigned_ ? int64_t(int32_t(raw)) : int64_t(raw); }
+
+    // ---- records ----
+
+    struct BinaryRecord {
+        FileReader& in;
+        const std::string& path;
+        bool swap;
+        [[noreturn]] void truncated(const char* what, uint64_t record)
+        {
+            fail(path, std::string("truncated: file ends inside ") + what + " " + std::to_string(record));
+        }
+        double number(PlyType type, const char* what, uint64_t record)
+        {
+            const size_t size = plyTypeSize(type);
+            if (!in.ensure(size))
+                truncated(what, record);
+            const double value = loadNumber(in.data(), type, swap);
+            in.advance(size);
+            return value;
+        }
+        void skip(const PlyElement& element, uint64_t record, const PlyProperty& property)
+        {
+            const std::string what = "'" + element.name + "' record";
+            if (!property.isList) {
+                const size_t size = plyTypeSize(property.type);
+                if (!in.ensure(size))
+                    truncated(what.c_str(), record);
+                in.advance(size);
+                return;
+            }
+            const size_t countSize = plyTypeSize(property.countType);
+            if (!in.ensure(countSize))
+                truncated(what.c_str(), record);
+            const int64_t n = loadInteger(in.data(), property.countType, swap);
+            in.advance(countSize);
+            if (n < 0)
+                fail(path, "'" + element.name + "' record " + std::to_string(record) + " has a negative list length");
+            const uint64_t bytes = uint64_t(n) * plyTypeSize(property.type);
+            if (bytes > in.size() - std::min(in.size(), in.offset()))
+                truncated(what.c_str(), record);
+            in.seek(in.offset() + bytes);
+        }
+    };
+
+    std::string_view next(StreamCursor& cursor, const PlyElement& element, uint64_t record)
+    {
+        cursor.skipWhitespace();
+        std::string_view token = cursor.token();
+        if (token.empty())
+            fail(path_, "truncated: file ends inside '" + element.name + "' record " + std::to_string(record) + " of " +
+                            std::to_string(element.count));
+        return token;
+    }
+    [[noreturn]] void malformed(const StreamCursor& cursor, std::string_view token)
+    {
+        fail(path_, "line " + std::to_string(cursor.line) + ": malformed number " + quoteToken(token));
+    }
+
+    FileReader in_;
+    ModelStreamOptions options_;
+    PlyHeader header_;
+    const PlyElement* vertexElement_ = nullptr;
+    const PlyElement* faceElement_ = nullptr;
+    int listIndex_ = -1;
+    bool swap_ = false;
+    bool faceColors_ = false;
+    bool faceIndexSigned_ = true;
+    bool scanned_ = false;
+    uint64_t faceOffset_ = 0;
+    size_t faceLine_ = 1;
+    uint64_t degenerate_ = 0;
+    std::unique_ptr<VertexStore> store_;
+    std::unordered_map<uint32_t, uint32_t> colorMaterials_;
+    std::vector<uint64_t> corners_;
+};
+
+} // namespace
+
+std::unique_ptr<ModelStream> openPlyStream(const std::string& path, const ModelStreamOptions& options)
+{
+    return std::make_unique<PlyStream>(path, options);
 }
 
 } // namespace penumbra::detail

@@ -21,17 +21,19 @@ Scene importBinaryStl(const std::string& path, const MappedFile& file, uint32_t 
     return scene;
 }
 
-Scene importAsciiStl(const std::string& path, const MappedFile& file)
+// The ASCII STL grammar over any cursor with TextCursor's interface (the
+// mapped file's, or StreamCursor over a FileReader): add(nine) gets each
+// facet's triangles (a polygon is fanned; facets are triangles in practice).
+// Returns how many it gave; fails on the first malformed line.
+template <typename Cursor, typename Add> uint64_t parseAsciiStl(const std::string& path, Cursor& cursor, Add&& add)
 {
-    TextCursor cursor{reinterpret_cast<const char*>(file.data()),
-                      reinterpret_cast<const char*>(file.data()) + file.size()};
     auto lineFail = [&](const std::string& problem) {
         fail(path, "line " + std::to_string(cursor.line) + ": " + problem);
     };
-    std::vector<float> corners;
     std::vector<float> loop;
     bool inLoop = false;
     size_t loopLine = 0;
+    uint64_t complete = 0;
     cursor.skipWhitespace();
     cursor.token();    // "solid"
     cursor.skipLine(); // solid name
@@ -64,11 +66,14 @@ Scene importAsciiStl(const std::string& path, const MappedFile& file)
             if (!inLoop)
                 lineFail("'endloop' without 'outer loop'");
             inLoop = false;
-            size_t n = loop.size() / 3;
+            const size_t n = loop.size() / 3;
             for (size_t k = 2; k < n; ++k) { // fan (facets are triangles in practice)
-                corners.insert(corners.end(), &loop[0], &loop[3]);
-                corners.insert(corners.end(), &loop[(k - 1) * 3], &loop[k * 3]);
-                corners.insert(corners.end(), &loop[k * 3], &loop[k * 3 + 3]);
+                float nine[9];
+                std::memcpy(nine, &loop[0], 12);
+                std::memcpy(nine + 3, &loop[(k - 1) * 3], 12);
+                std::memcpy(nine + 6, &loop[k * 3], 12);
+                add(nine);
+                ++complete;
             }
         } else if (token == "facet" || token == "endfacet" || token == "solid" || token == "endsolid") {
             cursor.skipLine(); // the rest (normal, solid name) is not needed
@@ -78,8 +83,17 @@ Scene importAsciiStl(const std::string& path, const MappedFile& file)
     }
     if (inLoop)
         fail(path, "truncated: file ends inside the facet that starts on line " + std::to_string(loopLine));
-    if (corners.empty())
+    if (complete == 0)
         fail(path, "no triangles (no complete facets)");
+    return complete;
+}
+
+Scene importAsciiStl(const std::string& path, const MappedFile& file)
+{
+    TextCursor cursor{reinterpret_cast<const char*>(file.data()),
+                      reinterpret_cast<const char*>(file.data()) + file.size()};
+    std::vector<float> corners;
+    parseAsciiStl(path, cursor, [&](const float* nine) { corners.insert(corners.end(), nine, nine + 9); });
     Scene scene;
     weldTriangles(corners, scene.mesh);
     return scene;
@@ -174,6 +188,136 @@ void exportStl(const Scene& scene, AtomicFileWriter& out, bool binary)
         out.advance(size_t(p - start));
     }
     out.write("endsolid penumbra\n");
+}
+
+// ---- streaming (model_stream.h) ----
+
+namespace {
+
+class StlStream : public ModelStream {
+  public:
+    StlStream(const std::string& path, const ModelStreamOptions& options) : in_(path, options.bufferBytes)
+    {
+        path_ = path;
+        indexed_ = false;
+    }
+
+    void scan(const std::function<void(const float*, size_t)>& onVertices) override
+    {
+        // Binary or ASCII, decided exactly as importStl does.
+        const uint64_t size = in_.size();
+        if (size == 0)
+            fail(path_, "empty file");
+        uint32_t count = 0;
+        if (size >= 84) {
+            in_.readAt(80, &count, 4);
+        }
+        if (size >= 84 && size == 84 + 50 * uint64_t(count)) {
+            if (count == 0)
+                fail(path_, "no triangles (binary STL with 0 facets)");
+            binary_ = true;
+            binaryCount_ = count;
+        } else {
+            in_.seek(0);
+            in_.ensure(size_t(std::min<uint64_t>(size, std::min<size_t>(1024, in_.bufferSize()))));
+            std::string_view head(reinterpret_cast<const char*>(in_.data()), in_.available());
+            head = head.substr(0, 1024);
+            const size_t start = head.find_first_not_of(" \t\r\n");
+            const bool ascii = start != std::string_view::npos && head.substr(start, 5) == "solid" &&
+                               (head.find("facet") != std::string_view::npos || head.find("endsolid") != std::string_view::npos);
+            if (!ascii) {
+                if (size < 84)
+                    fail(path_, "truncated: " + std::to_string(size) +
+                                    " bytes is shorter than a binary STL header (84 bytes)");
+                const uint64_t expected = 84 + 50 * uint64_t(count);
+                if (expected > size)
+                    fail(path_, "truncated: header claims " + std::to_string(count) + " triangles (" +
+                                    std::to_string(expected) + " bytes) but the file has " + std::to_string(size) + " bytes");
+                fail(path_, "malformed binary STL: header claims " + std::to_string(count) + " triangles (" +
+                                std::to_string(expected) + " bytes) but the file has " + std::to_string(size) + " bytes");
+            }
+        }
+        uint64_t triangles = 0;
+        read([&](const float* corners, size_t n) {
+            for (size_t i = 0; i < 9 * n; ++i)
+                if (!std::isfinite(corners[i]))
+                    fail(path_, "triangle " + std::to_string(triangles + i / 9) + " has a non-finite corner");
+            onVertices(corners, 3 * n);
+            triangles += n;
+        });
+        if (triangles == 0)
+            fail(path_, "no triangles (no complete facets)");
+        triangleCount_ = triangles;
+        scanned_ = true;
+    }
+
+    void triangles(const std::function<void(const StreamTriangles&)>& onTriangles) override
+    {
+        if (!scanned_)
+            fail(path_, "internal error: triangles() before scan()");
+        read([&](const float* corners, size_t n) {
+            StreamTriangles batch;
+            batch.count = n;
+            batch.corners = corners;
+            onTriangles(batch);
+        });
+    }
+
+    void readVertices(uint64_t, uint64_t, float*, float*) override
+    {
+        fail(path_, "internal error: an STL file has no shared vertices");
+    }
+
+  private:
+    // Every triangle's corners, in batches (9 floats per triangle).
+    void read(const std::function<void(const float*, size_t)>& batch)
+    {
+        std::vector<float> corners;
+        const size_t perBatch = 1 << 14;
+        corners.reserve(perBatch * 9);
+        auto add = [&](const float* nine) {
+            corners.insert(corners.end(), nine, nine + 9);
+            if (corners.size() == perBatch * 9) {
+                batch(corners.data(), perBatch);
+                corners.clear();
+            }
+        };
+        if (binary_) {
+            in_.seek(84);
+            float nine[9];
+            for (uint64_t t = 0; t < binaryCount_; ++t) {
+                if (!in_.ensure(50))
+                    fail(path_, "truncated: file ends inside facet " + std::to_string(t));
+                std::memcpy(nine, in_.data() + 12, 36);
+                in_.advance(50);
+                add(nine);
+            }
+        } else {
+            readAscii(add);
+        }
+        if (!corners.empty())
+            batch(corners.data(), corners.size() / 9);
+    }
+
+    // importAsciiStl's parser over the stream.
+    template <typename Add> void readAscii(Add&& add)
+    {
+        in_.seek(0);
+        StreamCursor cursor(in_, 1);
+        parseAsciiStl(path_, cursor, add);
+    }
+
+    FileReader in_;
+    bool binary_ = false;
+    bool scanned_ = false;
+    uint64_t binaryCount_ = 0;
+};
+
+} // namespace
+
+std::unique_ptr<ModelStream> openStlStream(const std::string& path, const ModelStreamOptions& options)
+{
+    return std::make_unique<StlStream>(path, options);
 }
 
 } // namespace penumbra::detail

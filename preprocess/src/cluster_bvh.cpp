@@ -488,13 +488,13 @@ struct Builder {
 
 TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm::vec3& meanExtent,
                      const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress,
-                     const uint32_t* materials)
+                     const uint32_t* materials, uint32_t rootDepth)
 {
     // Centroids are stored as vertex sums (3x), so the triangle size is scaled likewise.
     const float inflate[3] = {3.0f * meanExtent.x, 3.0f * meanExtent.y, 3.0f * meanExtent.z};
     const uint32_t total = uint32_t(refs.size());
     TopTree tree;
-    tree.nodes.push_back({0, total, {0, 0}, 0, kNone, 1});
+    tree.nodes.push_back({0, total, {0, 0}, 0, kNone, rootDepth});
 
     // Split big nodes here (parallel binning) until the pieces make enough tasks.
     const uint32_t taskSize = std::max<uint32_t>(

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cmath>
 #include <thread>
 #include <vector>
@@ -154,6 +155,26 @@ std::vector<std::string> generatorNames()
     for (const Generator& g : kGenerators)
         names.push_back(g.name);
     return names;
+}
+
+bool writeSceneStreamed(const std::string& name, const GenerateOptions& options, const std::string& path, bool binary,
+                        uint64_t* triangles, uint64_t* vertices)
+{
+    std::string extension = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+    for (char& c : extension)
+        c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (name != "scan" || !binary || extension != ".ply")
+        return false;
+    if (options.triangles < 1'000 || options.triangles > detail::scanStreamingLimit())
+        fail("generate " + name, "triangle budget " + std::to_string(options.triangles) + " is outside [1000, " +
+                                     std::to_string(detail::scanStreamingLimit()) + "] (streamed binary PLY)");
+    uint64_t t = 0, v = 0;
+    detail::writeScanPly(options, path, t, v);
+    if (triangles)
+        *triangles = t;
+    if (vertices)
+        *vertices = v;
+    return true;
 }
 
 Scene generateScene(const std::string& name, const GenerateOptions& options)

@@ -61,5 +61,8 @@ Scene generateCity(const GenerateOptions& options);
 Scene generateInterior(const GenerateOptions& options);
 Scene generatePlant(const GenerateOptions& options);
 Scene generateScan(const GenerateOptions& options);
+// The scan as binary PLY written row by row (exportPly's bytes), never held in memory.
+void writeScanPly(const GenerateOptions& options, const std::string& path, uint64_t& triangles, uint64_t& vertices);
+uint64_t scanStreamingLimit();
 
 } // namespace penumbra::detail

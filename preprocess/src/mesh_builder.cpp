@@ -41,6 +41,11 @@ MeshBuilder::MeshBuilder(float* positions, uint32_t* indices, uint64_t vertexOff
 {
 }
 
+MeshBuilder::MeshBuilder(OwnArrays, float* positions, uint32_t* indices, uint64_t vertexBase, uint64_t triangleLimit)
+    : positions_(positions), indices_(indices), vertexBase_(vertexBase), limit_(triangleLimit)
+{
+}
+
 bool MeshBuilder::fits(uint64_t triangles)
 {
     if (triangles > remaining()) {

@@ -34,6 +34,10 @@ class MeshBuilder {
     // indices[3 * (triangleOffset + t)]; indices written are absolute (vertexOffset + v).
     MeshBuilder(float* positions, uint32_t* indices, uint64_t vertexOffset, uint64_t triangleOffset,
                 uint64_t triangleLimit);
+    // Emitting into arrays of its own: vertex v goes to positions[3 * v], triangle t to
+    // indices[3 * t]; indices written are still absolute (vertexBase + v).
+    struct OwnArrays {};
+    MeshBuilder(OwnArrays, float* positions, uint32_t* indices, uint64_t vertexBase, uint64_t triangleLimit);
 
     bool counting() const { return positions_ == nullptr; }
     uint64_t vertices() const { return vertices_; }

@@ -34,14 +34,20 @@ struct Trees {
     const TopTree& tree;
     const std::vector<Box>& topBoxes;
     const std::vector<BuiltCluster>& clusters;
+    // layoutSubtrees: a TopNode leaf names a subtree laid out elsewhere (its
+    // root an Interior child here, never expanded, never descended into).
+    bool subtrees = false;
 
     const Box& box(BinaryRef r) const { return r.cluster == kNone ? topBoxes[r.source] : clusters[r.cluster].nodes[r.source].box; }
+    bool subtree(BinaryRef r) const { return subtrees && r.cluster == kNone && tree.nodes[r.source].cluster != kNone; }
     model::ChildKind kind(BinaryRef r) const
     {
         if (r.cluster == kNone)
-            return tree.nodes[r.source].cluster == kNone ? model::ChildKind::Interior : model::ChildKind::Cluster;
+            return tree.nodes[r.source].cluster == kNone || subtrees ? model::ChildKind::Interior : model::ChildKind::Cluster;
         return clusters[r.cluster].nodes[r.source].childCount == 0 ? model::ChildKind::Leaf : model::ChildKind::Interior;
     }
+    // An Interior child whose binary children may take its slot.
+    bool expandable(BinaryRef r) const { return kind(r) == model::ChildKind::Interior && !subtree(r); }
     uint32_t childCount(BinaryRef r) const
     {
         return r.cluster == kNone ? tree.nodes[r.source].childCount : clusters[r.cluster].nodes[r.source].childCount;
@@ -148,6 +154,13 @@ Layout layout(const Trees& t, bool byLevel)
 {
     Layout out;
     out.nodes.resize(1);
+    if (t.subtrees) {
+        uint32_t count = 0;
+        for (const TopNode& n : t.tree.nodes)
+            count += n.cluster != kNone ? 1 : 0;
+        out.subtreeNode.assign(count, kNone);
+        out.subtreeDepth.assign(count, 0);
+    }
     std::vector<Pending> stack{{0, {0, kNone}, 1}};
     while (!stack.empty()) {
         const Pending item = stack.back();
@@ -186,7 +199,7 @@ Layout layout(const Trees& t, bool byLevel)
             uint32_t n = 0;
             for (uint32_t c = 0; c < count; ++c) {
                 const BinaryRef r = children[c];
-                if (t.kind(r) == model::ChildKind::Interior && n + t.childCount(r) + (count - c - 1) <= 4)
+                if (t.expandable(r) && n + t.childCount(r) + (count - c - 1) <= 4)
                     for (uint32_t k = 0; k < t.childCount(r); ++k)
                         expanded[n++] = t.child(r, k);
                 else
@@ -200,7 +213,7 @@ Layout layout(const Trees& t, bool byLevel)
                 float bestArea = -1.0f;
                 for (uint32_t c = 0; c < count; ++c) {
                     const BinaryRef r = children[c];
-                    if (t.kind(r) != model::ChildKind::Interior || count - 1 + t.childCount(r) > 4)
+                    if (!t.expandable(r) || count - 1 + t.childCount(r) > 4)
                         continue;
                     const float a = area(t.box(r));
                     if (a > bestArea) {
@@ -245,9 +258,15 @@ Layout layout(const Trees& t, bool byLevel)
                                            " nodes, the format's limit (32-bit node indices); use larger --leaf-triangles");
                 node.child[c] = uint32_t(out.nodes.size());
                 out.nodes.emplace_back();
+                if (t.subtree(children[c])) { // its root's place: the caller fills it
+                    const uint32_t sub = t.tree.nodes[children[c].source].cluster;
+                    out.subtreeNode[sub] = node.child[c];
+                    out.subtreeDepth[sub] = item.depth + 1;
+                    out.depth = std::max(out.depth, item.depth + 1);
+                }
             }
         for (uint32_t c = count; c-- > 0;)
-            if (t.kind(children[c]) != model::ChildKind::Leaf)
+            if (t.kind(children[c]) != model::ChildKind::Leaf && !t.subtree(children[c]))
                 stack.push_back({node.child[c], children[c], item.depth + 1});
         out.nodes[item.index] = node;
     }
@@ -257,15 +276,27 @@ Layout layout(const Trees& t, bool byLevel)
 } // namespace
 
 Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const std::vector<BuiltCluster>& clusters,
-                   const glm::vec3&, const glm::vec3&)
+                   uint32_t maxDepth)
 {
     const Trees trees{tree, topBoxes, clusters};
     Layout result = layout(trees, false);
-    if (result.depth > model::kMaxBvhDepth)
+    if (result.depth > maxDepth)
         result = layout(trees, true);
-    if (result.depth > model::kMaxBvhDepth)
-        fail("preprocess", "internal error: BVH depth " + std::to_string(result.depth) + " exceeds the format limit");
+    if (result.depth > maxDepth)
+        fail("preprocess", "internal error: BVH depth " + std::to_string(result.depth) + " exceeds the " +
+                               std::to_string(maxDepth) + " levels left to it (format limit " +
+                               std::to_string(model::kMaxBvhDepth) + ")");
     return result;
+}
+
+Layout layoutSubtrees(const TopTree& tree, const std::vector<Box>& topBoxes)
+{
+    if (tree.nodes.size() < 3 || tree.nodes[0].childCount == 0)
+        fail("preprocess", "internal error: a top tree over fewer than two subtrees");
+    const std::vector<BuiltCluster> none;
+    Trees trees{tree, topBoxes, none};
+    trees.subtrees = true;
+    return layout(trees, true);
 }
 
 } // namespace penumbra::preprocess_detail

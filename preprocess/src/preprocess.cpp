@@ -145,6 +145,17 @@ void checkModelLimits(uint64_t triangles, const PreprocessOptions& options, cons
 CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* statsOut,
                                      std::vector<uint32_t>* decodedTriangleSource)
 {
+    return buildModel(mesh, options, statsOut, decodedTriangleSource, {});
+}
+
+namespace preprocess_detail {
+
+CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* statsOut,
+                           std::vector<uint32_t>* decodedTriangleSource, const BuildExtras& extras)
+{
+    if (extras.rootDepth < 1 || extras.rootDepth + 4 > model::kMaxBvhDepth)
+        fail("preprocess", "internal error: root depth " + std::to_string(extras.rootDepth));
+    const uint32_t binaryRootDepth = 2 * (extras.rootDepth - 1) + 1;
     const auto start = Clock::now();
     checkOptions(options);
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
@@ -216,7 +227,8 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     // Closed components (kClusterClosed), before the per-triangle arrays of the tree stage so that
     // its temporary memory does not add to their peak.
     const auto closedStart = Clock::now();
-    std::vector<uint8_t> closed = closedTriangles(mesh, threads);
+    std::vector<uint8_t> closed = extras.closed ? std::vector<uint8_t>(extras.closed, extras.closed + inputTriangles)
+                                                : closedTriangles(mesh, threads);
     stats.closedSeconds = secondsSince(closedStart);
     std::vector<TriangleRef> refs(triangleCount);
     std::vector<glm::dvec3> extentSums(chunks, glm::dvec3(0.0));
@@ -267,7 +279,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         }
     }
     TopTree tree = buildTopTree(mesh, refs, meanExtent, options, threads, [&](double f) { progress.report(f); },
-                                splitKeys.empty() ? nullptr : splitKeys.data());
+                                splitKeys.empty() ? nullptr : splitKeys.data(), binaryRootDepth);
     splitKeys = {};
     std::vector<uint32_t> triangles(triangleCount);
     parallelFor(threads, (triangleCount + chunkSize - 1) / chunkSize, [&](uint64_t c) {
@@ -369,7 +381,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         root.grow(c.inputBox);
         maxError = std::max(maxError, c.maxError);
     }
-    Layout layout = layoutNodes(tree, topBoxes, built, root.min, root.max);
+    Layout layout = layoutNodes(tree, topBoxes, built, model::kMaxBvhDepth - (extras.rootDepth - 1));
     tree = TopTree();
     topBoxes = {};
     for (size_t i = 0; i < clusterCount; ++i)
@@ -447,7 +459,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
     stats.vertices = vertexTotal;
     stats.indexBytes = byteTotal;
     stats.widenedBounds = layout.widened;
-    stats.bvhDepth = layout.depth;
+    stats.bvhDepth = h.bvhDepth;
     stats.maxPositionError = maxError;
     stats.materials = h.materialCount;
     stats.bytesPerTriangle = double(clusterCount * sizeof(model::ClusterRecord) + h.nodeCount * sizeof(model::Node) +
@@ -458,5 +470,7 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
         *statsOut = stats;
     return makeCompressedModel(std::move(data));
 }
+
+} // namespace preprocess_detail
 
 } // namespace penumbra

@@ -103,9 +103,12 @@ struct TopTree {
 // materials (per input triangle, or null): a node that fits a cluster but
 // mixes materials is split by material until every cluster has one (unless
 // the depth budget forbids it: then the cluster takes its first triangle's).
+// rootDepth: the binary depth of the tree's root (root = 1; a chunk of a streamed
+// build hangs below the chunks' top nodes: BuildExtras), so that the depth budget
+// (kMaxBinaryDepth) holds for the whole.
 TopTree buildTopTree(const Mesh& mesh, std::vector<TriangleRef>& refs, const glm::vec3& meanExtent,
                      const PreprocessOptions& options, unsigned threads, const std::function<void(double)>& progress,
-                     const uint32_t* materials = nullptr);
+                     const uint32_t* materials = nullptr, uint32_t rootDepth = 1);
 
 // At most this many materials are kept apart by the clusters; with more (or
 // with vertex colours) each cluster gets the mean colour of its triangles.
@@ -174,13 +177,45 @@ struct Layout {
     uint32_t depth = 0;
     uint64_t widened = 0;
     uint64_t leaves = 0;
+    std::vector<uint32_t> subtreeNode, subtreeDepth; // layoutSubtrees: per subtree, its root's node and depth
 };
 
 // Collapses the binary trees into the 4-wide node array (node 0 the root,
 // children after their node, depth first) and encodes every child box in 8
 // bits on its node's grid, verified to contain the exact box. topBoxes:
 // exact box per TopNode. The root's own box is the header's (not stored).
+// maxDepth: the levels the layout may use (kMaxBvhDepth, less the levels
+// above a chunk's root in a streamed build): the area-first collapse, or
+// where it is deeper, the level-by-level one.
 Layout layoutNodes(const TopTree& tree, const std::vector<Box>& topBoxes, const std::vector<BuiltCluster>& clusters,
-                   const glm::vec3& rootMin, const glm::vec3& rootMax);
+                   uint32_t maxDepth = model::kMaxBvhDepth);
+
+// The merge of a streamed build: a binary tree whose leaves (TopNode::cluster
+// = subtree index, 0..k-1) are the roots of subtrees laid out already (the
+// chunks' node arrays), collapsed level by level like layoutNodes' fallback.
+// Returns the nodes above the subtrees, with one placeholder node per subtree
+// root (Layout::subtreeNode, at Layout::subtreeDepth, root = 1) for the caller
+// to fill; the subtree roots are Interior children. A leaf at binary level l
+// (root 0) gets depth ceil(l / 2) + 1 (subtreeRootDepth). Needs >= 2 leaves.
+Layout layoutSubtrees(const TopTree& tree, const std::vector<Box>& topBoxes);
+
+// The depth (root = 1) of the subtree roots under layoutSubtrees over a
+// balanced binary tree of n leaves: ceil(ceil(log2 n) / 2) + 1.
+inline uint32_t subtreeRootDepth(uint64_t n)
+{
+    return (ceilLog2(std::max<uint64_t>(n, 1)) + 1) / 2 + 1;
+}
+
+// What a streamed build adds to buildCompressedModel (buildModel).
+struct BuildExtras {
+    // Depth (root = 1) of the model's root node in the final 4-wide BVH: the
+    // binary build starts at binary depth 2 x (rootDepth - 1) + 1 and the
+    // layout keeps kMaxBvhDepth - (rootDepth - 1) levels; header.bvhDepth
+    // counts from the model's root.
+    uint32_t rootDepth = 1;
+    const uint8_t* closed = nullptr;   // per input triangle: computed outside (streaming: with neighbours and seeds)
+};
+CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* stats,
+                           std::vector<uint32_t>* decodedTriangleSource, const BuildExtras& extras);
 
 } // namespace penumbra::preprocess_detail

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <new>
 #include <optional>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -15,6 +16,7 @@
 #include "penumbra/progress_bar.h"
 #include "penumbra/preprocess.h"
 #include "penumbra/penumbra.h"
+#include "tool_commands.h"
 
 namespace {
 
@@ -36,6 +38,8 @@ struct RenderArgs {
     std::string shadows = "sm";
     std::string cull = "all";
     std::string rasterIndices = "auto";
+    double geometryBudgetMiB = 0.0;
+    double geometryPageKiB = double(RendererOptions{}.geometryPageBytes) / 1024.0;
     std::string shadowFit = "view";
     uint32_t shadowMapSize = 2048;
     uint32_t samples = 0; // 0: the method's default (srt, frt: RenderSettings' 16; afsm: 256)
@@ -56,20 +60,10 @@ struct RenderArgs {
     bool exrLayers = false;
     bool floors = false;
     std::string coneTest = "precise";
-    std::string rhSort = "on";
+    std::string rhSort = "auto";
     std::string rhTwoPass = "off";
-};
-
-struct PreprocessArgs {
-    std::string input;
-    std::string output;
-    std::string simplify = "1";
-    uint32_t clusterVertices = PreprocessOptions{}.maxClusterVertices;
-    uint32_t clusterTriangles = PreprocessOptions{}.maxClusterTriangles;
-    uint32_t leafTriangles = PreprocessOptions{}.maxLeafTriangles;
-    unsigned threads = 0;
-    bool separateClosed = false;
-    bool quiet = false;
+    std::string rhEarlyAccept = "on";
+    std::string rhClosedMeshes = "off";
 };
 
 struct BenchArgs {
@@ -88,15 +82,6 @@ struct BenchArgs {
     std::vector<std::string> methods, sections;
 };
 
-struct GenerateArgs {
-    std::string name;
-    uint64_t triangles = 1'000'000;
-    uint64_t seed = 1;
-    std::string output;
-    bool draco = false;
-    bool ascii = false;
-};
-
 void parseSize(const std::string& text, RenderSettings& settings)
 {
     unsigned w = 0, h = 0;
@@ -110,26 +95,6 @@ void parseSize(const std::string& text, RenderSettings& settings)
         fail("--size " + text, "each side must be 1..16384");
     settings.width = w;
     settings.height = h;
-}
-
-// Fails unless a file can be created at path: its folder exists and can be
-// written, and the path itself is not a folder. Outputs are written to a
-// temporary name in that folder and renamed, so this is all they need.
-void checkWritable(const std::string& path)
-{
-    namespace fs = std::filesystem;
-    std::error_code error;
-    if (path.empty())
-        fail("output", "empty path");
-    if (fs::is_directory(path, error))
-        fail(path, "is a folder, not a file");
-    fs::path folder = fs::path(path).parent_path();
-    if (folder.empty())
-        folder = ".";
-    if (!fs::is_directory(folder, error))
-        fail(path, "folder '" + folder.string() + "' does not exist");
-    if (::access(folder.c_str(), W_OK) != 0)
-        fail(path, "folder '" + folder.string() + "' is not writable");
 }
 
 // Written to a temporary name beside it, then renamed: a failed write leaves no file.
@@ -184,8 +149,10 @@ int runRender(const RenderArgs& args)
     settings.shadows = parseShadowMethod(args.shadows);
     settings.measureFloors = args.floors;
     settings.coneTest = parseConeTest(args.coneTest);
-    settings.rhSort = args.rhSort == "on";
+    settings.rhSort = parseRhSort(args.rhSort);
     settings.rhTwoPass = args.rhTwoPass == "on";
+    settings.rhEarlyAccept = args.rhEarlyAccept == "on";
+    settings.rhClosedMeshes = args.rhClosedMeshes == "on";
     settings.cull = parseCullMode(args.cull);
     const RasterIndices rasterIndices = parseRasterIndices(args.rasterIndices);
     settings.fitShadowMapsToView = args.shadowFit == "view";
@@ -241,6 +208,12 @@ int runRender(const RenderArgs& args)
     options.device = args.device;
     options.validation = args.validation;
     options.rasterIndices = rasterIndices;
+    if (!(args.geometryBudgetMiB >= 0.0) || args.geometryBudgetMiB > 1e9)
+        fail("--geometry-budget", "must be a number of MiB >= 0 (0: no budget)");
+    options.geometryBudgetBytes = uint64_t(args.geometryBudgetMiB * 1048576.0);
+    if (!(args.geometryPageKiB > 0.0) || args.geometryPageKiB > 1048576.0)
+        fail("--geometry-page", "must be a number of KiB, 3 .. 1048576");
+    options.geometryPageBytes = uint64_t(args.geometryPageKiB * 1024.0);
     std::optional<Renderer> renderer(std::in_place, options);
 
     auto loadStart = std::chrono::steady_clock::now();
@@ -350,173 +323,6 @@ int runRender(const RenderArgs& args)
     return 0;
 }
 
-std::vector<float> parseRatios(const std::string& text)
-{
-    std::vector<float> ratios;
-    size_t start = 0;
-    while (start <= text.size()) {
-        size_t end = text.find(',', start);
-        std::string part = text.substr(start, end == std::string::npos ? std::string::npos : end - start);
-        char* stop = nullptr;
-        float ratio = std::strtof(part.c_str(), &stop);
-        if (part.empty() || *stop != '\0' || !(ratio > 0.0f && ratio <= 1.0f))
-            fail("--simplify " + text, "'" + part + "' is not a ratio in (0, 1]");
-        ratios.push_back(ratio);
-        if (end == std::string::npos)
-            break;
-        start = end + 1;
-    }
-    return ratios;
-}
-
-// "scan.penumbra" with ratio 0.25 of several -> "scan.0.25.penumbra".
-std::string levelPath(const std::string& output, float ratio, bool several)
-{
-    if (!several)
-        return output;
-    char text[32];
-    std::snprintf(text, sizeof(text), "%g", double(ratio));
-    size_t dot = output.find_last_of('.');
-    size_t slash = output.find_last_of('/');
-    if (dot == std::string::npos || (slash != std::string::npos && dot < slash))
-        return output + "." + text;
-    return output.substr(0, dot) + "." + text + output.substr(dot);
-}
-
-int runPreprocess(const PreprocessArgs& args)
-{
-    std::vector<float> ratios = parseRatios(args.simplify);
-    std::string extension = args.output.size() >= 9 ? args.output.substr(args.output.size() - 9) : "";
-    if (extension != ".penumbra")
-        fail(args.output, "the output must end in .penumbra");
-    checkWritable(args.output);
-    PreprocessOptions options;
-    options.maxClusterVertices = args.clusterVertices;
-    options.maxClusterTriangles = args.clusterTriangles;
-    options.maxLeafTriangles = args.leafTriangles;
-    options.threads = args.threads;
-    options.separateClosed = args.separateClosed;
-
-    ProgressBar progress(!args.quiet);
-    auto start = std::chrono::steady_clock::now();
-    auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
-    progress.update("import", 0.0);
-    Scene scene = importScene(args.input);
-    double importSeconds = seconds();
-
-    for (float ratio : ratios) {
-        std::string path = levelPath(args.output, ratio, ratios.size() > 1);
-        char label[64];
-        std::snprintf(label, sizeof(label), "level %g: ", double(ratio));
-        double levelStart = seconds();
-        SimplifiedMesh simplified;
-        const Mesh* mesh = &scene.mesh;
-        if (ratio < 1.0f) {
-            progress.update(std::string(label) + "simplify", 0.0);
-            simplified = simplifyMesh(scene.mesh, ratio);
-            mesh = &simplified.mesh;
-        }
-        options.progress = [&](const char* stage, double fraction) { progress.update(std::string(label) + stage, fraction); };
-        PreprocessStats stats;
-        CompressedModel model = withScene(buildCompressedModel(*mesh, options, &stats), scene.cameras, scene.lights, args.input);
-        model.header.sourceTriangleCount = scene.mesh.triangleCount();
-        model.header.build.simplifyTarget = ratio;
-        model.header.simplifyError = ratio < 1.0f ? simplified.error : 0.0f;
-        progress.update(std::string(label) + "write", 1.0);
-        writeModelFile(model, path);
-        progress.finish();
-        uint64_t bytes = model.clusters.size_bytes() + model.nodes.size_bytes() + model.vertices.size_bytes() + model.indices.size_bytes() +
-                         model.materials.size_bytes();
-        const double stored = double(std::max<uint64_t>(model.header.triangleCount, 1));
-        std::printf("%s: %llu triangles (%.4g of %zu%s), %u clusters, %u nodes, %.2f B/tri, max error %.3g, "
-                    "closed %.1f%% of triangles in closed clusters (%.1f%% in closed components), %.2f s "
-                    "(%.2f M tris/s incl. import %.2f s)\n",
-                    path.c_str(), (unsigned long long)model.header.triangleCount, double(model.header.triangleCount) / scene.mesh.triangleCount(),
-                    scene.mesh.triangleCount(), ratio < 1.0f && simplified.sloppy ? ", sloppy" : "", model.header.clusterCount,
-                    model.header.nodeCount, double(bytes) / double(model.header.triangleCount), double(model.header.maxPositionError),
-                    100.0 * double(stats.closedClusterTriangles) / stored, 100.0 * double(stats.closedTriangles) / stored,
-                    seconds() - levelStart, double(mesh->triangleCount()) / (seconds() - levelStart + importSeconds) * 1e-6,
-                    importSeconds);
-    }
-    return 0;
-}
-
-int runInfo(const std::string& path)
-{
-    CompressedModel model = openModelFile(path);
-    const model::FileHeader& h = model.header;
-    double triangles = double(std::max<uint64_t>(h.triangleCount, 1));
-    std::printf("%s: Penumbra model, version %u, %llu bytes\n", path.c_str(), h.version, (unsigned long long)h.fileSize);
-    std::printf("  triangles        %llu (source %llu, simplify target %g, error %.3g)\n", (unsigned long long)h.triangleCount,
-                (unsigned long long)h.sourceTriangleCount, double(h.build.simplifyTarget), double(h.simplifyError));
-    std::printf("  vertices         %llu (%.3f per triangle)\n", (unsigned long long)h.vertexCount, double(h.vertexCount) / triangles);
-    std::printf("  clusters         %u (avg %.0f triangles, %.0f vertices)\n", h.clusterCount, triangles / h.clusterCount,
-                double(h.vertexCount) / h.clusterCount);
-    // The 4-wide BVH (format version 4): nodes above the clusters and inside them, leaf slots.
-    uint64_t topNodes = 0, slots = 0, leaves = 0;
-    for (const model::Node& node : model.nodes) {
-        const uint32_t children = model::childCount(node);
-        topNodes += node.cluster == model::kNoCluster ? 1 : 0;
-        slots += children;
-        for (uint32_t c = 0; c < children; ++c)
-            leaves += model::childKind(node, c) == model::ChildKind::Leaf ? 1 : 0;
-    }
-    std::printf("  BVH              %u nodes (%llu above the clusters), depth %u (at most %u), 4-wide: %.2f children per node\n",
-                h.nodeCount, (unsigned long long)topNodes, h.bvhDepth, model::kMaxBvhDepth, double(slots) / h.nodeCount);
-    std::printf("  leaves           %llu strip ranges (avg %.1f triangles)\n", (unsigned long long)leaves,
-                triangles / double(std::max<uint64_t>(leaves, 1)));
-    std::printf("  bounds           (%g, %g, %g) - (%g, %g, %g)\n", double(h.boundsMin[0]), double(h.boundsMin[1]), double(h.boundsMin[2]),
-                double(h.boundsMax[0]), double(h.boundsMax[1]), double(h.boundsMax[2]));
-    std::printf("  quantization     %u-bit positions per cluster box, max error %.3g; %u-bit node bounds\n", h.build.positionBits,
-                double(h.maxPositionError), h.build.nodeBoundsBits);
-    std::printf("  build            cluster <= %u vertices / %u triangles, leaves <= %u triangles, %u SAH bins\n",
-                h.build.maxClusterVertices, h.build.maxClusterTriangles, h.build.maxLeafTriangles, h.build.sahBins);
-    struct Row { const char* name; uint64_t bytes; } rows[] = {
-        {"clusters", model.clusters.size_bytes()}, {"nodes", model.nodes.size_bytes()},
-        {"vertices", model.vertices.size_bytes()}, {"indices", model.indices.size_bytes()},
-        {"materials", model.materials.size_bytes()}};
-    uint64_t total = 0;
-    std::printf("  %-16s %14s %10s\n", "section", "bytes", "B/tri");
-    for (const Row& row : rows) {
-        std::printf("  %-16s %14llu %10.3f\n", row.name, (unsigned long long)row.bytes, double(row.bytes) / triangles);
-        total += row.bytes;
-    }
-    std::printf("  %-16s %14llu %10.3f\n", "total", (unsigned long long)total, double(total) / triangles);
-    std::printf("  materials        %u\n", h.materialCount);
-    uint64_t closedClusters = 0, closedTriangles = 0;
-    for (const model::ClusterRecord& c : model.clusters)
-        if (c.flags & model::kClusterClosed) {
-            ++closedClusters;
-            closedTriangles += c.triangleCount;
-        }
-    std::printf("  closed           %llu clusters, %llu triangles (%.1f%%) of closed 2-manifold components\n",
-                (unsigned long long)closedClusters, (unsigned long long)closedTriangles, 100.0 * double(closedTriangles) / triangles);
-    std::printf("  scene            %u camera(s), %u light(s), %llu bytes\n", h.cameraCount, h.lightCount,
-                (unsigned long long)(model.cameras.size_bytes() + model.lights.size_bytes()));
-    return 0;
-}
-
-int runGenerate(const GenerateArgs& args)
-{
-    GenerateOptions options;
-    options.triangles = args.triangles;
-    options.seed = args.seed;
-    auto start = std::chrono::steady_clock::now();
-    formatFromPath(args.output); // reject an unknown extension or folder before the work
-    checkWritable(args.output);
-    Scene scene = generateScene(args.name, options);
-    double generateMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    ExportOptions exportOptions;
-    exportOptions.binary = !args.ascii;
-    exportOptions.draco = args.draco;
-    start = std::chrono::steady_clock::now();
-    exportScene(scene, args.output, exportOptions);
-    double writeMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    std::printf("%s: %zu triangles, %zu vertices, generated in %.0f ms, written in %.0f ms\n", args.output.c_str(),
-                scene.mesh.triangleCount(), scene.mesh.vertexCount(), generateMs, writeMs);
-    return 0;
-}
-
 int runBench(const BenchArgs& args)
 {
     SuiteOptions options = suiteOptions(args.suite);
@@ -578,6 +384,13 @@ int main(int argc, char** argv)
                               "GPU), strips (the file's strips with primitive restart) or triangles (8-bit lists decoded at load); "
                               "same image")
         ->capture_default_str();
+    renderCommand->add_option("--geometry-budget", render.geometryBudgetMiB,
+                              "Out of core: at most this many MiB of cluster geometry on the device, in pages streamed as the "
+                              "views and rays need them (0: the whole model in core); same image")
+        ->capture_default_str();
+    renderCommand->add_option("--geometry-page", render.geometryPageKiB,
+                              "Page size of --geometry-budget in KiB (a multiple of 48 bytes)")
+        ->capture_default_str();
     renderCommand->add_option("--shadow-fit", render.shadowFit,
                               "Directional and area lights' shadow maps cover: view (what the camera sees: finer texels, and the "
                               "casters beside it are culled) or model (the whole model)")
@@ -608,7 +421,9 @@ int main(int argc, char** argv)
     renderCommand->add_option("--shadow-map-size", render.shadowMapSize, "Shadow-map texels per side")->capture_default_str()->check(CLI::Range(16, 16384));
     renderCommand->add_option("--samples", render.samples, "Area lights: light samples per pixel (soft shadows); srt, frt: 4..256 (default 16), afsm: 128..1024 (default 256)")->check(CLI::Range(4, 1024));
     renderCommand->add_option("--cone-test", render.coneTest, "rh: the cone/triangle test: precise (Olsson and Assarsson 2011, section 3.2) or spheres (bounding spheres, for comparison)")->capture_default_str();
-    renderCommand->add_option("--rh-sort", render.rhSort, "rh: order the rays by direction before building the cone hierarchy (section 3.5): on, or off (by pixel)")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+    renderCommand->add_option("--rh-sort", render.rhSort, "rh: order the rays by direction before building the cone hierarchy (section 3.5): on, off (by pixel), or auto (per light layer and frame: sort where the pixels' rays are incoherent)")->capture_default_str()->check(CLI::IsMember({"on", "off", "auto"}));
+    renderCommand->add_option("--rh-closed-meshes", render.rhClosedMeshes, "rh: clusters the preprocessor marked closed cast only their light-back-facing triangles (section 3.6; not while the camera is inside a closed mesh the light is outside of); a receiver within one ray offset of a closed surface may lose its shadow (README): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+    renderCommand->add_option("--rh-early-accept", render.rhEarlyAccept, "rh: a cone that a triangle covers shadows all its rays without descending (section 3.3): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--rh-two-pass", render.rhTwoPass, "rh: the large casters first, then the hierarchy rebuilt without the rays they shadowed, then the others (section 3.4): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--penumbra-maps", render.penumbraMaps, "Area lights, srt: shadow maps whose edges mark the penumbra: 1 (centre) or 5 (centre and corners)")->capture_default_str()->check(CLI::IsMember({1, 5}));
     renderCommand->add_option("--sm-maps", render.smMaps, "Area lights, sm: point-light shadow maps averaged over the light")->capture_default_str()->check(CLI::Range(1, 6));
@@ -620,32 +435,8 @@ int main(int argc, char** argv)
     renderCommand->add_option("--stats", render.statsPath, "Write per-pass statistics as JSON to this file");
     renderCommand->add_option("--frames", render.frames, "Render this many frames (timings are of the last)")->capture_default_str()->check(CLI::Range(1, 10000));
 
-    PreprocessArgs preprocess;
-    CLI::App* preprocessCommand = app.add_subcommand("preprocess", "Compress a model into a .penumbra file: strip clusters + one BVH");
-    preprocessCommand->add_option("input", preprocess.input, "Model file: .obj .ply .stl .gltf .glb .drc")->required();
-    preprocessCommand->add_option("-o,--output", preprocess.output, "Output .penumbra file (with several --simplify ratios: NAME.<ratio>.penumbra)")->required();
-    preprocessCommand->add_option("--simplify", preprocess.simplify, "Comma-separated triangle ratios, one file each, e.g. 1,0.5,0.25")->capture_default_str();
-    preprocessCommand->add_option("--cluster-vertices", preprocess.clusterVertices, "Vertices per cluster (8-bit local indices)")->capture_default_str()->check(CLI::Range(3, 255));
-    preprocessCommand->add_option("--cluster-triangles", preprocess.clusterTriangles, "Triangles per cluster")->capture_default_str()->check(CLI::Range(1, 1024));
-    preprocessCommand->add_option("--leaf-triangles", preprocess.leafTriangles, "Triangles per strip-range leaf of a cluster's BVH")->capture_default_str()->check(CLI::Range(1, 1024));
-    preprocessCommand->add_option("--threads", preprocess.threads, "Worker threads (0: all cores)")->capture_default_str();
-    preprocessCommand->add_flag("--separate-closed", preprocess.separateClosed,
-                                "Clusters do not mix closed 2-manifold parts with open ones, so more triangles get the closed "
-                                "flag (changes the clusters, hence the quantized positions, of models with both)");
-    preprocessCommand->add_flag("--quiet", preprocess.quiet, "No progress bar");
-
-    std::string infoPath;
-    CLI::App* infoCommand = app.add_subcommand("info", "Describe a .penumbra model file (validates it completely)");
-    infoCommand->add_option("model", infoPath, "A .penumbra file")->required();
-
-    GenerateArgs generate;
-    CLI::App* generateCommand = app.add_subcommand("generate", "Write a procedural benchmark scene: city, interior, plant or scan");
-    generateCommand->add_option("name", generate.name, "Scene: city, interior, plant, scan")->required();
-    generateCommand->add_option("--triangles", generate.triangles, "Triangle budget")->capture_default_str();
-    generateCommand->add_option("--seed", generate.seed, "Random seed (same seed, same file)")->capture_default_str();
-    generateCommand->add_option("-o,--output", generate.output, "Output model: .ply .glb .gltf .obj .stl .drc")->required();
-    generateCommand->add_flag("--draco", generate.draco, "glTF/GLB: compress with KHR_draco_mesh_compression");
-    generateCommand->add_flag("--ascii", generate.ascii, "PLY/STL: write ASCII instead of binary");
+    ToolCommands tools;
+    addToolCommands(app, tools);
 
     BenchArgs bench;
     CLI::App* benchCommand = app.add_subcommand("bench", "Benchmark suite: methods, per-stage times, scalability, light size; "
@@ -688,12 +479,8 @@ int main(int argc, char** argv)
     try {
         if (renderCommand->parsed())
             return runRender(render);
-        if (generateCommand->parsed())
-            return runGenerate(generate);
-        if (preprocessCommand->parsed())
-            return runPreprocess(preprocess);
-        if (infoCommand->parsed())
-            return runInfo(infoPath);
+        if (int rc = 0; runToolCommands(tools, rc))
+            return rc;
         if (benchCommand->parsed())
             return runBench(bench);
         return runDevices();

@@ -423,6 +423,14 @@ std::string summaryLine(const FrameStats& stats)
     }
     if (stats.shadows == ShadowMethod::AliasFree)
         line += " | closed clusters " + std::to_string(stats.afsmClosedClusters) + ": " + stats.afsmClosedCasting;
+    if (stats.geometryBudgetBytes) {
+        std::snprintf(buffer, sizeof(buffer),
+                      " | budget %.1f of %.1f MiB | resident peak %.1f MiB | pages uploaded %llu | streamed %.1f MiB | parking rounds %u",
+                      double(stats.geometryBudgetBytes) / 1048576.0, double(stats.geometryBytes) / 1048576.0,
+                      double(stats.residentPeakBytes) / 1048576.0, (unsigned long long)stats.pagesUploaded,
+                      double(stats.bytesStreamed) / 1048576.0, stats.parkingRounds);
+        line += buffer;
+    }
     for (const PassTiming& pass : stats.passes) {
         std::snprintf(buffer, sizeof(buffer), " | %s %.2f ms", pass.name.c_str(), pass.gpuMs);
         line += buffer;
@@ -464,6 +472,11 @@ std::string statsJson(const FrameStats& stats)
                       {"batches", stats.rhBatches}, {"rounds", stats.rhRounds}, {"peak_pair_bytes", stats.rhPeakPairBytes}};
     if (stats.shadows == ShadowMethod::AliasFree)
         json["afsm"] = {{"closed_clusters", stats.afsmClosedClusters}, {"closed_casting", stats.afsmClosedCasting}};
+    if (stats.geometryBudgetBytes)
+        json["geometry_budget"] = {{"budget_bytes", stats.geometryBudgetBytes},     {"geometry_bytes", stats.geometryBytes},
+                                   {"resident_peak_bytes", stats.residentPeakBytes}, {"pages_uploaded", stats.pagesUploaded},
+                                   {"bytes_streamed", stats.bytesStreamed},          {"parking_rounds", stats.parkingRounds},
+                                   {"parked_rays", stats.parkedRays}};
     nlohmann::ordered_json passes = nlohmann::ordered_json::object();
     for (const PassTiming& pass : stats.passes)
         passes[pass.name + "_ms"] = pass.gpuMs;

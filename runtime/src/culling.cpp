@@ -481,6 +481,25 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
     }
 }
 
+void Culling::refreshCommands(const std::vector<VkDrawIndexedIndirectCommand>& commands)
+{
+    if (!model || mode == CullMode::None || !drawCommands.mapped)
+        return;
+    auto* out = static_cast<VkDrawIndexedIndirectCommand*>(drawCommands.mapped);
+    auto refresh = [&](uint32_t i, uint32_t cluster) {
+        out[i].indexCount = commands[cluster].indexCount;
+        out[i].firstIndex = commands[cluster].firstIndex;
+        out[i].vertexOffset = commands[cluster].vertexOffset;
+    };
+    for (const ViewPlan& plan : plans) {
+        uint32_t i = plan.firstCommand;
+        for (uint32_t cluster : plan.firstPhase)
+            refresh(i++, cluster);
+        for (const Entry& entry : plan.finalPhase)
+            refresh(i++, entry.cluster);
+    }
+}
+
 void Culling::resetQueries(VkCommandBuffer cmd)
 {
     if (queryCount)
@@ -523,6 +542,38 @@ std::vector<uint32_t> Culling::viewClusters(uint32_t view) const
         clusters.push_back(entry.cluster);
     std::sort(clusters.begin(), clusters.end());
     return clusters;
+}
+
+void Culling::drawInRanges(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, uint32_t firstCommand,
+                           const std::vector<uint32_t>& clusters, const std::vector<uint32_t>& drawn, bool clear,
+                           const BeginRendering& begin, const EndRendering& end, const std::function<void()>& last)
+{
+    std::vector<uint32_t> cuts = cutRanges ? cutRanges(drawn) : std::vector<uint32_t>{};
+    cuts.insert(cuts.begin(), 0u);
+    cuts.push_back(uint32_t(clusters.size()));
+    for (size_t r = 0; r + 1 < cuts.size(); ++r) {
+        if (ensureRange)
+            ensureRange(view, r);
+        begin(r == 0 && clear);
+        drawList(cmd, geometry, firstCommand + cuts[r], std::vector<uint32_t>(clusters.begin() + cuts[r], clusters.begin() + cuts[r + 1]));
+        if (r + 2 == cuts.size() && last)
+            last();
+        end();
+    }
+}
+
+std::vector<uint32_t> Culling::finalDrawn(vk::Device& device, uint32_t view) const
+{
+    const ViewPlan& plan = plans.at(view);
+    const uint32_t groupCount = uint32_t(plan.groupQueryBegin.size());
+    std::vector<uint32_t> results(groupCount);
+    if (groupCount)
+        vk::readQueryResults(device, queryPool, plan.firstQuery, groupCount, results.size() * sizeof(uint32_t), results.data(),
+                             sizeof(uint32_t), 0, "the occlusion queries");
+    std::vector<uint32_t> drawn;
+    for (const Entry& entry : plan.finalPhase)
+        drawn.push_back(entry.query == kNoQuery || results.at(entry.query - plan.firstQuery) != 0 ? entry.cluster : kNoQuery);
+    return drawn;
 }
 
 void Culling::markView(VkCommandBuffer cmd, uint32_t view, bool end) const
@@ -572,6 +623,10 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
         finalClusters[i] = plan.finalPhase[i].cluster;
     const uint32_t firstFinal = plan.firstCommand + uint32_t(plan.firstPhase.size());
     if (!plan.view.occlusion) {
+        if (geometry.paged()) { // in ranges that fit the pool
+            drawInRanges(cmd, viewIndex, geometry, firstFinal, finalClusters, finalClusters, true, begin, end, {});
+            return;
+        }
         begin(true);
         if (finalClusters.size() == model->commands.size())
             drawGeometry(cmd, geometry); // the frustum holds everything (a sun's map): the model's own list
@@ -599,16 +654,15 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
 
     // Phase 1: last frame's set (and clusters at the near plane), then the
     // boxes of everything else in the frustum against that depth.
-    begin(true);
-    drawList(cmd, geometry, plan.firstCommand, plan.firstPhase);
-    queryBoxRange(plan.firstQuery, groupCount);
-    if (groupCount == 0) {
-        // Nothing else can be visible: the depth is final already.
-        queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size()));
-        end();
+    // (Paged geometry: in ranges that fit the pool, the queries inside the last.)
+    drawInRanges(cmd, viewIndex, geometry, plan.firstCommand, plan.firstPhase, plan.firstPhase, true, begin, end, [&] {
+        queryBoxRange(plan.firstQuery, groupCount);
+        if (groupCount == 0) // nothing else can be visible: the depth is final already
+            queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size()));
+    });
+    if (groupCount == 0)
         return;
-    }
-    end();
+    const std::vector<uint32_t> drawn = queriesAnswered ? queriesAnswered(viewIndex) : std::vector<uint32_t>{};
 
     // Query results -> instance counts of the final list.
     constexpr VkPipelineStageFlags2 kAttachments = VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT |
@@ -647,10 +701,9 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
 
     // Phase 2: the final list over the phase-1 depth, then last frame's set
     // tested against the final depth (next frame's history).
-    begin(false);
-    drawList(cmd, geometry, firstFinal, finalClusters);
-    queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size()));
-    end();
+    drawInRanges(cmd, viewIndex, geometry, firstFinal, finalClusters,
+                 drawn, false, begin, end,
+                 [&] { queryBoxRange(historyFirst, uint32_t(plan.historyQueryBegin.size())); });
 }
 
 std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)

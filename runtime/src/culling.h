@@ -124,6 +124,10 @@ struct Culling {
     // frame must be finished. Then resetQueries outside any rendering.
     void beginFrame(vk::Device& device, CullMode mode, bool adaptive, std::vector<CullView> views);
     void resetQueries(VkCommandBuffer cmd);
+    // Paged geometry (geometry_pages.h): rewrites the index count, first index
+    // and vertex offset of every planned draw from commands (GpuGeometry::commands
+    // after pages moved); the device must be idle.
+    void refreshCommands(const std::vector<VkDrawIndexedIndirectCommand>& commands);
     // Records view `view` of beginFrame's list (with CullMode::None or no model: the whole geometry).
     void recordView(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
                     const EndRendering& end);
@@ -137,6 +141,23 @@ struct Culling {
     // texel beyond the footprint, and a receiver reads the thin map at its own
     // texel only.
     void markClustersNearReceivers(const ReceiverMask& mask, uint32_t* bits) const;
+
+    // Paged geometry (geometry_pages.h). A list a view draws (its clusters in
+    // draw order, kNoQuery for entries that draw nothing) is cut into ranges
+    // drawn one after another in the same order, so the image is the same:
+    // cutRanges returns the ascending cut points (none: one range), and
+    // ensureRange makes range r of the last cut resident before it is drawn;
+    // queriesAnswered runs between the phases (after phase 1's rendering
+    // ended) and returns finalDrawn once the queries can be read. Each may submit the command
+    // buffer, wait and begin it again (the same handle).
+    std::function<std::vector<uint32_t>(const std::vector<uint32_t>& clusters)> cutRanges;
+    std::function<void(uint32_t view, size_t range)> ensureRange;
+    std::function<std::vector<uint32_t>(uint32_t view)> queriesAnswered;
+    // After phase 1 ran (device idle): per entry of phase 2's list, its
+    // cluster if phase 2 may draw it (its query passed, or a repeat of a
+    // phase-1 cluster), else kNoQuery.
+    std::vector<uint32_t> finalDrawn(vk::Device& device, uint32_t view) const;
+    const std::string& viewName(uint32_t view) const { return plans.at(view).view.name; }
 
     // The clusters view `view` draws, ascending, for a view planned without
     // occlusion queries (its frustum and receiver mask only); every cluster
@@ -204,6 +225,11 @@ struct Culling {
                       const EndRendering& end);
     void drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
                   const std::vector<uint32_t>& clusters);
+    // drawList of `clusters` in ranges (cutRanges on `drawn`), each in its own rendering: the first
+    // begun with begin(clear), the others loading; last() runs inside the last one.
+    void drawInRanges(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, uint32_t firstCommand,
+                      const std::vector<uint32_t>& clusters, const std::vector<uint32_t>& drawn, bool clear,
+                      const BeginRendering& begin, const EndRendering& end, const std::function<void()>& last);
 };
 
 // Draws clusters[0 .. count) (ascending) of the compressed model with its own

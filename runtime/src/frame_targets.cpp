@@ -168,7 +168,8 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     const VkDeviceSize cells = VkDeviceSize(gridSize) * gridSize, pixels = VkDeviceSize(width) * height;
     afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
-    afsmCellDepth = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    // Also the source of the per-cell depth grid (afsmDepth), copied after the count pass.
+    afsmCellDepth = vk::createBuffer(device, cells * 4, kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
     afsmCellAlive = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmDepth = vk::createImage(device, gridSize, gridSize, 1, kDepthFormat,
                                 VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);

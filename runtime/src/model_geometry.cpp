@@ -55,6 +55,8 @@ std::vector<float> leafMinimumAltitudes(const CompressedModel& model)
 // order Vulkan's strip topology gives them (triangle i of a strip is
 // i, i+1, i+2, an odd one i, i+2, i+1), so the images are the same bit for
 // bit. Triangles with a repeated index are left out: they cover no sample.
+} // namespace
+
 void appendTriangles(const uint8_t* strips, uint32_t bytes, std::vector<uint8_t>& out)
 {
     const uint8_t* p = strips;
@@ -74,6 +76,8 @@ void appendTriangles(const uint8_t* strips, uint32_t bytes, std::vector<uint8_t>
         p = stripEnd + 1;
     }
 }
+
+namespace {
 
 constexpr VkDeviceSize kChunkBytes = 1ull << 30; // per buffer, also capped by maxMemoryAllocationSize
 
@@ -115,7 +119,7 @@ VkDeviceSize chunkLimit(const vk::Device& device)
 
 } // namespace
 
-GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
+GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, uint64_t poolBytes)
 {
     const RasterIndices rasterIndices = device.rasterIndices == RasterIndices::Triangles ? RasterIndices::Triangles : RasterIndices::Strips;
     const auto& h = model.header;
@@ -140,6 +144,25 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         commands.resize(model.clusters.size());
         std::vector<uint8_t> raster;
         uint32_t first = 0;
+        if (poolBytes) {
+            // Paged: one pool, no cluster resident (GeometryPages uploads them), empty draws.
+            if (poolBytes > limit)
+                fail("model", "geometry pool of " + std::to_string(poolBytes >> 20) + " MiB exceeds this device's largest buffer (" +
+                                  std::to_string(limit >> 20) + " MiB)");
+            geometry.pool = vk::createBuffer(device, poolBytes,
+                                             VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_INDEX_BUFFER_BIT |
+                                                 VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                             vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
+            GpuGeometry::Chunk chunk;
+            chunk.clusterCount = uint32_t(model.clusters.size());
+            chunk.vertices = chunk.indices = geometry.pool;
+            geometry.chunks.push_back(chunk);
+            for (auto& command : commands)
+                command = {0, 1, 0, 0, 0};
+            for (uint32_t i = 0; i < commands.size(); ++i)
+                commands[i].firstInstance = i;
+            first = uint32_t(model.clusters.size());
+        }
         while (first < model.clusters.size()) {
             const model::ClusterRecord& start = model.clusters[first];
             uint32_t end = first;
@@ -192,9 +215,19 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
             }
             first = end;
         }
-        geometry.clusters = vk::createBufferWithData(device, model.clusters.data(), model.clusters.size_bytes(),
-                                                     VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
-                                                     vk::Addressable::Yes);
+        if (poolBytes) {
+            std::vector<model::ClusterRecord> records(model.clusters.begin(), model.clusters.end());
+            for (model::ClusterRecord& record : records)
+                record.firstVertex |= kNotResident;
+            geometry.clusters = vk::createBufferWithData(device, records.data(), records.size() * sizeof(model::ClusterRecord),
+                                                         VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+                                                             VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                                         vk::Addressable::Yes);
+        } else {
+            geometry.clusters = vk::createBufferWithData(device, model.clusters.data(), model.clusters.size_bytes(),
+                                                         VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
+                                                         vk::Addressable::Yes);
+        }
         // BVH nodes in power-of-two chunks below the limit, so a shader finds node i in chunk i >> shift.
         while (geometry.nodeChunkShift < 31 && (VkDeviceSize(sizeof(model::Node)) << (geometry.nodeChunkShift + 1)) <= limit)
             ++geometry.nodeChunkShift;
@@ -207,7 +240,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         }
         createTexelViews(device, geometry);
         geometry.indirect = vk::createBufferWithData(device, commands.data(), commands.size() * sizeof(VkDrawIndexedIndirectCommand),
-                                                     VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
+                                                     VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | (poolBytes ? VK_BUFFER_USAGE_TRANSFER_DST_BIT : 0));
         // Each cluster's material colour, packed for the G-buffer (8 bits per channel, linear).
         std::vector<uint32_t> albedo(model.clusters.size());
         for (size_t c = 0; c < model.clusters.size(); ++c) {
@@ -228,7 +261,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model)
         destroyGeometry(device, geometry);
         throw;
     }
-    geometry.deviceBytes = model.vertices.size_bytes() + model.indices.size_bytes() + model.clusters.size_bytes() +
+    geometry.deviceBytes = (poolBytes ? poolBytes : model.vertices.size_bytes() + model.indices.size_bytes()) + model.clusters.size_bytes() +
                            model.nodes.size_bytes() + model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand) +
                            geometry.albedo.size +
                            geometry.leafAltitudes.size + geometry.rasterIndexBytes;
@@ -267,6 +300,10 @@ void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
     for (VkBufferView view : {geometry.texels.nodes, geometry.texels.clusters, geometry.texels.vertices, geometry.texels.strips})
         if (view)
             vkDestroyBufferView(device.device, view, nullptr);
+    if (geometry.paged()) {
+        vk::destroyBuffer(device, geometry.pool);
+        geometry.chunks.clear(); // their vertices and indices name the pool
+    }
     for (GpuGeometry::Chunk& chunk : geometry.chunks) {
         vk::destroyBuffer(device, chunk.vertices);
         vk::destroyBuffer(device, chunk.indices);

@@ -22,6 +22,11 @@ enum class GeometryEncoding {
 };
 
 
+// Paged geometry: bit 63 of a cluster's firstVertex in the DEVICE copy of its
+// ClusterRecord marks it not resident (the file's records never set it: a
+// model holds fewer than 2^63 vertices). Shaders test it (bvh_traversal.glsli).
+inline constexpr uint64_t kNotResident = uint64_t(1) << 63;
+
 struct GpuGeometry {
     struct Chunk {
         vk::Buffer vertices;      // QuantizedVertex[] (or float3[] for the reference)
@@ -72,10 +77,23 @@ struct GpuGeometry {
     uint64_t vertexCount = 0;
     Bounds bounds;                // compressed: the header's (root node) bounds
     uint64_t deviceBytes = 0;     // bytes of all model buffers
+    // Paged geometry (RendererOptions::geometryBudgetBytes, geometry_pages.h):
+    // the vertices, strips and raster indices of every cluster live in one
+    // pool of fixed-size pages (`pool`, the only chunk's vertices and indices
+    // both name it, not owned twice); `clusters` and `indirect` are the
+    // device copies GeometryPages rewrites on every upload and eviction (a
+    // cluster that is not resident has bit 63 of its firstVertex set and an
+    // empty draw). Empty in core.
+    vk::Buffer pool;
+    bool paged() const { return pool.buffer != VK_NULL_HANDLE; }
 };
 
 // Raster passes draw device.rasterIndices (Strips or Triangles, RendererOptions).
-GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model);
+// poolBytes > 0: paged geometry, a pool of that many bytes (a multiple of 48, so that both the
+// vertices' and the strips' texel views tile it) and no cluster resident yet.
+GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, uint64_t poolBytes = 0);
+// One cluster's strips as a triangle list (RasterIndices::Triangles), appended to out.
+void appendTriangles(const uint8_t* strips, uint32_t bytes, std::vector<uint8_t>& out);
 GpuGeometry uploadReference(vk::Device& device, const Mesh& mesh);
 void destroyGeometry(vk::Device& device, GpuGeometry& geometry);
 

@@ -173,7 +173,7 @@ VkPipeline createComputePipeline(Device& device, const char* shader, VkPipelineL
     info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
     info.stage.module = module;
     info.stage.pName = "main";
-    std::array<VkSpecializationMapEntry, 4> entries{};
+    std::array<VkSpecializationMapEntry, 6> entries{};
     VkSpecializationInfo specializationInfo{};
     if (specialization.count > 0) {
         for (uint32_t i = 0; i < specialization.count; ++i)

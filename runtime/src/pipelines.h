@@ -60,7 +60,7 @@ void checkPushConstants(const char* shader, uint32_t pushBytes);
 // a dispatch knows are specialization constants, so that the compiler drops
 // the code of the others.
 struct Specialization {
-    std::array<uint32_t, 4> values{};
+    std::array<uint32_t, 6> values{};
     uint32_t count = 0;
 
     Specialization() = default;

@@ -146,11 +146,16 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
     if (settings.shadows == ShadowMethod::RayHierarchy) {
         if (!device.rayHierarchy)
             fail("render", "rh needs geometry shaders and vertex-stage stores, which " + device.info.name + " lacks");
-        for (const Light& light : lights)
-            if (light.type == LightType::Directional)
-                fail("render", "rh does point and spot lights (rays from one point); a directional light needs sm, srt, frt or afsm");
         if (geometry.encoding != GeometryEncoding::Compressed)
             fail("render", "rh needs the compressed model (the uncompressed reference is for raster benchmarks)");
+    }
+    if (geometry.paged()) {
+        if (settings.shadows == ShadowMethod::AliasFree || settings.shadows == ShadowMethod::RayHierarchy)
+            fail("--geometry-budget", std::string(spec.name) + " is not rendered under a geometry budget yet: use sm, srt or frt");
+        if (settings.measureFloors)
+            fail("--geometry-budget", "floors are measured in core (no budget)");
+        if (settings.cull == CullMode::None)
+            fail("--geometry-budget", "--cull none draws the whole model in one list: use frustum or all under a budget");
     }
     if (spec.traces() && geometry.encoding != GeometryEncoding::Compressed)
         fail("render", "ray-traced shadows need the compressed model (the uncompressed reference is for raster benchmarks)");
@@ -174,6 +179,7 @@ struct Renderer::Impl::FrameScript {
     std::vector<VkDeviceAddress> thinClusterMask;                   // the same layers; 0: every cluster
     uint32_t viewFitMask = 0, receiverGridMask = 0;
     bool rhFrame = false; // the rh pass's counters were cleared this frame
+    std::vector<std::vector<uint32_t>> finalRanges; // paged geometry: the clusters of each range of a view's phase 2
     // afsm, area lights: each light's grid layers and whether they are cube faces.
     std::vector<std::vector<AfsmLayer>> afsmLayers;
     std::vector<bool> afsmCube;
@@ -223,6 +229,10 @@ struct Renderer::Impl::FrameScript {
             r.ensureFloors();
         std::memcpy(r.targets.frameUniforms.mapped, &data, sizeof(data));
         lightFirstView.resize(lights.size());
+        if (r.geometry.paged()) {
+            r.pages.beginFrame();
+            r.pages.ensureParking(r.device, uint64_t(s.width) * s.height);
+        }
         receiverMasks.resize(6 * lights.size());
         thinClusterMask.assign(6 * lights.size(), 0);
         // Maps fitted to what the camera sees: directional lights, and area lights whose maps are drawn.
@@ -236,11 +246,57 @@ struct Renderer::Impl::FrameScript {
                 receiverGridMask |= 1u << i;
         }
         timer.pool = r.queryPool;
+        if (r.geometry.paged()) {
+            // The lists a view draws, cut into ranges whose pages fit the pool (Culling::cutRanges).
+            auto cutRanges = [this](const std::vector<uint32_t>& drawn) {
+                std::vector<uint32_t> cuts, range;
+                finalRanges.clear();
+                for (uint32_t i = 0; i < drawn.size(); ++i) {
+                    if (drawn[i] == Culling::kNoQuery)
+                        continue;
+                    range.push_back(drawn[i]);
+                    if (!r.pages.fits(range)) {
+                        range.pop_back();
+                        cuts.push_back(i);
+                        finalRanges.push_back(std::move(range));
+                        range = {drawn[i]};
+                    }
+                }
+                finalRanges.push_back(std::move(range));
+                return cuts;
+            };
+            auto ensureRange = [this](Culling& culling) {
+                return [this, &culling](uint32_t view, size_t range) {
+                    ensureResident(finalRanges.at(range), "the " + culling.viewName(view) + " view", true);
+                };
+            };
+            auto queriesAnswered = [this](Culling& culling) {
+                return [this, &culling](uint32_t view) {
+                    r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+                    beginCommands();
+                    return culling.finalDrawn(r.device, view);
+                };
+            };
+            for (Culling* culling : {&r.culling, &r.shadowCulling}) {
+                culling->cutRanges = cutRanges;
+                culling->ensureRange = ensureRange(*culling);
+                culling->queriesAnswered = queriesAnswered(*culling);
+            }
+        }
         if (s.measureFloors)
             timer.submitAndRestart = [this] {
                 r.submitAndWait(cmd, timer.passesSinceLastSubmit());
                 beginCommands();
             };
+    }
+
+    ~FrameScript()
+    {
+        for (Culling* culling : {&r.culling, &r.shadowCulling}) {
+            culling->cutRanges = nullptr;
+            culling->ensureRange = nullptr;
+            culling->queriesAnswered = nullptr;
+        }
     }
 
     uint32_t layers(uint32_t light) const { return uint32_t(data.lights[light].spotCosLayers.z); }
@@ -276,6 +332,151 @@ struct Renderer::Impl::FrameScript {
                                  1 + 6 * i + k, data.lights[i].viewProj[k], false, occlusion, area ? nullptr : receiverMasks[6 * i + k]});
         }
         r.shadowCulling.beginFrame(r.device, settings.cull, settings.adaptiveOcclusion, std::move(views));
+        if (r.geometry.paged())
+            r.shadowCulling.refreshCommands(r.geometry.commands); // planned from the load-time commands
+    }
+
+    // Paged geometry: makes the clusters resident (geometry_pages.h). A change
+    // needs the device idle: with inFrame, the frame's commands so far are
+    // submitted first and a new command buffer begun after.
+    void ensureResident(const std::vector<uint32_t>& clusters, const std::string& what, bool inFrame)
+    {
+        GeometryPages& pages = r.pages;
+        if (pages.allResident(clusters)) {
+            pages.ensure(r.device, r.geometry, *r.model, clusters, what); // the pages' last use only
+            return;
+        }
+        if (inFrame)
+            r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+        pages.ensure(r.device, r.geometry, *r.model, clusters, what);
+        r.culling.refreshCommands(r.geometry.commands);
+        r.shadowCulling.refreshCommands(r.geometry.commands);
+        if (inFrame)
+            beginCommands();
+    }
+
+    // Paged geometry: a thin-triangle step in ranges. Each view's clusters are
+    // those of its receiver mask's bits (every cluster for area lights) that
+    // can reach it (clusterMayReachView); their union is cut into ranges
+    // whose pages fit the pool, and each range is made resident and its part
+    // of every view's clusters decoded (a cluster mask per range and view).
+    // The thin map takes the minimum of what every range writes, so the map
+    // is the same in any order.
+    void recordThinInRanges(uint32_t light, bool area, uint32_t slot, uint32_t views, const std::function<ThinView(uint32_t)>& thinView)
+    {
+        const CullModel& model = *r.shadowCulling.model;
+        const uint32_t clusterCount = uint32_t(model.clusterMin.size());
+        const gpu::LightData& l = data.lights[light];
+        const size_t words = (clusterCount + 31) / 32;
+        std::vector<std::vector<uint32_t>> sets(views);
+        std::vector<uint8_t> used(clusterCount, 0);
+        for (uint32_t k = 0; k < views; ++k) {
+            const uint32_t* mask = nullptr;
+            if (!area && thinClusterMask[6 * light + k])
+                mask = static_cast<const uint32_t*>(r.targets.thinClusterMasks.mapped) + (6 * light + k) * words;
+            const glm::mat4& viewProj = l.viewProj[area ? slot : k];
+            for (uint32_t c = 0; c < clusterCount; ++c)
+                if ((!mask || (mask[c >> 5] >> (c & 31)) & 1u) &&
+                    clusterMayReachView(viewProj, model.clusterMin[c], model.clusterMax[c], r.targets.shadowSize, 4.0f)) {
+                    sets[k].push_back(c);
+                    used[c] = 1;
+                }
+        }
+        std::vector<uint32_t> clusters;
+        for (uint32_t c = 0; c < clusterCount; ++c)
+            if (used[c])
+                clusters.push_back(c);
+        const std::vector<std::vector<uint32_t>> ranges = r.pages.cutIntoRanges(clusters);
+        std::vector<uint32_t> rangeOf(clusterCount, 0);
+        for (uint32_t j = 0; j < ranges.size(); ++j)
+            for (uint32_t c : ranges[j])
+                rangeOf[c] = j;
+        const size_t regionBytes = words * sizeof(uint32_t);
+        if (r.pages.thinMasks.size < ranges.size() * views * regionBytes) { // the old masks may be in use
+            r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+            beginCommands();
+        } else if (r.pages.thinMasks.buffer) { // rewritten below: the previous step's must have run
+            r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+            beginCommands();
+        }
+        r.pages.ensureThinMasks(r.device, std::max<uint64_t>(ranges.size() * views * regionBytes, 4));
+        auto* bits = static_cast<uint32_t*>(r.pages.thinMasks.mapped);
+        std::memset(bits, 0, ranges.size() * views * regionBytes);
+        for (uint32_t k = 0; k < views; ++k)
+            for (uint32_t c : sets[k])
+                bits[(rangeOf[c] * views + k) * words + (c >> 5)] |= 1u << (c & 31);
+        const VkDeviceAddress base = vk::bufferAddress(r.device, r.pages.thinMasks);
+        for (uint32_t j = 0; j < ranges.size(); ++j) {
+            ensureResident(ranges[j], "light " + std::to_string(light) + "'s thin-triangle views", true);
+            for (uint32_t k = 0; k < views; ++k) {
+                ThinView thin = thinView(k);
+                thin.clusterMask = base + (j * views + k) * regionBytes;
+                r.thinTriangles.record(cmd, r.device, r.geometry, r.trace.modelTableAddress(), r.targets.shadowSize,
+                                       r.targets.thinMap.layers, thin);
+            }
+        }
+    }
+
+    // Paged geometry: after a trace pass, the rays it parked are traced again
+    // until none is left. The clusters the last dispatch visited are made
+    // resident when they fit together (then its parked rays all finish: a ray
+    // traced again visits no cluster it did not visit before); otherwise the
+    // first half of its parked rays is traced alone, and so on down to one ray,
+    // whose working set must fit the budget.
+    void traceParked(uint32_t light, uint32_t samples)
+    {
+        GeometryPages& pages = r.pages;
+        r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+        std::vector<uint32_t> front(pages.parkedEntries(), pages.parkedEntries() + pages.parkedCount()), rest;
+        std::vector<uint32_t> visited = pages.visitedClusters();
+        pages.frame.parkedRays += front.size();
+        size_t batch = front.size();
+        const std::string what = "the rays toward light " + std::to_string(light);
+        for (uint32_t round = 0; !front.empty() || !rest.empty(); ++round) {
+            if (round > 4 * 1024 * 1024)
+                fail("--geometry-budget", "parked rays of light " + std::to_string(light) + " did not finish");
+            std::vector<uint32_t> toTrace;
+            if (front.empty()) {
+                const size_t take = std::min(batch, rest.size());
+                toTrace.assign(rest.begin(), rest.begin() + take);
+                rest.erase(rest.begin(), rest.begin() + take);
+            } else if (pages.fits(visited)) {
+                ensureResident(visited, what, false);
+                toTrace.swap(front);
+            } else {
+                if (front.size() == 1)
+                    ensureResident(visited, "one ray toward light " + std::to_string(light), false); // fails: the budget is too small
+                const size_t half = front.size() / 2;
+                rest.insert(rest.begin(), front.begin() + half, front.end());
+                toTrace.assign(front.begin(), front.begin() + half);
+                batch = half;
+            }
+            front.clear();
+            // The list into the frame's ray list (its header holds the indirect dispatch), then the trace.
+            auto* list = static_cast<uint32_t*>(pages.retraceList.mapped);
+            const Groups2D groups = spreadGroups(uint32_t((toTrace.size() + PENUMBRA_TRACE_GROUP_SIZE - 1) / PENUMBRA_TRACE_GROUP_SIZE),
+                                                 r.device.properties.limits.maxComputeWorkGroupCount[0]);
+            list[0] = uint32_t(toTrace.size());
+            list[1] = groups.x;
+            list[2] = groups.y;
+            list[3] = 1;
+            std::copy(toTrace.begin(), toTrace.end(), list + PENUMBRA_RAY_LIST_HEADER_UINTS);
+            pages.clearParking();
+            beginCommands();
+            vk::memoryBarrier(cmd, kCompute | kIndirect, kStorageRW | kIndirectRead, kCopy, kTransferWrite);
+            const VkBufferCopy region{0, 0, (PENUMBRA_RAY_LIST_HEADER_UINTS + toTrace.size()) * sizeof(uint32_t)};
+            vkCmdCopyBuffer(cmd, pages.retraceList.buffer, r.targets.rayList.buffer, 1, &region);
+            vk::memoryBarrier(cmd, kCopy, kTransferWrite, kCompute | kIndirect, kStorageRead | kIndirectRead);
+            r.trace.record(cmd, light, uint32_t(data.lights[light].positionType.w), rayOffset, samples, pages.parkingAddress(r.device),
+                           pages.clusterWords());
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
+            r.submitAndWait(cmd, "trace (parked rays)");
+            ++pages.frame.parkingRounds;
+            front.assign(pages.parkedEntries(), pages.parkedEntries() + pages.parkedCount());
+            visited = pages.visitedClusters();
+            pages.frame.parkedRays += front.size();
+        }
+        beginCommands();
     }
 
     // RenderSettings::measureFloors: a raster pass's floor, every triangle of
@@ -387,19 +588,23 @@ struct Renderer::Impl::FrameScript {
             return;
         case Step::ThinTriangles: {
             r.thinTriangles.clear(cmd, t.thinMap);
-            for (uint32_t layer = 0; layer < (area ? 1 : layers(light)); ++layer) {
-                ThinView thin;
+            auto thinView = [&](uint32_t layer) {
                 if (area) {
                     const float halfTan = 0.5f * l.mapRange[slot].y;
-                    thin = {l.viewProj[slot], 0, glm::vec3(l.mapEye[slot]), true, 1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan),
-                            l.mapRange[slot].y, 0, true};
-                } else {
-                    const float depthPerDistance = uint32_t(l.positionType.w) == PENUMBRA_LIGHT_SPOT ? l.spotCosLayers.y : 0.57735f;
-                    thin = {l.viewProj[layer], layer, glm::vec3(l.positionType), l.shadowParams.z != 0.0f, depthPerDistance,
-                            l.shadowParams.w, thinClusterMask[6 * light + layer], false};
+                    return ThinView{l.viewProj[slot], 0, glm::vec3(l.mapEye[slot]), true, 1.0f / std::sqrt(1.0f + 2.0f * halfTan * halfTan),
+                                    l.mapRange[slot].y, 0, true};
                 }
-                r.thinTriangles.record(cmd, r.device, r.geometry, r.trace.modelTableAddress(), t.shadowSize, t.thinMap.layers, thin);
-            }
+                const float depthPerDistance = uint32_t(l.positionType.w) == PENUMBRA_LIGHT_SPOT ? l.spotCosLayers.y : 0.57735f;
+                return ThinView{l.viewProj[layer], layer, glm::vec3(l.positionType), l.shadowParams.z != 0.0f, depthPerDistance,
+                                l.shadowParams.w, thinClusterMask[6 * light + layer], false};
+            };
+            const uint32_t views = area ? 1 : layers(light);
+            if (r.geometry.paged())
+                recordThinInRanges(light, area, slot, views, thinView);
+            else
+                for (uint32_t layer = 0; layer < views; ++layer)
+                    r.thinTriangles.record(cmd, r.device, r.geometry, r.trace.modelTableAddress(), t.shadowSize, t.thinMap.layers,
+                                           thinView(layer));
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRead);
             timer.mark(cmd, PassId::ThinTriangles);
             return;
@@ -407,10 +612,12 @@ struct Renderer::Impl::FrameScript {
         case Step::PenumbraMask: {
             const uint32_t top = maskTopLevel(t.shadowSize);
             r.penumbraMask.clear(cmd);
-            r.classify.recordSoft(cmd, {light, slot, PENUMBRA_SOFT_RECEIVERS, 0, 1.0f, t.shadowSize, top, 0}, width(), height());
+            r.classify.recordSoft(cmd, {light, slot, PENUMBRA_SOFT_RECEIVERS, 0, 1.0f, t.shadowSize, top, 0}, uint32_t(l.positionType.w), width(),
+                                  height());
             const float range = l.mapRange[slot].x - l.mapEye[slot].w;
             r.penumbraMask.record(cmd, {glm::inverse(l.viewProj[slot]), light, slot, 0, t.shadowSize, top, spec.uses(Step::ThinTriangles) ? 1u : 0u,
-                                        float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0});
+                                        float(PENUMBRA_PIP_DELTA_FRACTION) * range, 0},
+                                   uint32_t(l.positionType.w));
             timer.mark(cmd, PassId::PenumbraMask);
             return;
         }
@@ -422,7 +629,8 @@ struct Renderer::Impl::FrameScript {
                     const uint32_t mode = slot == 0 ? step.mode : step.cornerMode;
                     const bool average = mode == PENUMBRA_SOFT_AVERAGE;
                     r.classify.recordSoft(cmd, {light, slot, mode, average && first ? 1u : 0u, average ? 1.0f / float(maps) : 1.0f,
-                                                t.shadowSize, maskTopLevel(t.shadowSize), 0}, width(), height(), floor);
+                                                t.shadowSize, maskTopLevel(t.shadowSize), 0},
+                                          uint32_t(l.positionType.w), width(), height(), floor);
                 } else {
                     r.classify.record(cmd, {light, step.mode}, uint32_t(l.positionType.w), width(), height(), floor);
                 }
@@ -438,7 +646,16 @@ struct Renderer::Impl::FrameScript {
             timer.mark(cmd, PassId::Compact);
             return;
         case Step::Trace:
-            r.trace.record(cmd, light, rayOffset, area ? settings.lightSamples : 0);
+            if (r.geometry.paged()) {
+                r.pages.clearParking();
+                r.trace.record(cmd, light, uint32_t(l.positionType.w), rayOffset, area ? settings.lightSamples : 0, r.pages.parkingAddress(r.device),
+                               r.pages.clusterWords());
+                vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
+                timer.mark(cmd, PassId::Trace);
+                traceParked(light, area ? settings.lightSamples : 0);
+                return;
+            }
+            r.trace.record(cmd, light, uint32_t(l.positionType.w), rayOffset, area ? settings.lightSamples : 0);
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             timer.mark(cmd, PassId::Trace);
             return;
@@ -470,28 +687,42 @@ struct Renderer::Impl::FrameScript {
                 timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
-        case Step::RayHierarchy:
+        case Step::RayHierarchy: {
             r.afsm.clear(cmd);
             if (rhFrame) {
                 r.rh.beginFrame(cmd);
                 rhFrame = false;
             }
+            // One hierarchy over all the light's rays; the casters of all its views (a point light's six faces).
+            std::vector<std::vector<uint32_t>> clusters;
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
-                const uint32_t view = lightFirstView[light] + layer;
-                const std::vector<uint32_t> clusters = r.shadowCulling.viewClusters(view);
-                r.shadowCulling.markView(cmd, view, false);
-                r.rh.recordLayer(cmd, light, lights[light].position, layer, rayOffset, settings.coneTest == ConeTest::Spheres ? PENUMBRA_RH_TEST_SPHERES
-                                                                                                      : PENUMBRA_RH_TEST_PRECISE,
-                                 settings.rhSort, settings.rhTwoPass,
-                                 r.geometry, *r.shadowCulling.model, clusters, [this] { timer.mark(cmd, PassId::RhBuild); },
-                                 [this] {
-                                     r.submitAndWait(cmd, "rh_traverse");
-                                     beginCommands();
-                                 });
-                r.shadowCulling.markView(cmd, view, true);
-                timer.mark(cmd, PassId::RhTraverse);
+                clusters.push_back(r.shadowCulling.viewClusters(lightFirstView[light] + layer));
+                r.shadowCulling.markView(cmd, lightFirstView[light] + layer, false);
             }
+            passes::RhOptions options;
+            options.test = settings.coneTest == ConeTest::Spheres ? PENUMBRA_RH_TEST_SPHERES : PENUMBRA_RH_TEST_PRECISE;
+            options.sort = settings.rhSort;
+            options.twoPass = settings.rhTwoPass;
+            options.earlyAccept = settings.rhEarlyAccept;
+            options.cullBehindReceivers = settings.rhCullBehindReceivers;
+            // Section 3.6: closed clusters cast only light-back-facing triangles, where that is exact (rh.h).
+            const bool directional = lights[light].type == LightType::Directional;
+            options.closedCulling = settings.rhClosedMeshes && r.model &&
+                                    passes::closedCullingExact(*r.model, view.eye,
+                                                               directional ? -glm::normalize(lights[light].direction) : lights[light].position,
+                                                               directional);
+            r.rh.recordLight(cmd, light, lights[light], rayOffset, options, r.geometry, *r.shadowCulling.model, clusters,
+                             [this](uint32_t cluster) { return (r.model->clusters[cluster].flags & model::kClusterClosed) != 0; },
+                             [this] { timer.mark(cmd, PassId::RhBuild); },
+                             [this] {
+                                 r.submitAndWait(cmd, "rh_traverse");
+                                 beginCommands();
+                             });
+            for (uint32_t layer = 0; layer < layers(light); ++layer)
+                r.shadowCulling.markView(cmd, lightFirstView[light] + layer, true);
+            timer.mark(cmd, PassId::RhTraverse);
             return;
+        }
         case Step::AfsmResolve:
             r.afsm.recordResolve(cmd, light, rayOffset, area);
             timer.mark(cmd, PassId::AfsmSamples);
@@ -651,6 +882,21 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         out.rhBatches = rh.batches;
         out.rhRounds = rh.rounds;
         out.rhPeakPairBytes = rh.peakPairBytes;
+        out.rhLights = rh.lights;
+        out.rhSortedLights = rh.sortedLights;
+        out.rhAcceptedNodes = rh.accepted;
+        out.rhIncoherence = rh.incoherence;
+        out.rhClosedCulled = rh.closedCulled;
+    }
+    if (r.geometry.paged()) {
+        const GeometryPageStats& pages = r.pages.frame;
+        out.geometryBudgetBytes = r.pages.poolBytes();
+        out.geometryBytes = r.pages.geometryBytes();
+        out.residentPeakBytes = pages.residentPeakBytes;
+        out.pagesUploaded = pages.pagesUploaded;
+        out.bytesStreamed = pages.bytesStreamed;
+        out.parkingRounds = pages.parkingRounds;
+        out.parkedRays = pages.parkedRays;
     }
     out.device = r.device.info;
     for (uint32_t pass = 0; pass < uint32_t(PassId::Count); ++pass)
@@ -675,6 +921,9 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, frame.view.viewProj, true, true}});
     if (!readBack)
         frame.planShadowViews();
+    if (geometry.paged()) {
+        culling.refreshCommands(geometry.commands); // planned from the load-time commands; the views make their pages resident
+    }
 
     frame.beginCommands();
     vkCmdResetQueryPool(commandBuffer, queryPool, 0, kMaxTimestamps);

@@ -50,6 +50,7 @@ void Renderer::Impl::destroy()
         targets.destroy(device);
         destroyGeometry(device, geometry);
         destroyGeometry(device, floorGeometry);
+        pages.destroy(device);
         gbuffer.destroy(device);
         viewFit.destroy(device);
         shadowMap.destroy(device);
@@ -104,7 +105,8 @@ void Renderer::Impl::ensureRhTargets()
 {
     ensureAfsmTargets();
     FrameTargets& t = targets;
-    const RhTargets rhTargets{t.position.view, t.normal.view, t.frameUniforms.buffer, &t.afsmShadowed, t.width, t.height};
+    const RhTargets rhTargets{t.position.view, t.normal.view, t.frameUniforms.buffer, &t.afsmShadowed, t.width, t.height,
+                              shadowCulling.model ? uint32_t(shadowCulling.model->clusterTriangles.size()) : 0u};
     if (!rh.bound(rhTargets))
         rh.bind(device, rhTargets);
 }
@@ -156,7 +158,15 @@ const DeviceInfo& Renderer::device() const { return impl->device.info; }
 void Renderer::loadModel(const CompressedModel& model)
 {
     vk::checkUsable(impl->device);
-    impl->setGeometry(uploadCompressed(impl->device, model));
+    Impl& r = *impl;
+    if (r.geometryBudgetBytes) {
+        r.pages.build(model, r.device.rasterIndices == RasterIndices::Triangles ? RasterIndices::Triangles : RasterIndices::Strips,
+                      r.geometryPageBytes, r.geometryBudgetBytes);
+        r.setGeometry(uploadCompressed(r.device, model, r.pages.poolBytes()));
+        r.pages.resetResidency();
+    } else {
+        impl->setGeometry(uploadCompressed(impl->device, model));
+    }
     impl->model = model;
     auto cullModel = std::make_shared<const CullModel>(model, impl->geometry);
     impl->culling.setModel(cullModel);
@@ -173,6 +183,8 @@ void Renderer::loadModel(const Mesh& mesh)
 void Renderer::loadUncompressedReference(const Mesh& mesh)
 {
     vk::checkUsable(impl->device);
+    if (impl->geometryBudgetBytes)
+        fail("--geometry-budget", "the uncompressed reference is drawn in core (no budget)");
     impl->setGeometry(uploadReference(impl->device, mesh));
     impl->model.reset();
     impl->culling.clearModel();
@@ -181,7 +193,12 @@ void Renderer::loadUncompressedReference(const Mesh& mesh)
 
 uint64_t Renderer::modelDeviceBytes() const { return impl->geometry.deviceBytes; }
 
-std::vector<float> Renderer::decodeVerticesOnGpu() { return passes::decodeVerticesOnGpu(impl->device, impl->geometry); }
+std::vector<float> Renderer::decodeVerticesOnGpu()
+{
+    if (impl->geometry.paged())
+        fail("decode check", "needs the whole model in core (no geometry budget)");
+    return passes::decodeVerticesOnGpu(impl->device, impl->geometry);
+}
 
 void Renderer::setCamera(const Camera& camera) { impl->camera = camera; }
 

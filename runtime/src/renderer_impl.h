@@ -10,6 +10,7 @@
 #include "culling.h"
 #include "device.h"
 #include "frame_targets.h"
+#include "geometry_pages.h"
 #include "model_geometry.h"
 #include "passes/afsm.h"
 #include "passes/rh.h"
@@ -29,6 +30,9 @@ namespace penumbra {
 struct Renderer::Impl {
     vk::Device device;
     GpuGeometry geometry;
+    // RendererOptions::geometryBudgetBytes: the pages and their residency (inactive without a budget).
+    GeometryPages pages;
+    uint64_t geometryBudgetBytes = 0, geometryPageBytes = 0;
     // The loaded compressed model (the floors decode their uncompressed copy from it).
     std::optional<CompressedModel> model;
     // RenderSettings::measureFloors: the model as indexed float triangles, made on first use.
@@ -57,6 +61,7 @@ struct Renderer::Impl {
     bool framePending = false; // submitted, and its fence wait failed
 
     explicit Impl(const RendererOptions& options)
+        : geometryBudgetBytes(options.geometryBudgetBytes), geometryPageBytes(options.geometryPageBytes)
     {
         try {
             vk::createDevice(device, options);

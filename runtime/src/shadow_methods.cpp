@@ -134,6 +134,16 @@ ConeTest parseConeTest(const std::string& name)
     fail("--cone-test " + name, "unknown cone test (expected precise or spheres)");
 }
 
+const char* rhSortName(RhSort sort) { return sort == RhSort::Off ? "off" : sort == RhSort::On ? "on" : "auto"; }
+
+RhSort parseRhSort(const std::string& name)
+{
+    for (RhSort sort : {RhSort::Off, RhSort::On, RhSort::Auto})
+        if (name == rhSortName(sort))
+            return sort;
+    fail("--rh-sort " + name, "unknown ray order (expected on, off or auto)");
+}
+
 ShadowMethod parseShadowMethod(const std::string& name)
 {
     std::string expected;

@@ -145,6 +145,22 @@ class Preprocess(unittest.TestCase):
         # And colors=False renders the same here (the generated city has no colours).
         np.testing.assert_array_equal(penumbra.render(output, size=SIZE, colors=False), penumbra.render(CITY, size=SIZE))
 
+    def test_streamed_and_distributed_preprocessing(self):
+        ply = os.path.join(TMP, "streamed_city.ply")
+        penumbra.generate("city", ply, triangles=20_000)
+        stats = penumbra.preprocess(ply, os.path.join(TMP, "streamed_city.penumbra"), memory_limit=64)
+        self.assertEqual(stats["triangles"], 20_000)
+        self.assertGreaterEqual(stats["chunks"], 1)
+        chunks = [os.path.join(TMP, f"streamed_city.chunk{i}") for i in range(3)]
+        for i, chunk in enumerate(chunks):
+            penumbra.preprocess(ply, chunk, chunk=f"{i}/3", memory_limit=64)
+        merged = penumbra.merge(list(reversed(chunks)), os.path.join(TMP, "streamed_city_merged.penumbra"))
+        self.assertEqual(merged["triangles"], 20_000)
+        with self.assertRaisesRegex(penumbra.Error, "chunk 1 of 3 is missing"):
+            penumbra.merge([chunks[0], chunks[2]], os.path.join(TMP, "streamed_city_bad.penumbra"))
+        with self.assertRaisesRegex(penumbra.Error, "cannot be combined with memory_limit"):
+            penumbra.preprocess(ply, os.path.join(TMP, "x.penumbra"), memory_limit=64, simplify=0.5)
+
     def test_ground_exposure_tone_curve_and_exr_layers(self):
         frames = {}
         for ground in ("off", "below"):  # the city is wide: "auto" adds no ground to it

@@ -71,6 +71,28 @@ TEST(Cli, GenerateThenRenderWithValidation)
     EXPECT_NE(text.find("\"driver\""), std::string::npos) << text;
 }
 
+// --geometry-budget: the stats line and JSON report the pages (images: geometry_budget_test.cpp); bad budgets fail with one line.
+TEST(Cli, RenderUnderAGeometryBudget)
+{
+    const std::string model = tmp("budget_city.glb"), unlimited = tmp("budget_unlimited.exr"), budgeted = tmp("budget_budgeted.exr"),
+                      stats = tmp("budget.json");
+    ASSERT_EQ(run("generate city --triangles 20000 --seed 3 -o " + model).status, 0);
+    Result plain = run("render " + model + " -o " + unlimited + " --size 128x128 --shadows srt --validation");
+    ASSERT_EQ(plain.status, 0) << plain.output;
+    Result paged = run("render " + model + " -o " + budgeted + " --size 128x128 --shadows srt --validation --geometry-budget 0.1 "
+                       "--geometry-page 12 --stats " + stats);
+    ASSERT_EQ(paged.status, 0) << paged.output;
+    EXPECT_NE(paged.output.find("| budget "), std::string::npos) << paged.output;
+    EXPECT_NE(paged.output.find("pages uploaded"), std::string::npos) << paged.output;
+    std::ifstream json(stats);
+    std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("\"bytes_streamed\""), std::string::npos) << text;
+    EXPECT_NE(text.find("\"parking_rounds\""), std::string::npos) << text;
+    expectError(run("render " + model + " -o " + budgeted + " --geometry-budget -1"), {"--geometry-budget", "MiB"});
+    expectError(run("render " + model + " -o " + budgeted + " --geometry-budget 0.001"), {"--geometry-budget", "holds no page"});
+    expectError(run("render " + model + " -o " + budgeted + " --geometry-budget 1 --cull none"), {"--geometry-budget", "--cull none"});
+}
+
 TEST(Cli, RenderWithSceneFileAndLightsOnTheCommandLine)
 {
     std::string model = tmp("plant.ply"), scene = tmp("scene.json"), image = tmp("scene.exr");

@@ -67,7 +67,7 @@ gpu::LightData packTraceLight(const Light& light)
 
 struct TraceResult {
     std::vector<float> visibility; // per pixel; -5 where the tracer wrote nothing
-    uint32_t stats[PENUMBRA_STAT_COUNT] = {};
+    uint64_t stats[PENUMBRA_STAT_COUNT] = {}; // trace.comp adds 64-bit counters
     uint32_t listed = 0;
 };
 
@@ -94,7 +94,7 @@ public:
         frameUniforms = vk::createBuffer(device, sizeof(gpu::FrameData), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUse::Upload);
         rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4,
                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, vk::MemoryUse::Upload);
-        stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Readback);
+        stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Readback);
 
         // Every covered pixel (light-facing or not: the tracer writes 0 for the others).
         auto* list = static_cast<uint32_t*>(rayList.mapped);
@@ -135,7 +135,7 @@ public:
         gpu::FrameData frame{};
         frame.lights[1] = packTraceLight(light); // not light 0, to check lightIndex
         std::memcpy(frameUniforms.mapped, &frame, sizeof(frame));
-        std::memset(stats.mapped, 0, PENUMBRA_STAT_COUNT * 4);
+        std::memset(stats.mapped, 0, PENUMBRA_STAT_COUNT * 8);
         const uint32_t width = gbuffer.width, height = gbuffer.height;
         vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
             VkClearColorValue unwritten{};
@@ -147,7 +147,7 @@ public:
                               VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                               VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
                                   VK_ACCESS_2_UNIFORM_READ_BIT | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-            tracer.record(cmd, 1, originOffset);
+            tracer.record(cmd, 1, uint32_t(frame.lights[1].positionType.w), originOffset);
             vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT,
                               VK_ACCESS_2_HOST_READ_BIT);
             vk::transition(cmd, visibility, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
@@ -364,7 +364,7 @@ TEST(RayTracer, RejectsModelsWithoutBvhAndUnboundUse)
     tracer.create(device);
     GpuGeometry reference = uploadReference(device, test::cubeOverFloor(0.5f));
     EXPECT_THROW(tracer.bindModel(device, reference), Error);
-    vk::immediateSubmit(device, [&](VkCommandBuffer cmd) { EXPECT_THROW(tracer.record(cmd, 0, 0.0f), Error); });
+    vk::immediateSubmit(device, [&](VkCommandBuffer cmd) { EXPECT_THROW(tracer.record(cmd, 0, PENUMBRA_LIGHT_POINT, 0.0f), Error); });
     destroyGeometry(device, reference);
     tracer.destroy(device);
     EXPECT_EQ(device.validationMessages.load(), 0u);
@@ -390,10 +390,10 @@ TEST(RayTracer, DISABLED_ThroughputCity1M)
             bestCpu = std::min(bestCpu, double(std::clock() - cpuStart) / CLOCKS_PER_SEC);
             best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
         }
-        uint32_t rays = result.stats[PENUMBRA_STAT_RAYS];
-        std::printf("city 1M %s, %s: %u rays in %.3f s, %.3f CPU s (best of 3, incl. clear and readback) = %.2f Mrays/s; %.1f nodes, "
+        uint64_t rays = result.stats[PENUMBRA_STAT_RAYS];
+        std::printf("city 1M %s, %s: %llu rays in %.3f s, %.3f CPU s (best of 3, incl. clear and readback) = %.2f Mrays/s; %.1f nodes, "
                     "%.2f leaves, %.1f triangles per ray\n",
-                    c.name, harness.device.info.name.c_str(), rays, best, bestCpu, rays / best * 1e-6,
+                    c.name, harness.device.info.name.c_str(), (unsigned long long)rays, best, bestCpu, rays / best * 1e-6,
                     double(result.stats[PENUMBRA_STAT_NODES]) / rays, double(result.stats[PENUMBRA_STAT_LEAVES]) / rays,
                     double(result.stats[PENUMBRA_STAT_TRIANGLES]) / rays);
     }

@@ -21,4 +21,13 @@ std::vector<std::string> generatorNames();
 // an unknown name or a budget outside the generator's range.
 Scene generateScene(const std::string& name, const GenerateOptions& options);
 
+// Writes the named scene to a model file without holding it in memory, where
+// a streaming writer exists: "scan" as binary PLY, the same bytes as
+// exportScene(generateScene(...)) writes, for budgets up to 8 G triangles
+// (inputs larger than memory for streamed preprocessing). Returns false, and
+// writes nothing, for other scenes and formats. Throws Error for a bad budget
+// or a write failure (nothing is left under path).
+bool writeSceneStreamed(const std::string& name, const GenerateOptions& options, const std::string& path, bool binary,
+                        uint64_t* triangles = nullptr, uint64_t* vertices = nullptr);
+
 } // namespace penumbra

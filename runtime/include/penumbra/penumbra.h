@@ -47,6 +47,15 @@ enum class ConeTest {
 const char* coneTestName(ConeTest test);
 ConeTest parseConeTest(const std::string& name); // throws Error
 
+// rh: the order of the rays before the hierarchy is built (section 3.5).
+enum class RhSort {
+    Off,  // by pixel (8x8 tiles in Morton order): the screen-space hierarchy
+    On,   // by direction from the light (a Hilbert curve over each layer)
+    Auto, // per layer and frame, by the screen-space coherence the GPU measures (README, rh)
+};
+const char* rhSortName(RhSort sort);
+RhSort parseRhSort(const std::string& name); // throws Error
+
 const char* shadowMethodName(ShadowMethod method);
 ShadowMethod parseShadowMethod(const std::string& name); // throws Error
 std::vector<std::string> shadowMethodNames();           // every method's name, in enum order
@@ -107,6 +116,15 @@ struct RendererOptions {
     // "device did not finish <passes> in N s", and the renderer refuses further
     // work. The environment variable PENUMBRA_DEVICE_TIMEOUT (seconds) overrides it.
     double deviceTimeoutSeconds = 300.0;
+    // Out of core (runtime/README.md, "Geometry budget"): at most this many
+    // bytes of cluster geometry (vertices, strips, raster triangle lists) on
+    // the device, in pages of geometryPageBytes; the BVH nodes and the
+    // cluster table stay resident besides. 0: the whole model in core.
+    // Pages are uploaded as the frame's views and rays need them; the image
+    // is the same bit for bit as without a budget. A budget smaller than one
+    // view's working set fails the frame with one line.
+    uint64_t geometryBudgetBytes = 0;
+    uint64_t geometryPageBytes = 768 * 1024; // a multiple of 48 bytes (3 KiB .. 1 GiB)
 };
 
 struct RenderSettings {
@@ -132,8 +150,13 @@ struct RenderSettings {
     uint32_t softShadowMaps = 4;        // sm: point-light shadow maps averaged over the light, 1..6
     CullMode cull = CullMode::All;      // culling of the camera and shadow-map raster passes
     ConeTest coneTest = ConeTest::Precise; // rh: the cone/triangle test
-    bool rhSort = true;                    // rh: rays ordered by direction (section 3.5) before the hierarchy, else by pixel
+    RhSort rhSort = RhSort::Auto;          // rh: the rays ordered by direction (section 3.5), by pixel, or chosen per frame
     bool rhTwoPass = false;                // rh: large casters first, then the hierarchy rebuilt without the rays they shadowed (3.4)
+    bool rhEarlyAccept = true;             // rh: a cone a triangle covers shadows its rays without descending (3.3)
+    // rh: clusters marked closed cast only light-back-facing triangles (3.6); off by default: a receiver
+    // within one ray offset of a closed surface may start its ray inside it and lose its shadow (README, rh).
+    bool rhClosedMeshes = false;
+    bool rhCullBehindReceivers = true;     // rh: casters deeper than every receiver they could shadow left out (exact; README, rh)
     // Fit the shadow maps of directional and area lights to what the camera
     // sees (the G-buffer's bounds in each map, read back before the shadow
     // pass) instead of the whole model: finer texels, and frustum culling
@@ -214,6 +237,18 @@ struct FrameStats {
     // sides, with the tracer's ray offset (rayOffset) as the only epsilon.
     uint64_t afsmClosedClusters = 0;
     std::string afsmClosedCasting;
+    uint32_t rhLights = 0, rhSortedLights = 0; // hierarchies built (one per light), and those over rays sorted by direction
+    uint64_t rhAcceptedNodes = 0;              // nodes found covered by a triangle and accepted whole (early accept, section 3.3)
+    double rhIncoherence = 0;                  // --rh-sort auto: the last light's measured screen-space incoherence (README, rh)
+    uint32_t rhClosedCulled = 0;               // lights whose closed clusters cast only light-back-facing triangles (3.6)
+    // Geometry budget (RendererOptions::geometryBudgetBytes; all 0 without one).
+    uint64_t geometryBudgetBytes = 0;   // the pool: whole pages within the budget
+    uint64_t geometryBytes = 0;         // every page's contents (the model's paged geometry)
+    uint64_t residentPeakBytes = 0;     // most pages resident at once this frame, in bytes
+    uint64_t pagesUploaded = 0;         // this frame
+    uint64_t bytesStreamed = 0;         // page contents uploaded this frame
+    uint32_t parkingRounds = 0;         // dispatches that traced parked rays again
+    uint64_t parkedRays = 0;            // rays (pixel entries) parked, summed over the rounds
     uint64_t penumbraPixels = 0;  // pixels whose visibility of an area light is strictly between 0 and 1 (summed over lights)
     double penumbraFraction = 0;  // penumbraPixels / (coveredPixels * area lights)
     uint32_t lightSamples = 0;    // samples per pixel of area lights (0: no area light)

@@ -403,8 +403,8 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
                              bool soft) const
 {
     const uint32_t grid = targets.gridSize, cells = grid * grid;
-    // The previous layer's casters read the lists.
-    vk::memoryBarrier(cmd, kFragment | kGeometry | kCompute, kStorageRead, kClear, kTransferWrite);
+    // The previous layer's casters read the lists, and its copy read the cells' depths.
+    vk::memoryBarrier(cmd, kFragment | kGeometry | kCompute | kCopy, kStorageRead | kTransferRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, targets.cellFirst->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.cellCount->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.far->buffer, 0, VK_WHOLE_SIZE, 0);

@@ -61,9 +61,10 @@ void ClassifyPass::record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_
     dispatchPixels(cmd, width, height);
 }
 
-void ClassifyPass::recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t width, uint32_t height, bool floor) const
+void ClassifyPass::recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t lightType, uint32_t width, uint32_t height,
+                              bool floor) const
 {
-    soft.bind(cmd, floor);
+    soft.bind(cmd, vk::Specialization{push.mode, lightType}, floor);
     soft.push(cmd, push);
     dispatchPixels(cmd, width, height);
 }

@@ -57,7 +57,9 @@ class ClassifyPass {
     // lightType: PENUMBRA_LIGHT_* of frame.lights[push.lightIndex] (the pipeline is specialized for it and push.mode).
     void record(VkCommandBuffer cmd, const ClassifyPush& push, uint32_t lightType, uint32_t width, uint32_t height,
                 bool floor = false) const;
-    void recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t width, uint32_t height, bool floor = false) const;
+    // lightType: PENUMBRA_LIGHT_* of the area light (a specialization constant, as push.mode is).
+    void recordSoft(VkCommandBuffer cmd, const ClassifySoftPush& push, uint32_t lightType, uint32_t width, uint32_t height,
+                    bool floor = false) const;
     void createFloor(vk::Device& device);
 
   private:

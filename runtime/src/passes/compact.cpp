@@ -22,7 +22,7 @@ void CompactPass::recordFloor(VkCommandBuffer cmd, uint32_t width, uint32_t heig
 {
     const uint32_t pixelCount = width * height;
     kernel.bind(cmd, true);
-    kernel.push(cmd, CompactPush{pixelCount, PENUMBRA_COMPACT_LIST, width, 0});
+    kernel.push(cmd, CompactPush{pixelCount, PENUMBRA_COMPACT_LIST, width, height});
     const Groups2D groups = spreadGroups(groupCount(pixelCount, PENUMBRA_COMPACT_GROUP_SIZE), 65535u);
     vkCmdDispatch(cmd, groups.x, groups.y, 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
@@ -34,12 +34,12 @@ void CompactPass::record(VkCommandBuffer cmd, uint32_t width, uint32_t height) c
     vkCmdFillBuffer(cmd, rayList, 0, PENUMBRA_RAY_LIST_HEADER_UINTS * 4, 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     kernel.bind(cmd);
-    CompactPush push{pixelCount, PENUMBRA_COMPACT_LIST, width, 0};
+    CompactPush push{pixelCount, PENUMBRA_COMPACT_LIST, width, height};
     kernel.push(cmd, push);
-    // One invocation per pixel of the 8x8 tiles covering the image (compact.comp.glsl: tilePixel).
-    const uint32_t tiled = groupCount(width, 8) * groupCount(height, 8) * 64;
-    const Groups2D groups = spreadGroups(groupCount(tiled, PENUMBRA_COMPACT_GROUP_SIZE), 65535u);
-    vkCmdDispatch(cmd, groups.x, groups.y, 1);
+    // One invocation per pixel of the 8x8 tiles covering the image, four tiles
+    // a workgroup, a row of workgroups per row of tiles (compact.comp.glsl: tilePixel).
+    static_assert(PENUMBRA_COMPACT_GROUP_SIZE == 4 * 64);
+    vkCmdDispatch(cmd, groupCount(width, 32), groupCount(height, 8), 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     push.phase = PENUMBRA_COMPACT_DISPATCH;
     kernel.push(cmd, push);

@@ -13,7 +13,7 @@ struct CompactPush {
     uint32_t pixelCount;
     uint32_t phase; // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
     uint32_t width; // of the image
-    uint32_t pad;
+    uint32_t height;
 };
 static_assert(sizeof(CompactPush) == 16);
 

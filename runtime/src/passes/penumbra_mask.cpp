@@ -6,6 +6,19 @@
 
 namespace penumbra::passes {
 
+namespace {
+
+// Specialization of penumbra_mask.comp: the stage, and what only the splats
+// (light shape) and the edge stage (thin triangles) read.
+vk::Specialization stage(uint32_t stage, uint32_t lightType, uint32_t useThin)
+{
+    const bool splat = stage == PENUMBRA_MASK_STAGE_SPLAT;
+    const bool thin = stage == PENUMBRA_MASK_STAGE_EDGES || stage == PENUMBRA_MASK_STAGE_REDUCE || stage == PENUMBRA_MASK_STAGE_PUSH_DOWN;
+    return vk::Specialization{stage, splat ? lightType : uint32_t(PENUMBRA_LIGHT_SPHERE), thin ? useThin : 0u};
+}
+
+} // namespace
+
 uint32_t maskTopLevel(uint32_t size)
 {
     uint32_t top = 0;
@@ -57,11 +70,12 @@ void PenumbraMaskPass::clear(VkCommandBuffer cmd) const
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
 }
 
-void PenumbraMaskPass::record(VkCommandBuffer cmd, PenumbraMaskPush push) const
+void PenumbraMaskPass::record(VkCommandBuffer cmd, PenumbraMaskPush push, uint32_t lightType) const
 {
-    kernel.bind(cmd);
     push.maxJobs = targets.maxJobs;
     for (uint32_t level = 0; level < push.topLevel; ++level) {
+        if (level <= 1)
+            kernel.bind(cmd, stage(level == 0 ? PENUMBRA_MASK_STAGE_EDGES : PENUMBRA_MASK_STAGE_REDUCE, lightType, push.useThin));
         push.level = level;
         const uint32_t parentSize = (push.mapSize + (2u << level) - 1u) >> (level + 1);
         const uint32_t groups = groupCount(parentSize, PENUMBRA_MASK_GROUP_SIZE);
@@ -69,14 +83,27 @@ void PenumbraMaskPass::record(VkCommandBuffer cmd, PenumbraMaskPush push) const
         vkCmdDispatch(cmd, groups, groups, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute, kStorageRW);
     }
-    push.level = PENUMBRA_MASK_WRITE_DISPATCH;
+    kernel.bind(cmd, stage(PENUMBRA_MASK_STAGE_WRITE_DISPATCH, lightType, push.useThin));
     kernel.push(cmd, push);
     vkCmdDispatch(cmd, 1, 1, 1);
     vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute | kIndirect, kStorageRW | kIndirectRead);
-    push.level = PENUMBRA_MASK_SPLAT_JOBS;
+    kernel.bind(cmd, stage(PENUMBRA_MASK_STAGE_SPLAT, lightType, push.useThin));
     kernel.push(cmd, push);
     vkCmdDispatchIndirect(cmd, targets.jobs->buffer, 4);
     vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute, kStorageRW);
+    // Each level's values pushed down, coarsest first, as far as level 1: it
+    // ends up with the minimum over every level above its texel, so classify
+    // reads two values, levels 0 and 1 (pushing into level 0 as well costs
+    // three times what the rest does, more than the second read saves).
+    kernel.bind(cmd, stage(PENUMBRA_MASK_STAGE_PUSH_DOWN, lightType, push.useThin));
+    for (uint32_t level = push.topLevel; level-- > 1;) {
+        push.level = level;
+        const uint32_t size = (push.mapSize + (1u << level) - 1u) >> level;
+        const uint32_t groups = groupCount(size, PENUMBRA_MASK_GROUP_SIZE);
+        kernel.push(cmd, push);
+        vkCmdDispatch(cmd, groups, groups, 1);
+        vk::memoryBarrier(cmd, kCompute, kStorageRW, kCompute, kStorageRW);
+    }
 }
 
 } // namespace penumbra::passes

@@ -47,7 +47,7 @@ struct PenumbraMaskPush {
     glm::mat4 invViewProj;
     uint32_t lightIndex;
     uint32_t slot;
-    uint32_t level; // a reduction's source level, or PENUMBRA_MASK_WRITE_DISPATCH, PENUMBRA_MASK_SPLAT_JOBS
+    uint32_t level; // the edge stage's or a reduction's source level
     uint32_t mapSize;
     uint32_t topLevel;
     uint32_t useThin;
@@ -63,9 +63,11 @@ class PenumbraMaskPass {
     void bind(vk::Device& device, const PenumbraMaskTargets& targets);
     // Clears the masks, the receivers and the job list after the passes that read them.
     void clear(VkCommandBuffer cmd) const;
-    // The edge pass, one reduction per level, then the splats of the listed
-    // jobs. push.level and push.maxJobs are filled in.
-    void record(VkCommandBuffer cmd, PenumbraMaskPush push) const;
+    // The edge pass, one reduction per level, the splats of the listed jobs,
+    // then each level's minimum pushed down to level 0; each stage a pipeline of its own (specialized also by the light's
+    // type, PENUMBRA_LIGHT_*, and push.useThin). push.level and push.maxJobs
+    // are filled in.
+    void record(VkCommandBuffer cmd, PenumbraMaskPush push, uint32_t lightType) const;
 
   private:
     vk::ComputeKernel kernel;

@@ -76,7 +76,8 @@ void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, co
     vk::memoryBarrier(cmd, kCompute | kIndirect, kStorageRW | kIndirectRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, list.buffer, 0, sizeof(uint32_t), 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
-    kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split});
+    kernel.bind(cmd, geometry.paged() ? vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split, 1u}
+                                      : vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split});
     // One invocation per node, then per leaf of the workgroup's nodes.
     const uint32_t groups = std::max(groupCount(geometry.nodeCount, PENUMBRA_THIN_TRIANGLES_GROUP_SIZE), 1u);
     const Groups2D dispatch = spreadGroups(groups, device.properties.limits.maxComputeWorkGroupCount[0]);

@@ -117,15 +117,18 @@ void TracePass::writeSet(vk::Device& device) const
                           vk::texelBuffer(texels.strips)});
 }
 
-void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, uint32_t samples) const
+void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightType, float originOffset, uint32_t samples,
+                       VkDeviceAddress parking, uint32_t clusterWords) const
 {
     if (!tableAddress || !rayList)
         fail("ray tracer", "record before bindModel and bind");
     if (lightIndex >= PENUMBRA_MAX_LIGHTS)
         fail("ray tracer", "light index " + std::to_string(lightIndex) + " out of range (at most " +
                                std::to_string(PENUMBRA_MAX_LIGHTS) + " lights)");
-    kernel.bind(cmd, vk::Specialization{texelsComplete ? 1u : 0u, vertexTexelsSplit ? 1u : 0u});
-    TracePush push{tableAddress, lightIndex, originOffset, samples, {}, {}, {}};
+    const vk::Specialization unlimited{texelsComplete ? 1u : 0u, vertexTexelsSplit ? 1u : 0u, samples != 0 ? 1u : 0u, lightType};
+    kernel.bind(cmd, parking ? vk::Specialization{unlimited.values[0], unlimited.values[1], unlimited.values[2], unlimited.values[3], 1u}
+                             : unlimited);
+    TracePush push{tableAddress, lightIndex, originOffset, samples, clusterWords, parking, {}, {}};
     std::copy(boundsMin, boundsMin + 4, push.boundsMin);
     std::copy(boundsMax, boundsMax + 4, push.boundsMax);
     kernel.push(cmd, push);

@@ -31,7 +31,8 @@ struct TracePush {
     uint32_t lightIndex;
     float originOffset;
     uint32_t samples; // area lights: light samples per pixel; 0: hard shadows
-    uint32_t pad[3];
+    uint32_t clusterWords;      // paged geometry: words of the parking buffer's visited bits
+    VkDeviceAddress parking;    // paged geometry: GeometryPages' parking buffer (0: no budget)
     float boundsMin[4]; // the root node's box
     float boundsMax[4];
 };
@@ -50,8 +51,12 @@ class TracePass {
     // originOffset along the normal turned toward the light. The caller orders
     // the writes of the ray list and G-buffer before, and the visibility reads after.
     // samples > 0 (area lights): that many light samples per pixel, visibility is
-    // the unblocked fraction (soft shadows).
-    void record(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, uint32_t samples = 0) const;
+    // the unblocked fraction (soft shadows). lightType (PENUMBRA_LIGHT_*) and
+    // samples > 0 pick a pipeline specialized for them.
+    // parking != 0 (paged geometry, geometry_pages.h): rays that reach a cluster that is not resident
+    // are parked in that buffer (clusterWords: its visited bits), the pipeline specialized for it.
+    void record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightType, float originOffset, uint32_t samples = 0,
+                VkDeviceAddress parking = 0, uint32_t clusterWords = 0) const;
     // Device address of the model table (bvh_traversal.glsli), 0 before bindModel.
     VkDeviceAddress modelTableAddress() const { return tableAddress; }
 

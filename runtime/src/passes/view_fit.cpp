@@ -7,6 +7,18 @@
 
 namespace penumbra::passes {
 
+namespace {
+
+// Pixels a side per invocation (view_fit.comp.glsl: kBlock): on a CPU device
+// each invocation's subgroup reductions and atomics are loops over the lanes,
+// so fewer, larger blocks; a GPU wants the invocations.
+uint32_t blockSize(const vk::Device& device)
+{
+    return device.properties.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU ? PENUMBRA_VIEW_FIT_BLOCK_CPU : PENUMBRA_VIEW_FIT_BLOCK_GPU;
+}
+
+} // namespace
+
 void ViewFitPass::create(vk::Device& device)
 {
     kernel.create(device, "view_fit.comp", {vk::kStorageImage, vk::kUniform}, sizeof(ViewFitPush));
@@ -22,9 +34,10 @@ void ViewFitPass::bind(vk::Device& device, const ViewFitTargets& t)
 void ViewFitPass::recordFloor(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, uint32_t width,
                               uint32_t height) const
 {
-    kernel.bind(cmd, true);
+    const uint32_t block = blockSize(device);
+    kernel.bind(cmd, vk::Specialization{0, 0, 0, 0, block}, true);
     kernel.push(cmd, ViewFitPush{vk::bufferAddress(device, viewBounds), 0, 0, 0});
-    const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * 4;
+    const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * block;
     vkCmdDispatch(cmd, groupCount(width, tile), groupCount(height, tile), 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
 }
@@ -41,9 +54,10 @@ void ViewFitPass::record(VkCommandBuffer cmd, const vk::Device& device, const vk
         if (gridMask & (1u << i))
             vkCmdFillBuffer(cmd, receiverGrids.buffer, gridRegion(i).first, gridRegion(i).second, 0u);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
-    kernel.bind(cmd, vk::Specialization{fitMask, gridMask, pointMask, directionalMask});
+    const uint32_t block = blockSize(device);
+    kernel.bind(cmd, vk::Specialization{fitMask, gridMask, pointMask, directionalMask, block});
     kernel.push(cmd, ViewFitPush{vk::bufferAddress(device, viewBounds), vk::bufferAddress(device, receiverGrids), fitMask, gridMask});
-    const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * 4; // view_fit.comp.glsl: VIEW_BOUNDS_BLOCK pixels per invocation
+    const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * block; // view_fit.comp.glsl: a block of pixels per invocation
     vkCmdDispatch(cmd, groupCount(width, tile), groupCount(height, tile), 1);
     if (gridMask) {
         // The grids are written with many atomics: in device memory, then copied out.

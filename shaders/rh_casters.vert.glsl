@@ -1,0 +1,17 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// Cone ray hierarchies, casters (rh_casters.geom.glsl): the model's vertices
+// in world space, decoded exactly as the tracer decodes them, and the
+// cluster they belong to (the instance: each cluster's draw is its own).
+
+#include "model_vertex.glsli"
+
+layout(location = 0) out vec3 worldPosition;
+layout(location = 1) flat out uint cluster;
+
+void main()
+{
+    worldPosition = modelPosition();
+    cluster = uint(gl_InstanceIndex);
+    gl_Position = vec4(worldPosition, 1.0);
+}
