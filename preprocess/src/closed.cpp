@@ -14,8 +14,11 @@
 // parallel: the corner lists are filled with atomic cursors (their order does
 // not matter), the union-find links with compare-and-swap (the partition it
 // ends with does not depend on the order of the links).
+#include <algorithm>
 #include <atomic>
 #include <cstring>
+
+#include <glm/geometric.hpp>
 
 #include "penumbra/error.h"
 #include "preprocess_internal.h"
@@ -108,12 +111,12 @@ struct Corner {
 };
 
 template <typename Offset>
-std::vector<uint8_t> closedWithOffsets(const Mesh& mesh, unsigned threads, const uint8_t* openSeed)
+std::vector<uint32_t> componentsWithOffsets(const Mesh& mesh, unsigned threads, const uint8_t* openSeed)
 {
     const uint64_t triangleCount = mesh.triangleCount();
     const uint64_t vertexCount = mesh.vertexCount();
     const uint32_t* idx = mesh.indices.data();
-    std::vector<uint8_t> closed(triangleCount, 0);
+    std::vector<uint32_t> component(triangleCount, kOpenComponent);
     const uint64_t chunk = 1 << 16;
     const uint64_t triangleChunks = (triangleCount + chunk - 1) / chunk;
     auto isDegenerate = [idx](uint64_t t) {
@@ -192,14 +195,41 @@ std::vector<uint8_t> closedWithOffsets(const Mesh& mesh, unsigned threads, const
     });
     parallelFor(threads, triangleChunks, [&](uint64_t c) {
         for (uint64_t t = c * chunk, e = std::min(triangleCount, t + chunk); t < e; ++t)
-            closed[t] = !isDegenerate(t) && !openRoot[find(parent, uint32_t(t))];
+            if (!isDegenerate(t)) {
+                const uint32_t root = find(parent, uint32_t(t));
+                if (!openRoot[root])
+                    component[t] = root;
+            }
     });
-    return closed;
+    // Orientation: a closed component must enclose positive volume (its triangles wound
+    // counter-clockwise seen from outside); one wound inside out, or flat (a two-sided sheet,
+    // zero volume), is open. Signed volume relative to the root triangle's first corner (small
+    // numbers), summed in triangle order (the same sum whatever the thread count).
+    openRoot = {};
+    bad = {};
+    std::vector<double> volume(triangleCount, 0.0);
+    std::vector<double> scale(triangleCount, 0.0);
+    for (uint64_t t = 0; t < triangleCount; ++t) {
+        const uint32_t root = component[t];
+        if (root == kOpenComponent)
+            continue;
+        const glm::dvec3 o(mesh.position(idx[3 * uint64_t(root)]));
+        const glm::dvec3 a = glm::dvec3(mesh.position(idx[3 * t])) - o, b = glm::dvec3(mesh.position(idx[3 * t + 1])) - o,
+                         d = glm::dvec3(mesh.position(idx[3 * t + 2])) - o;
+        volume[root] += glm::dot(a, glm::cross(b, d));
+        scale[root] = std::max({scale[root], glm::length(a), glm::length(b), glm::length(d)});
+    }
+    for (uint64_t t = 0; t < triangleCount; ++t) {
+        const uint32_t root = component[t];
+        if (root != kOpenComponent && !(volume[root] > 1e-9 * scale[root] * scale[root] * scale[root]))
+            component[t] = kOpenComponent;
+    }
+    return component;
 }
 
 } // namespace
 
-std::vector<uint8_t> closedTriangles(const Mesh& mesh, unsigned threads, const uint8_t* openSeed)
+std::vector<uint32_t> closedComponents(const Mesh& mesh, unsigned threads, const uint8_t* openSeed)
 {
     if (mesh.triangleCount() > 0xFFFFFFFEull || mesh.vertexCount() > 0xFFFFFFFEull)
         fail("preprocess", "internal error: too many triangles for the closed-component test");
@@ -207,8 +237,59 @@ std::vector<uint8_t> closedTriangles(const Mesh& mesh, unsigned threads, const u
         return {};
     // 32-bit list offsets while the 3 corners per triangle fit them (half the memory traffic).
     if (3 * uint64_t(mesh.triangleCount()) < 0xFFFFFFFFull)
-        return closedWithOffsets<uint32_t>(mesh, threads, openSeed);
-    return closedWithOffsets<uint64_t>(mesh, threads, openSeed);
+        return componentsWithOffsets<uint32_t>(mesh, threads, openSeed);
+    return componentsWithOffsets<uint64_t>(mesh, threads, openSeed);
+}
+
+std::vector<uint8_t> closedTriangles(const Mesh& mesh, unsigned threads, const uint8_t* openSeed)
+{
+    const std::vector<uint32_t> component = closedComponents(mesh, threads, openSeed);
+    std::vector<uint8_t> closed(component.size());
+    for (size_t t = 0; t < component.size(); ++t)
+        closed[t] = component[t] != kOpenComponent;
+    return closed;
+}
+
+std::vector<uint8_t> closedClusterFlags(const uint32_t* component, const uint32_t* triangles, const ClusterRange* clusters,
+                                        size_t clusterCount, uint64_t componentLimit, unsigned threads)
+{
+    // ok[c]: every triangle of cluster c is closed (the first pass), then: and no component of
+    // them has a triangle in a cluster that is not ok. A cluster that loses its flag can cost
+    // other components theirs (they share it), so the passes go on until nothing changes:
+    // each pass only clears flags, so at most as many passes as clusters, in practice 2-3.
+    std::vector<uint8_t> ok(clusterCount, 1);
+    parallelFor(threads, clusterCount, [&](uint64_t c) {
+        for (uint32_t i = clusters[c].begin; i < clusters[c].end; ++i)
+            if (component[triangles[i]] == kOpenComponent) {
+                ok[c] = 0;
+                break;
+            }
+    });
+    std::vector<uint8_t> openComponent(componentLimit, 0);
+    for (bool changed = true; changed;) {
+        parallelFor(threads, clusterCount, [&](uint64_t c) {
+            if (ok[c])
+                return;
+            for (uint32_t i = clusters[c].begin; i < clusters[c].end; ++i) {
+                const uint32_t k = component[triangles[i]];
+                if (k != kOpenComponent)
+                    std::atomic_ref<uint8_t>(openComponent[k]).store(1, std::memory_order_relaxed);
+            }
+        });
+        std::atomic<bool> cleared{false};
+        parallelFor(threads, clusterCount, [&](uint64_t c) {
+            if (!ok[c])
+                return;
+            for (uint32_t i = clusters[c].begin; i < clusters[c].end; ++i)
+                if (std::atomic_ref<uint8_t>(openComponent[component[triangles[i]]]).load(std::memory_order_relaxed)) {
+                    ok[c] = 0;
+                    cleared.store(true, std::memory_order_relaxed);
+                    break;
+                }
+        });
+        changed = cleared.load();
+    }
+    return ok;
 }
 
 } // namespace penumbra::preprocess_detail

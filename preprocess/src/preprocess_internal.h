@@ -168,6 +168,22 @@ bool appendLeafStrips(const uint32_t* localIndices, uint32_t count, uint32_t ver
 // a chunk boundary cuts, or a neighbour from another chunk). Indices must be in range.
 std::vector<uint8_t> closedTriangles(const Mesh& mesh, unsigned threads, const uint8_t* openSeed = nullptr);
 
+// The same test, per triangle its closed component's id (below
+// mesh.triangleCount(): one of its triangles' indices), or kOpenComponent.
+inline constexpr uint32_t kOpenComponent = 0xFFFFFFFFu;
+std::vector<uint32_t> closedComponents(const Mesh& mesh, unsigned threads, const uint8_t* openSeed = nullptr);
+
+// model::kClusterClosed per cluster (`clusters`: ranges of `triangles`, which
+// index `component`, closedComponents' ids below componentLimit): a cluster is
+// flagged when all its triangles are closed and every component of them lies
+// wholly in flagged clusters. So a closed component is flagged everywhere or
+// nowhere: the runtime may treat "flagged" as "this whole solid is closed"
+// (afsm draws no flagged triangle seen from behind, and casts only the
+// light-back-facing ones); a component split between a flagged cluster and
+// one mixed with open triangles would be neither.
+std::vector<uint8_t> closedClusterFlags(const uint32_t* component, const uint32_t* triangles, const ClusterRange* clusters,
+                                        size_t clusterCount, uint64_t componentLimit, unsigned threads);
+
 // ---- node array (node_layout.cpp) ------------------------------------------------
 
 struct Layout {
@@ -213,7 +229,7 @@ struct BuildExtras {
     // layout keeps kMaxBvhDepth - (rootDepth - 1) levels; header.bvhDepth
     // counts from the model's root.
     uint32_t rootDepth = 1;
-    const uint8_t* closed = nullptr;   // per input triangle: computed outside (streaming: with neighbours and seeds)
+    const uint32_t* component = nullptr; // per input triangle: closedComponents computed outside (streaming: with neighbours and seeds)
 };
 CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* stats,
                            std::vector<uint32_t>* decodedTriangleSource, const BuildExtras& extras);

@@ -155,7 +155,7 @@ Plan makePlan(std::vector<float>& points, uint32_t count, const Cell& cell)
 using namespace streamed_detail;
 using preprocess_detail::BuildExtras;
 using preprocess_detail::buildModel;
-using preprocess_detail::closedTriangles;
+using preprocess_detail::closedComponents;
 
 namespace {
 
@@ -169,8 +169,9 @@ double secondsSince(Clock::time_point start)
 // Peak memory of the in-core builder per triangle (PreprocessOptions defaults,
 // 2 threads; measured with bench/streamed_memory.sh and Preprocess tests: the
 // tree stage's mesh, references, stamps and the cluster stage's output), plus
-// the chunk's records, its sorted vertex ids and the closed test's lists.
-constexpr uint64_t kBytesPerChunkTriangle = 96;
+// the chunk's records, its sorted vertex ids and the closed test's lists
+// (+3 B for the closed components' ids, 4 B instead of a flag byte; not re-measured).
+constexpr uint64_t kBytesPerChunkTriangle = 99;
 // Memory that does not grow with the chunk: buffers of the stream, the vertex
 // cache, the partition's temporaries (at most 1/8 of the limit each).
 constexpr uint64_t kFixedBytes = uint64_t(12) << 20;
@@ -604,9 +605,11 @@ void buildChunkInMemory(Build& build, ChunkTemp& temp, chunk::ChunkHeader header
     build.addTemporary(-int64_t(temp.haloTriangles * 36));
     temp.halo.reset();
     const unsigned threads = threadCount(build.options->build);
-    std::vector<uint8_t> closed = closedTriangles(mesh, threads, seeds.data());
+    // A closed component has no halo triangle (they seed "open"), and its id is its smallest
+    // triangle index (closed.cpp), so every id left is below own.
+    std::vector<uint32_t> component = closedComponents(mesh, threads, seeds.data());
     seeds = {};
-    closed.resize(own);
+    component.resize(own);
     mesh.indices.resize(3 * own);
     mesh.indices.shrink_to_fit();
     mesh.positions.resize(3 * ownVertices);
@@ -614,13 +617,13 @@ void buildChunkInMemory(Build& build, ChunkTemp& temp, chunk::ChunkHeader header
 
     BuildExtras extras;
     extras.rootDepth = rootDepth;
-    extras.closed = closed.data();
+    extras.component = component.data();
     PreprocessOptions options = build.options->build;
     options.progress = nullptr;
     PreprocessStats stats;
     CompressedModel model = buildModel(mesh, options, &stats, nullptr, extras);
     mesh = Mesh();
-    closed = {};
+    component = {};
     model = withScene(model, build.stream->cameras(), build.stream->lights(), build.stream->path());
     model.header.sourceTriangleCount = build.inputTriangles;
     header.closedTriangles = stats.closedTriangles;
