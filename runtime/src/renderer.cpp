@@ -500,7 +500,8 @@ struct Renderer::Impl::FrameScript {
         vkCmdFillBuffer(cmd, t.stats.buffer, 0, VK_WHOLE_SIZE, 0);
         vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
         r.gbuffer.record(cmd, r.culling, 0, r.geometry, {&t.position, &t.normal, &t.depth},
-                         {view.viewProj, glm::vec4(view.eye, 1.0f), r.geometry.albedo.buffer ? vk::bufferAddress(r.device, r.geometry.albedo) : 0});
+                         {view.viewProj, glm::vec4(view.eye, 1.0f), r.geometry.albedo.buffer ? vk::bufferAddress(r.device, r.geometry.albedo) : 0,
+                          afsmBackFaces ? r.afsm.closedBitsAddress(r.device) : 0});
         timer.mark(cmd, PassId::Camera);
         for (vk::Image* image : {&t.color, &t.visibility})
             vk::transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);

@@ -207,7 +207,7 @@ void AfsmPass::create(vk::Device& device)
     bin.create(device, "afsm_bin.comp", binBindingTypes(), sizeof(AfsmBinPush));
     binSoft.create(device, "afsm_bin.comp.soft", binBindingTypes(), sizeof(AfsmBinPush));
     params = createBuffer(device, sizeof(AfsmParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
-    closedBits = createBuffer(device, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
+    closedBits = createBuffer(device, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload, Addressable::Yes);
     std::memset(closedBits.mapped, 0, 16);
     if (!device.aliasFree)
         return;
@@ -341,7 +341,7 @@ uint64_t AfsmPass::prepareModel(vk::Device& device, const CompressedModel* model
     if (closedBits.size < bytes) {
         vkDeviceWaitIdle(device.device);
         vk::destroyBuffer(device, closedBits);
-        closedBits = vk::createBuffer(device, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Upload);
+        closedBits = vk::createBuffer(device, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Upload, vk::Addressable::Yes);
         if (targets.cellFirst)
             bind(device, targets);
     }

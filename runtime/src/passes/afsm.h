@@ -210,6 +210,10 @@ class AfsmPass {
     // in a frame seen through cameraViewProj: not when what the camera sees
     // may lie inside a closed mesh (afsmSeesInsideClosed); cached per camera.
     bool closedBackFaces(const CompressedModel& model, const CullModel& cull, glm::vec3 eye, const glm::mat4& cameraViewProj);
+    // The device address of the closed clusters' bits (prepareModel), for
+    // the camera pass of a frame whose closed clusters cast only back faces
+    // (GBufferPush::closedAddress).
+    VkDeviceAddress closedBitsAddress(const vk::Device& device) const { return vk::bufferAddress(device, closedBits); }
     // Clears the samples' shadow flags (before a light's layers).
     void clear(VkCommandBuffer cmd) const;
     // Counts, offsets and lists the samples of layer `layer` of the light in the grid of viewProj.
