@@ -229,6 +229,22 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
     const auto closedStart = Clock::now();
     std::vector<uint32_t> component = extras.component ? std::vector<uint32_t>(extras.component, extras.component + inputTriangles)
                                                        : closedComponents(mesh, threads);
+    // Closed components that another surface comes within the shadow rays' offset of are not
+    // flagged (crowdedComponents); closedTriangles still counts them.
+    std::vector<uint8_t> crowded;
+    if (!extras.component) {
+        float lo[3], hi[3];
+        meshBounds(mesh, lo, hi);
+        crowded = crowdedComponents(mesh, component.data(), closedClearance(lo, hi), nullptr, nullptr, threads);
+    }
+    const uint8_t* crowdedOf = extras.component ? extras.crowded : crowded.data();
+    for (uint64_t t = 0; t < inputTriangles; ++t)
+        if (component[t] != kOpenComponent) {
+            ++stats.closedTriangles;
+            if (crowdedOf && crowdedOf[component[t]])
+                component[t] = kOpenComponent;
+        }
+    crowded = {};
     stats.closedSeconds = secondsSince(closedStart);
     std::vector<TriangleRef> refs(triangleCount);
     std::vector<glm::dvec3> extentSums(chunks, glm::dvec3(0.0));
@@ -350,8 +366,6 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
     }
     for (size_t c = 0; c < clusterCount; ++c) {
         const uint32_t n = tree.clusters[c].end - tree.clusters[c].begin;
-        for (uint32_t i = tree.clusters[c].begin; i < tree.clusters[c].end; ++i)
-            stats.closedTriangles += component[triangles[i]] != kOpenComponent;
         stats.closedClusters += clusterClosed[c];
         stats.closedClusterTriangles += clusterClosed[c] ? n : 0;
     }

@@ -206,10 +206,13 @@ struct Renderer::Impl::FrameScript {
             r.bindTargets();
         if (s.shadows == ShadowMethod::AliasFree) {
             r.ensureAfsmTargets();
-            // Closed meshes cast only their light-back-facing triangles unless the camera may see inside one.
+            // Closed meshes cast only their light-back-facing triangles unless the camera may see inside one,
+            // or the rays start farther off their receivers than the default offset the preprocessor kept
+            // flagged solids clear of (closedClearance): then a ray might start inside a flagged solid.
             const bool compressed = r.geometry.encoding == GeometryEncoding::Compressed && r.model && r.shadowCulling.model;
+            const bool clear = rayOffset <= shadowRayOffset(bounds, r.geometry.maxPositionError);
             afsmClosedClusters = r.afsm.prepareModel(r.device, compressed ? &*r.model : nullptr);
-            afsmBackFaces = compressed && r.afsm.closedBackFaces(*r.model, *r.shadowCulling.model, view.eye, view.viewProj);
+            afsmBackFaces = compressed && clear && r.afsm.closedBackFaces(*r.model, *r.shadowCulling.model, view.eye, view.viewProj);
             afsmLayers.resize(lights.size());
             afsmCube.assign(lights.size(), false);
             for (size_t i = 0; i < lights.size(); ++i)
