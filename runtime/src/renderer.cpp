@@ -185,6 +185,7 @@ struct Renderer::Impl::FrameScript {
     std::vector<bool> afsmCube;
     uint64_t afsmClosedClusters = 0; // afsm: the model's closed clusters
     bool afsmBackFaces = false;      // afsm: they cast only light-back-facing triangles this frame
+    bool afsmOffsetClear = true;     // afsm: the rays' offset is at most the default (closedClearance's bound)
 
     FrameScript(Impl& renderer, const RenderSettings& s)
         : r(renderer), settings(s), spec(shadowMethodSpec(s.shadows)), bounds(r.geometry.bounds),
@@ -210,9 +211,10 @@ struct Renderer::Impl::FrameScript {
             // or the rays start farther off their receivers than the default offset the preprocessor kept
             // flagged solids clear of (closedClearance): then a ray might start inside a flagged solid.
             const bool compressed = r.geometry.encoding == GeometryEncoding::Compressed && r.model && r.shadowCulling.model;
-            const bool clear = rayOffset <= shadowRayOffset(bounds, r.geometry.maxPositionError);
+            afsmOffsetClear = rayOffset <= shadowRayOffset(bounds, r.geometry.maxPositionError);
             afsmClosedClusters = r.afsm.prepareModel(r.device, compressed ? &*r.model : nullptr);
-            afsmBackFaces = compressed && clear && r.afsm.closedBackFaces(*r.model, *r.shadowCulling.model, view.eye, view.viewProj);
+            afsmBackFaces = compressed && afsmOffsetClear &&
+                            r.afsm.closedBackFaces(*r.model, *r.shadowCulling.model, view.eye, view.viewProj);
             afsmLayers.resize(lights.size());
             afsmCube.assign(lights.size(), false);
             for (size_t i = 0; i < lights.size(); ++i)
@@ -875,7 +877,10 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
                                                                                                                                 : 0.0f;
     if (settings.shadows == ShadowMethod::AliasFree) {
         out.afsmClosedClusters = afsmClosedClusters;
-        out.afsmClosedCasting = !afsmClosedClusters ? "none closed" : afsmBackFaces ? "back faces" : "both sides (camera inside a closed mesh)";
+        out.afsmClosedCasting = !afsmClosedClusters ? "none closed"
+                                : afsmBackFaces     ? "back faces"
+                                : !afsmOffsetClear  ? "both sides (ray offset above the default)"
+                                                    : "both sides (camera inside a closed mesh)";
     }
     if (settings.shadows == ShadowMethod::RayHierarchy) {
         const passes::RhFrameStats rh = r.rh.frameStats();

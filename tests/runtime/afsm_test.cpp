@@ -153,6 +153,32 @@ TEST(AliasFreeShadowMaps, ClosedPartsCastBackFacesAndMatchTheOracle)
     }
 }
 
+// A ray offset above the default voids the preprocessor's clearance (a ray could
+// start inside a flagged solid): the frame casts both sides of closed clusters.
+TEST(AliasFreeShadowMaps, LargerRayOffsetCastsBothSides)
+{
+    const Mesh mesh = test::cubeOverFloor(0.5f);
+    PreprocessOptions build;
+    build.separateClosed = true;
+    Renderer renderer;
+    renderer.loadModel(buildCompressedModel(mesh, build));
+    Camera camera;
+    camera.position = {5.0f, 6.0f, 7.0f};
+    camera.target = {0.0f, 1.0f, 0.0f};
+    renderer.setCamera(camera);
+    RenderSettings settings;
+    settings.width = settings.height = 64;
+    settings.shadows = ShadowMethod::AliasFree;
+    const Frame standard = renderer.render(settings);
+    EXPECT_EQ(standard.stats.afsmClosedCasting, "back faces");
+    settings.rayOffset = 2.0f * standard.stats.rayOffset;
+    const Frame larger = renderer.render(settings);
+    EXPECT_EQ(larger.stats.afsmClosedCasting, "both sides (ray offset above the default)");
+    settings.rayOffset = standard.stats.rayOffset;
+    EXPECT_EQ(renderer.render(settings).stats.afsmClosedCasting, "back faces");
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+}
+
 TEST(AliasFreeShadowMaps, PointLightAmongTheGeometryMatchesTheOracle)
 {
     Scene scene = interior();
