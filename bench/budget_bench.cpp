@@ -4,8 +4,14 @@
 // geometry) render the same path; every frame is compared bit for bit with
 // the unlimited one.
 //   bench_budget MODEL [--size N] [--frames N] [--methods srt,frt] [--divisors 4,16]
-//                      [--page KiB] [--out DIR] [--device NAME]
+//                      [--budgets MiB,...] [--reference none] [--view whole] [--page KiB] [--out DIR]
+//                      [--device NAME]
 // MODEL: a .penumbra file, any importable file, or gen:NAME:TRIANGLES.
+// --budgets: absolute budgets instead of divisors; --reference none: no
+// unlimited renderer (for models whose geometry does not fit the device at
+// once): frames are not compared, and their identical column is empty.
+// --view whole: the path starts at the view that frames the whole model
+// (defaultCamera), not at the model's first camera or a patch of it.
 // Writes DIR/budget.csv (one row per frame), DIR/budget_summary.csv (median
 // frame time per method and budget), DIR/budget.gp and, when gnuplot is
 // installed, DIR/budget.png (frame time against budget; bytes streamed per
@@ -63,8 +69,8 @@ int main(int argc, char** argv)
 {
     try {
         if (argc < 2) {
-            std::fprintf(stderr, "usage: bench_budget MODEL [--size N] [--frames N] [--methods srt,frt] [--divisors 4,16] [--page KiB] "
-                                 "[--out DIR] [--device NAME]\n");
+            std::fprintf(stderr, "usage: bench_budget MODEL [--size N] [--frames N] [--methods srt,frt] [--divisors 4,16] "
+                                 "[--budgets MiB,...] [--reference none] [--view whole] [--page KiB] [--out DIR] [--device NAME]\n");
             return 2;
         }
         std::string modelSpec = argv[1], out = "bench_budget", device;
@@ -72,6 +78,8 @@ int main(int argc, char** argv)
         uint64_t pageBytes = RendererOptions{}.geometryPageBytes;
         std::vector<std::string> methods = {"srt", "frt"};
         std::vector<uint64_t> divisors = {4, 16};
+        std::vector<uint64_t> budgets; // bytes; --budgets replaces the divisors
+        bool reference = true, wholeView = false;
         for (int i = 2; i + 1 < argc; i += 2) {
             const std::string key = argv[i], value = argv[i + 1];
             if (key == "--size") size = uint32_t(std::stoul(value));
@@ -81,6 +89,21 @@ int main(int argc, char** argv)
                 divisors.clear();
                 for (const std::string& d : split(value))
                     divisors.push_back(std::stoull(d));
+            } else if (key == "--budgets") {
+                for (const std::string& b : split(value))
+                    budgets.push_back(uint64_t(std::stod(b) * 1048576.0));
+            } else if (key == "--reference") {
+                if (value != "none") {
+                    std::fprintf(stderr, "bench_budget: --reference takes only 'none'\n");
+                    return 2;
+                }
+                reference = false;
+            } else if (key == "--view") {
+                if (value != "whole") {
+                    std::fprintf(stderr, "bench_budget: --view takes only 'whole'\n");
+                    return 2;
+                }
+                wholeView = true;
             } else if (key == "--page") pageBytes = uint64_t(std::stod(value) * 1024.0);
             else if (key == "--out") out = value;
             else if (key == "--device") device = value;
@@ -113,7 +136,9 @@ int main(int argc, char** argv)
         const float diagonal = glm::length(extent);
         // The path: the model's first camera (else a slanted view of a patch) moving along its view direction.
         Camera start;
-        if (!scene.cameras.empty()) {
+        if (wholeView) {
+            start = defaultCamera(bounds);
+        } else if (!scene.cameras.empty()) {
             start = scene.cameras[0];
         } else {
             const glm::vec3 patch(bounds.min.x + 0.3f * extent.x, bounds.min.y, bounds.min.z + 0.35f * extent.z);
@@ -138,7 +163,7 @@ int main(int argc, char** argv)
         std::ofstream summary(out + "/budget_summary.csv");
         summary << "method,divisor,budget_mib,median_frame_ms,median_bytes_streamed,identical_frames,frames\n";
         uint64_t geometryBytes = 0;
-        {
+        if (budgets.empty()) {
             RendererOptions probeOptions;
             probeOptions.device = device;
             probeOptions.geometryBudgetBytes = uint64_t(1) << 40;
@@ -151,18 +176,39 @@ int main(int argc, char** argv)
             probe.setLights({light});
             geometryBytes = probe.render(settings).stats.geometryBytes;
         }
-        std::printf("model %s: %llu triangles, paged geometry %.1f MiB in pages of %.0f KiB\n", modelSpec.c_str(),
-                    (unsigned long long)model.header.triangleCount, double(geometryBytes) / 1048576.0, double(pageBytes) / 1024.0);
+        if (budgets.empty())
+            std::printf("model %s: %llu triangles, paged geometry %.1f MiB in pages of %.0f KiB\n", modelSpec.c_str(),
+                        (unsigned long long)model.header.triangleCount, double(geometryBytes) / 1048576.0, double(pageBytes) / 1024.0);
+        else
+            std::printf("model %s: %llu triangles, pages of %.0f KiB\n", modelSpec.c_str(), (unsigned long long)model.header.triangleCount,
+                        double(pageBytes) / 1024.0);
+        // Runs: (divisor, budget bytes); divisor 0 with budget 0 is the unlimited reference.
+        std::vector<std::pair<uint64_t, uint64_t>> runs;
+        if (reference)
+            runs.push_back({0, 0});
+        if (budgets.empty())
+            for (uint64_t divisor : divisors)
+                runs.push_back({divisor, geometryBytes / divisor});
+        for (uint64_t budget : budgets)
+            runs.push_back({0, budget});
+        auto runName = [&](size_t r) {
+            char text[64];
+            if (runs[r].first)
+                std::snprintf(text, sizeof(text), "1/%llu", (unsigned long long)runs[r].first);
+            else if (runs[r].second)
+                std::snprintf(text, sizeof(text), "%g MiB", double(runs[r].second) / 1048576.0);
+            else
+                std::snprintf(text, sizeof(text), "none");
+            return std::string(text);
+        };
         int failures = 0;
         for (const std::string& methodName : methods) {
             const ShadowMethod method = parseShadowMethod(methodName);
-            std::vector<uint64_t> runs = {0};
-            runs.insert(runs.end(), divisors.begin(), divisors.end());
             std::vector<std::unique_ptr<Renderer>> renderers;
-            for (uint64_t divisor : runs) {
+            for (const auto& run : runs) {
                 RendererOptions options;
                 options.device = device;
-                options.geometryBudgetBytes = divisor ? geometryBytes / divisor : 0;
+                options.geometryBudgetBytes = run.second;
                 options.geometryPageBytes = pageBytes;
                 renderers.push_back(std::make_unique<Renderer>(options));
                 renderers.back()->loadModel(model);
@@ -174,7 +220,7 @@ int main(int argc, char** argv)
                 const glm::vec3 step = forward * (0.01f * diagonal * float(f));
                 camera.position += step;
                 camera.target += step;
-                Frame reference;
+                Frame referenceFrame;
                 for (size_t r = 0; r < runs.size(); ++r) {
                     Renderer& renderer = *renderers[r];
                     renderer.setCamera(camera);
@@ -186,32 +232,34 @@ int main(int argc, char** argv)
                     try {
                         frame = renderer.render(settings);
                     } catch (const std::exception& e) {
-                        std::printf("%s 1/%llu frame %u: %s\n", methodName.c_str(), (unsigned long long)runs[r], f, e.what());
+                        std::printf("%s %s frame %u: %s\n", methodName.c_str(), runName(r).c_str(), f, e.what());
                         ++failures;
                         continue;
                     }
-                    if (r == 0)
-                        reference = frame;
-                    const bool same = r == 0 || sameImage(reference, frame);
+                    const bool compared = reference && r > 0;
+                    if (reference && r == 0)
+                        referenceFrame = frame;
+                    const bool same = !compared || sameImage(referenceFrame, frame);
                     identical[r] += same;
                     failures += same ? 0 : 1;
                     const FrameStats& s = frame.stats;
                     times[r].push_back(s.cpuMs);
                     streamed[r].push_back(double(s.bytesStreamed));
-                    csv << methodName << ',' << runs[r] << ',' << s.geometryBudgetBytes << ',' << geometryBytes << ',' << f << ','
-                        << s.cpuMs << ',' << s.gpuMs << ',' << s.bytesStreamed << ',' << s.pagesUploaded << ',' << s.parkingRounds << ','
-                        << s.parkedRays << ',' << s.residentPeakBytes << ',' << (same ? 1 : 0) << '\n';
+                    csv << methodName << ',' << runs[r].first << ',' << runs[r].second << ','
+                        << (geometryBytes ? geometryBytes : s.geometryBytes) << ',' << f << ',' << s.cpuMs << ',' << s.gpuMs << ','
+                        << s.bytesStreamed << ',' << s.pagesUploaded << ',' << s.parkingRounds << ',' << s.parkedRays << ','
+                        << s.residentPeakBytes << ',' << (reference ? (same ? "1" : "0") : "") << '\n';
                     std::printf("%s budget %s frame %u: %.1f ms, streamed %.2f MiB in %llu pages, %u parking rounds, %s\n",
-                                methodName.c_str(), runs[r] ? ("1/" + std::to_string(runs[r])).c_str() : "none", f, s.cpuMs,
-                                double(s.bytesStreamed) / 1048576.0, (unsigned long long)s.pagesUploaded, s.parkingRounds,
-                                same ? "identical" : "DIFFERS");
+                                methodName.c_str(), runName(r).c_str(), f, s.cpuMs, double(s.bytesStreamed) / 1048576.0,
+                                (unsigned long long)s.pagesUploaded, s.parkingRounds,
+                                !reference ? "not compared" : same ? "identical" : "DIFFERS");
                     std::fflush(stdout);
                 }
             }
             for (size_t r = 0; r < runs.size(); ++r)
-                summary << methodName << ',' << runs[r] << ','
-                        << (runs[r] ? double(geometryBytes / runs[r]) / 1048576.0 : double(geometryBytes) / 1048576.0) << ','
-                        << median(times[r]) << ',' << median(streamed[r]) << ',' << identical[r] << ',' << frames << '\n';
+                summary << methodName << ',' << runs[r].first << ','
+                        << double(runs[r].second ? runs[r].second : geometryBytes) / 1048576.0 << ',' << median(times[r]) << ','
+                        << median(streamed[r]) << ',' << (reference ? std::to_string(identical[r]) : std::string()) << ',' << frames << '\n';
         }
         csv.close();
         summary.close();
@@ -224,11 +272,12 @@ int main(int argc, char** argv)
             gp << (i ? " " : "") << methods[i];
         gp << "'] '" << out << "/budget_summary.csv' using (strcol(1) eq m ? $3 : 1/0):4 with linespoints title m\n"
            << "unset logscale x\nset title 'bytes streamed per frame along the camera path'\nset xlabel 'frame'\nset ylabel 'MiB'\n"
-           << "plot for [d in '";
-        for (size_t i = 0; i < divisors.size(); ++i)
-            gp << (i ? " " : "") << divisors[i];
-        gp << "'] '" << out << "/budget.csv' using ((strcol(1) eq '" << methods[0] << "' && $2 == real(d)) ? $5 : 1/0):($8/1048576) with points pt 7 title '"
-           << methods[0] << " 1/'.d\nunset multiplot\n";
+           << "plot for [b in '";
+        for (size_t r = 0; r < runs.size(); ++r)
+            if (runs[r].second)
+                gp << (r ? " " : "") << runs[r].second;
+        gp << "'] '" << out << "/budget.csv' using ((strcol(1) eq '" << methods[0] << "' && $3 == real(b)) ? $5 : 1/0):($8/1048576) with points pt 7 title '"
+           << methods[0] << " '.sprintf('%.1f MiB', real(b)/1048576)\nunset multiplot\n";
         gp.close();
         if (std::system(("command -v gnuplot >/dev/null && gnuplot '" + out + "/budget.gp'").c_str()) != 0)
             std::printf("gnuplot missing or failed: %s/budget.gp not plotted\n", out.c_str());

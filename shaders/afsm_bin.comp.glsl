@@ -12,6 +12,13 @@
 // afsm_soft.geom) draws the others. Leaves are decoded as the thin-triangle
 // pass decodes them (thin_triangles.comp.glsl: one invocation per leaf, the
 // tracer's strip walk), those of clusters outside the view skipped.
+// Under a geometry budget (kGeometryBudget, geometry_pages.h) the frame
+// script dispatches it once per range of the view's clusters whose pages fit
+// the pool, that range resident: the nodes are read through the node table
+// from their records in the pool, and only the range's clusters
+// ([clusterBegin, clusterEnd) of the view's) are binned, so every caster
+// cluster is binned once over the ranges (its tests OR into the samples'
+// flags and masks, in any order).
 // Built twice: hard shadows, and soft shadows with PENUMBRA_AFSM_SOFT
 // (afsm_bin.comp.soft).
 #version 460
@@ -35,6 +42,10 @@
 
 layout(local_size_x = PENUMBRA_AFSM_BIN_GROUP) in;
 
+// 1: paged geometry (geometry_pages.h): nodes through the node table, clusters of
+// [clusterBegin, clusterEnd) only; 0 (no budget): compiled out.
+layout(constant_id = 0) const uint kGeometryBudget = 0u;
+
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };
@@ -54,6 +65,10 @@ layout(set = 0, binding = 9, std430) readonly buffer ClosedBits { uint closedBit
 #include "afsm_casters.glsli"
 
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer ClusterMask { uint bits[]; };
+// kGeometryBudget: per node, its record's first 16-byte texel in the pool, or cluster | PENUMBRA_NODE_ABSENT
+// (bvh_texels.glsli; GpuGeometry::nodeTable).
+layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer NodeTable { uint words[]; };
+#define PENUMBRA_NODE_ABSENT 0x80000000u
 
 layout(push_constant) uniform AfsmBinPush {
     mat4 viewProj;        // the layer's grid projection
@@ -64,7 +79,11 @@ layout(push_constant) uniform AfsmBinPush {
     uint gridSize;
     float originOffset;
     float computeCells;   // PENUMBRA_AFSM_COMPUTE_CELLS
+    uint clusterBegin;    // kGeometryBudget: the range of clusters binned by this dispatch
+    uint clusterEnd;
     uint closedBackFaces; // closed clusters cast only light-back-facing triangles (afsm_casters.glsli)
+    uint64_t nodeTable;   // kGeometryBudget: NodeTable's device address
+    uint64_t nodeRecords; // kGeometryBudget: the pool's (node records, 16-byte texels: NodeArray)
 } push;
 
 void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
@@ -137,9 +156,21 @@ void main()
     uint index = group * PENUMBRA_AFSM_BIN_GROUP + lane;
     ModelTable table = ModelTable(push.modelTable);
     if (index < push.nodeCount) {
-        WideNode node = loadNode(NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift), index);
-        const uint cluster = nodeCluster(node);
-        const bool inView = cluster != PENUMBRA_NO_CLUSTER && (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u;
+        WideNode node;
+        bool present = true; // kGeometryBudget: its cluster is resident
+        if (kGeometryBudget != 0u) {
+            const uint word = NodeTable(push.nodeTable).words[index];
+            present = (word & PENUMBRA_NODE_ABSENT) == 0u;
+            NodeArray records = NodeArray(push.nodeRecords);
+            const uint texel = present ? word : 0u;
+            node = WideNode(unpackWords(records.nodes[texel]), unpackWords(records.nodes[texel + 1u]), unpackWords(records.nodes[texel + 2u]),
+                            unpackWords(records.nodes[texel + 3u]));
+        } else
+            node = loadNode(NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift), index);
+        const uint cluster = present ? nodeCluster(node) : PENUMBRA_NO_CLUSTER;
+        bool inView = cluster != PENUMBRA_NO_CLUSTER && (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u;
+        if (kGeometryBudget != 0u)
+            inView = inView && cluster >= push.clusterBegin && cluster < push.clusterEnd;
         for (uint slot = 0u; slot < 4u; ++slot)
             if (inView && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF)
                 passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);

@@ -61,6 +61,8 @@ layout(set = 0, binding = 1) uniform usamplerBuffer modelNodes;
 layout(set = 0, binding = 2) uniform usamplerBuffer modelClusters;
 layout(set = 0, binding = 3) uniform usamplerBuffer modelVertices;
 layout(set = 0, binding = 4) uniform usamplerBuffer modelStrips;
+// kGeometryBudget: per node, its record's first texel in modelNodes (the pool), or cluster | PENUMBRA_NODE_ABSENT.
+layout(set = 0, binding = 6) uniform usamplerBuffer modelNodeTable;
 #include "bvh_traversal.glsli"
 #include "bvh_texels.glsli"
 
@@ -80,7 +82,7 @@ layout(push_constant) uniform ThinDetectPush
     uint nodeCount;
     uint layer;          // thin-map layer (cube face) being written
     uint64_t modelTable; // bvh_traversal.glsli
-    uint64_t leafAltitudes; // LeafAltitudes, 0: skip no leaf
+    uint64_t leafAltitudes; // LeafAltitudes, 0: skip no leaf (kGeometryBudget: 1: in the pool's node records)
     vec4 light;          // xyz position; w: 0 orthographic, else a lower bound of light-view depth / distance
     float texelSize;     // orthographic: texel size; perspective: texel size per unit of light-view depth
     uint localLayer;     // also write each texel's own depth of the sliver into this layer; ~0u: no
@@ -263,11 +265,13 @@ ClusterInfo clusterInfo(ModelTable table, uint cluster)
 // A leaf whose every triangle is wider than the thin threshold in model space, at the smallest texel size
 // the leaf can see, holds no sliver unless seen edge-on; edge-on faces of closed objects are covered by
 // their neighbours in the shadow map, so such a leaf is skipped without decoding.
-bool mayHoldSlivers(ModelTable table, uint slot, uint clusterIndex)
+// record: kGeometryBudget: the node record's first texel in the pool (its altitudes follow the node).
+bool mayHoldSlivers(ModelTable table, uint slot, uint clusterIndex, uint record)
 {
     if (push.leafAltitudes == 0ul)
         return true;
-    float altitude = LeafAltitudes(push.leafAltitudes).altitude[slot];
+    float altitude = kGeometryBudget != 0u ? uintBitsToFloat(texelFetch(modelNodes, int(record + 4u))[slot & 3u])
+                                           : LeafAltitudes(push.leafAltitudes).altitude[slot];
     float texel = push.texelSize;
     if (push.light.w != 0.0) {
         ClusterInfo cluster = clusterInfo(table, clusterIndex);
@@ -394,21 +398,24 @@ void main()
     uint index = group * PENUMBRA_THIN_TRIANGLES_GROUP_SIZE + lane;
     if (index < push.nodeCount) {
         WideNode node;
-        if (kTexelAccess != 0u)
+        uint record = 0u;    // kGeometryBudget: the node's record in the pool
+        bool present = true; // kGeometryBudget: its cluster is resident (the pass skips the others)
+        if (kGeometryBudget != 0u) {
+            const uint word = texelFetch(modelNodeTable, int(index)).x;
+            present = (word & PENUMBRA_NODE_ABSENT) == 0u;
+            record = present ? word : 0u;
+            node = nodeTexelsAt(record);
+        } else if (kTexelAccess != 0u)
             node = nodeTexels(index);
         else
             node = loadNode(NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift), index);
-        const uint cluster = nodeCluster(node);
+        const uint cluster = present ? nodeCluster(node) : PENUMBRA_NO_CLUSTER;
         // A cluster whose footprint lies 2 texels or more from every camera pixel's
         // point cannot write a texel that is read (receiver masks, culling.h).
         bool near = cluster != PENUMBRA_NO_CLUSTER &&
                     (push.clusterMask == 0ul || (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u);
-        if (kGeometryBudget != 0u && near) {
-            const uint64_t firstVertex = kTexelAccess != 0u ? clusterTexels(cluster).firstVertex : loadCluster(table, cluster).firstVertex;
-            near = (firstVertex >> 63) == 0ul;
-        }
         for (uint slot = 0u; slot < 4u; ++slot)
-            if (near && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF && mayHoldSlivers(table, 4u * index + slot, cluster))
+            if (near && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF && mayHoldSlivers(table, 4u * index + slot, cluster, record))
                 passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);
     }
     barrier();

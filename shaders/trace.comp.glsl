@@ -28,6 +28,8 @@ layout(set = 0, binding = 6) uniform usamplerBuffer modelNodes;
 layout(set = 0, binding = 7) uniform usamplerBuffer modelClusters;
 layout(set = 0, binding = 8) uniform usamplerBuffer modelVertices;
 layout(set = 0, binding = 9) uniform usamplerBuffer modelStrips;
+// kGeometryBudget: per node, its record's first texel in modelNodes (the pool), or cluster | PENUMBRA_NODE_ABSENT.
+layout(set = 0, binding = 10) uniform usamplerBuffer modelNodeTable;
 #include "bvh_traversal.glsli"
 #include "bvh_texels.glsli"
 
@@ -40,6 +42,8 @@ layout(buffer_reference, std430, buffer_reference_align = 16) buffer Parking
     uint parkingWords[]; // push.clusterWords visited bits, then the parked entries
 };
 bool gParked = false;
+uint gMarked = PENUMBRA_NO_CLUSTER; // the cluster this lane marked visited last (marks repeat within a cluster's subtree)
+void markVisited(uint cluster);
 
 // The model's access for bvh_wide.glsli: texel fetches, or device addresses
 // through the model table (set up in main).
@@ -47,8 +51,25 @@ ModelTable gTable;
 GeometryChunks gChunks;
 NodeChunks gNodeChunks;
 
+// Paged: a node of a cluster that is not resident reads as a node without
+// children; the ray is parked and the cluster marked, so that the frame
+// script makes it resident before tracing the ray again. Every cluster the
+// ray enters is marked: what a parked ray needs resident is what it visited.
 WideNode traversalNode(uint index)
 {
+    if (kGeometryBudget != 0u) {
+        const uint word = texelFetch(modelNodeTable, int(index)).x;
+        const bool absent = (word & PENUMBRA_NODE_ABSENT) != 0u;
+        WideNode node = nodeTexelsAt(absent ? 0u : word);
+        const uint cluster = absent ? word & ~PENUMBRA_NODE_ABSENT : nodeCluster(node);
+        if (cluster != PENUMBRA_NO_CLUSTER)
+            markVisited(cluster);
+        if (absent) {
+            gParked = true;
+            node.w0.w &= 0x00FFFFFFu; // every child slot empty
+        }
+        return node;
+    }
     return kTexelAccess != 0u ? nodeTexels(index) : loadNode(gNodeChunks, index);
 }
 ClusterInfo traversalCluster(uint cluster)
@@ -90,15 +111,19 @@ layout(push_constant) uniform Push
     vec4 boundsMax;
 } push;
 
+void markVisited(uint cluster)
+{
+    if (cluster == gMarked)
+        return;
+    gMarked = cluster;
+    Parking parking = Parking(push.parking);
+    atomicOr(parking.parkingWords[cluster >> 5], 1u << (cluster & 31u));
+}
+
+// A node's leaves are in its page, resident with it (traversalNode parks rays at absent nodes).
 bool traversalResident(ClusterInfo cluster)
 {
-    if (kGeometryBudget == 0u)
-        return true;
-    Parking parking = Parking(push.parking);
-    atomicOr(parking.parkingWords[cluster.index >> 5], 1u << (cluster.index & 31u));
-    const bool resident = (cluster.firstVertex >> 63) == 0ul;
-    gParked = gParked || !resident;
-    return resident;
+    return true;
 }
 
 // Paged geometry: a ray that skipped a cluster that is not resident is parked,

@@ -54,6 +54,12 @@ MappedFile::MappedFile(const std::string& path, const uint8_t* data, size_t size
         fail(path, "empty file");
 }
 
+void MappedFile::release() const
+{
+    if (mapped_)
+        ::madvise(const_cast<uint8_t*>(data_), size_, MADV_DONTNEED);
+}
+
 MappedFile::~MappedFile()
 {
     if (mapped_)

@@ -33,6 +33,10 @@ class MappedFile {
 
     const uint8_t* data() const { return data_; }
     size_t size() const { return size_; }
+    // Drops the mapped pages from the process (they stay in the page cache and
+    // are read again where touched): after a whole-file pass over a model
+    // that is then read sparsely (paged geometry), resident memory is what is used.
+    void release() const;
     std::string_view text() const { return {reinterpret_cast<const char*>(data_), size_}; }
 
   private:

@@ -153,7 +153,9 @@ CompressedModel openModelFile(const std::string& path)
 {
     auto file = std::make_shared<detail::MappedFile>(path);
     std::span<const uint8_t> bytes(file->data(), file->size());
-    return openModelMemory(bytes, std::move(file), path);
+    CompressedModel model = openModelMemory(bytes, file, path);
+    file->release(); // validated: what a renderer reads from here on is mapped again where it reads
+    return model;
 }
 
 } // namespace penumbra

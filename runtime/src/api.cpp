@@ -425,8 +425,9 @@ std::string summaryLine(const FrameStats& stats)
         line += " | closed clusters " + std::to_string(stats.afsmClosedClusters) + ": " + stats.afsmClosedCasting;
     if (stats.geometryBudgetBytes) {
         std::snprintf(buffer, sizeof(buffer),
-                      " | budget %.1f of %.1f MiB | resident peak %.1f MiB | pages uploaded %llu | streamed %.1f MiB | parking rounds %u",
+                      " | budget %.1f of %.1f MiB | model on device %.1f MiB | resident peak %.1f MiB | pages uploaded %llu | streamed %.1f MiB | parking rounds %u",
                       double(stats.geometryBudgetBytes) / 1048576.0, double(stats.geometryBytes) / 1048576.0,
+                      double(stats.modelDeviceBytes) / 1048576.0,
                       double(stats.residentPeakBytes) / 1048576.0, (unsigned long long)stats.pagesUploaded,
                       double(stats.bytesStreamed) / 1048576.0, stats.parkingRounds);
         line += buffer;
@@ -476,7 +477,7 @@ std::string statsJson(const FrameStats& stats)
         json["geometry_budget"] = {{"budget_bytes", stats.geometryBudgetBytes},     {"geometry_bytes", stats.geometryBytes},
                                    {"resident_peak_bytes", stats.residentPeakBytes}, {"pages_uploaded", stats.pagesUploaded},
                                    {"bytes_streamed", stats.bytesStreamed},          {"parking_rounds", stats.parkingRounds},
-                                   {"parked_rays", stats.parkedRays}};
+                                   {"parked_rays", stats.parkedRays},                {"model_device_bytes", stats.modelDeviceBytes}};
     nlohmann::ordered_json passes = nlohmann::ordered_json::object();
     for (const PassTiming& pass : stats.passes)
         passes[pass.name + "_ms"] = pass.gpuMs;

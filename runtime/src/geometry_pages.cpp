@@ -23,14 +23,38 @@ std::string mib(uint64_t bytes)
 
 } // namespace
 
-void GeometryPages::build(const CompressedModel& model, RasterIndices rasterIndices, uint64_t page, uint64_t budgetBytes)
+void GeometryPages::build(const CompressedModel& model, RasterIndices rasterIndices, uint64_t page, uint64_t budgetBytes, bool withAltitudes)
 {
     if (page < 48 * 64 || page % 48 != 0 || page > (uint64_t(1) << 30))
         fail("--geometry-page", std::to_string(page) + " bytes: a page must be a multiple of 48 bytes, 3 KiB .. 1 GiB");
     pageBytes = page;
     budget = budgetBytes;
     raster = rasterIndices;
+    altitudes = withAltitudes;
     const size_t clusters = model.clusters.size();
+    // Each cluster's own nodes (its subtree from its root), in ascending order: the page holds their records.
+    clusterNodesFirst.assign(clusters + 1, 0);
+    clusterNodes.clear();
+    topNodeCount = 0;
+    for (const model::Node& node : model.nodes)
+        topNodeCount += node.cluster == model::kNoCluster ? 1u : 0u;
+    clusterNodes.reserve(model.nodes.size() - topNodeCount);
+    std::vector<uint32_t> pending;
+    for (uint32_t c = 0; c < clusters; ++c) {
+        clusterNodesFirst[c] = clusterNodes.size();
+        pending.assign(1, model.clusters[c].node);
+        while (!pending.empty()) {
+            const uint32_t n = pending.back();
+            pending.pop_back();
+            clusterNodes.push_back(n);
+            const model::Node& node = model.nodes[n];
+            for (uint32_t slot = 0; slot < model::kNodeChildren; ++slot)
+                if (model::childKind(node, slot) == model::ChildKind::Interior)
+                    pending.push_back(node.child[slot]);
+        }
+        std::sort(clusterNodes.begin() + int64_t(clusterNodesFirst[c]), clusterNodes.end());
+    }
+    clusterNodesFirst[clusters] = clusterNodes.size();
     clusterPage.assign(clusters, 0);
     place.assign(clusters, {});
     pageFirstCluster.clear();
@@ -38,18 +62,20 @@ void GeometryPages::build(const CompressedModel& model, RasterIndices rasterIndi
     totalBytes = 0;
     std::vector<uint8_t> triangles;
     // Greedy: consecutive clusters (spatially coherent: the preprocessor orders them along the BVH) while
-    // vertices + strips (16-aligned) + triangle lists fit a page.
-    uint64_t vertexBytes = 0, stripBytes = 0, rasterBytes = 0;
+    // vertices + strips (16-aligned) + node records + triangle lists fit a page.
+    uint64_t vertexBytes = 0, stripBytes = 0, nodeBytes = 0, rasterBytes = 0;
     std::vector<uint32_t> rasterOf(clusters, 0);
+    auto align16 = [](uint64_t bytes) { return (bytes + 15) & ~uint64_t(15); };
     auto closePage = [&](uint32_t end) {
         const uint32_t first = pageFirstCluster.back();
-        const uint64_t stripBase = (vertexBytes + 15) & ~uint64_t(15);
-        uint64_t v = 0, s = stripBase, r = stripBase + stripBytes;
+        const uint64_t stripBase = align16(vertexBytes), nodeBase = align16(stripBase + stripBytes);
+        uint64_t v = 0, s = stripBase, n = nodeBase, r = nodeBase + nodeBytes;
         for (uint32_t c = first; c < end; ++c) {
             const model::ClusterRecord& record = model.clusters[c];
-            place[c] = {uint32_t(v), uint32_t(s), uint32_t(r), rasterOf[c]};
+            place[c] = {uint32_t(v), uint32_t(s), uint32_t(r), rasterOf[c], uint32_t(n)};
             v += uint64_t(record.vertexCount) * sizeof(model::QuantizedVertex);
             s += record.indexBytes;
+            n += (clusterNodesFirst[c + 1] - clusterNodesFirst[c]) * kNodeRecordBytes;
             r += rasterOf[c];
         }
         pageUsed.push_back(uint32_t(r));
@@ -65,19 +91,21 @@ void GeometryPages::build(const CompressedModel& model, RasterIndices rasterIndi
         }
         rasterOf[c] = uint32_t(rb);
         const uint64_t vb = uint64_t(record.vertexCount) * sizeof(model::QuantizedVertex);
-        auto size = [&](uint64_t v, uint64_t s, uint64_t r) { return ((v + 15) & ~uint64_t(15)) + s + r; };
-        if (size(vb, record.indexBytes, rb) > page)
+        const uint64_t nb = (clusterNodesFirst[c + 1] - clusterNodesFirst[c]) * kNodeRecordBytes;
+        auto size = [&](uint64_t v, uint64_t s, uint64_t n, uint64_t r) { return align16(align16(v) + s) + n + r; };
+        if (size(vb, record.indexBytes, nb, rb) > page)
             fail("--geometry-page", std::to_string(page) + " bytes: cluster " + std::to_string(c) + " alone needs " +
-                                        std::to_string(size(vb, record.indexBytes, rb)));
-        if (pageFirstCluster.empty() || size(vertexBytes + vb, stripBytes + record.indexBytes, rasterBytes + rb) > page) {
+                                        std::to_string(size(vb, record.indexBytes, nb, rb)));
+        if (pageFirstCluster.empty() || size(vertexBytes + vb, stripBytes + record.indexBytes, nodeBytes + nb, rasterBytes + rb) > page) {
             if (!pageFirstCluster.empty())
                 closePage(c);
             pageFirstCluster.push_back(c);
-            vertexBytes = stripBytes = rasterBytes = 0;
+            vertexBytes = stripBytes = nodeBytes = rasterBytes = 0;
         }
         clusterPage[c] = uint32_t(pageFirstCluster.size() - 1);
         vertexBytes += vb;
         stripBytes += record.indexBytes;
+        nodeBytes += nb;
         rasterBytes += rb;
     }
     closePage(uint32_t(clusters));
@@ -88,7 +116,39 @@ void GeometryPages::build(const CompressedModel& model, RasterIndices rasterIndi
         fail("--geometry-budget", "a budget of " + mib(budgetBytes) + " holds no page of " + mib(page) + " (the model's geometry is " +
                                       mib(pages * page) + " in " + std::to_string(pages) + " pages)");
     slotCount = uint32_t(slots);
+    if (poolBytes() / 16 >= kNodeAbsent)
+        fail("--geometry-budget", "a pool of " + mib(poolBytes()) + " is too large for the node table's 31-bit texel indices");
     resetResidency();
+}
+
+void GeometryPages::writeNodeRecord(const CompressedModel& model, uint32_t node, uint8_t* out) const
+{
+    std::memcpy(out, &model.nodes[node], sizeof(model::Node));
+    float leaf[model::kNodeChildren] = {};
+    if (altitudes)
+        nodeLeafAltitudes(model, node, leaf);
+    std::memcpy(out + sizeof(model::Node), leaf, sizeof(leaf));
+}
+
+PagedBvh GeometryPages::pagedBvh(const CompressedModel& model) const
+{
+    PagedBvh bvh;
+    bvh.poolBytes = poolBytes();
+    bvh.topRecordsByte = slotBytes();
+    bvh.topRecords.resize(uint64_t(topNodeCount) * kNodeRecordBytes);
+    bvh.nodeTable.resize(model.nodes.size());
+    uint32_t top = 0;
+    for (uint32_t n = 0; n < model.nodes.size(); ++n) {
+        const uint32_t cluster = model.nodes[n].cluster;
+        if (cluster != model::kNoCluster) {
+            bvh.nodeTable[n] = cluster | kNodeAbsent;
+            continue;
+        }
+        writeNodeRecord(model, n, bvh.topRecords.data() + uint64_t(top) * kNodeRecordBytes);
+        bvh.nodeTable[n] = uint32_t((bvh.topRecordsByte + uint64_t(top) * kNodeRecordBytes) / 16);
+        ++top;
+    }
+    return bvh;
 }
 
 void GeometryPages::resetResidency()
@@ -196,17 +256,20 @@ bool GeometryPages::ensure(vk::Device& device, GpuGeometry& geometry, const Comp
     // Staging: page contents, then per changed cluster its record's firstVertex/firstIndex and its draw.
     std::vector<uint32_t> evicted;
     uint64_t contentBytes = 0;
-    size_t changedClusters = 0;
+    size_t changedClusters = 0, changedNodes = 0;
+    auto pageNodes = [&](uint32_t page) { return clusterNodesFirst[pageFirstCluster[page + 1]] - clusterNodesFirst[pageFirstCluster[page]]; };
     for (size_t i = 0; i < missing.size(); ++i) {
         const uint32_t slot = candidates[i];
         if (slotPage[slot] != kNone) {
             evicted.push_back(slotPage[slot]);
             changedClusters += pageFirstCluster[slotPage[slot] + 1] - pageFirstCluster[slotPage[slot]];
+            changedNodes += pageNodes(slotPage[slot]);
         }
         contentBytes += (pageUsed[missing[i]] + 15) & ~uint64_t(15);
         changedClusters += pageFirstCluster[missing[i] + 1] - pageFirstCluster[missing[i]];
+        changedNodes += pageNodes(missing[i]);
     }
-    const uint64_t patchBytes = changedClusters * (16 + sizeof(VkDrawIndexedIndirectCommand));
+    const uint64_t patchBytes = changedClusters * (16 + sizeof(VkDrawIndexedIndirectCommand)) + changedNodes * sizeof(uint32_t);
     const uint64_t stagingBytes = contentBytes + patchBytes;
     if (staging.size < stagingBytes) {
         vk::destroyBuffer(device, staging);
@@ -214,9 +277,23 @@ bool GeometryPages::ensure(vk::Device& device, GpuGeometry& geometry, const Comp
                                    vk::MemoryUse::Upload);
     }
     auto* out = static_cast<uint8_t*>(staging.mapped);
-    std::vector<VkBufferCopy> poolCopies, recordCopies, commandCopies;
+    std::vector<VkBufferCopy> poolCopies, recordCopies, commandCopies, tableCopies;
     uint64_t at = 0;
     uint64_t patchAt = contentBytes;
+    // Node-table words of cluster c's nodes: word(k) for its k-th node, one copy per run of consecutive nodes.
+    auto patchNodes = [&](uint32_t c, auto word) {
+        const uint32_t* nodes = clusterNodes.data() + clusterNodesFirst[c];
+        const uint64_t count = clusterNodesFirst[c + 1] - clusterNodesFirst[c];
+        for (uint64_t k = 0; k < count; ++k) {
+            const uint32_t value = word(k);
+            std::memcpy(out + patchAt, &value, sizeof(value));
+            if (k > 0 && nodes[k] == nodes[k - 1] + 1 && tableCopies.back().srcOffset + tableCopies.back().size == patchAt)
+                tableCopies.back().size += sizeof(uint32_t);
+            else
+                tableCopies.push_back({patchAt, uint64_t(nodes[k]) * sizeof(uint32_t), sizeof(uint32_t)});
+            patchAt += sizeof(uint32_t);
+        }
+    };
     auto patch = [&](uint32_t c, uint64_t firstVertex, uint64_t firstIndex, const VkDrawIndexedIndirectCommand& command) {
         std::memcpy(out + patchAt, &firstVertex, 8);
         std::memcpy(out + patchAt + 8, &firstIndex, 8);
@@ -230,7 +307,10 @@ bool GeometryPages::ensure(vk::Device& device, GpuGeometry& geometry, const Comp
     for (uint32_t page : evicted) {
         pageSlot[page] = kNone; // its slot is taken by a missing page below
         for (uint32_t c = pageFirstCluster[page]; c < pageFirstCluster[page + 1]; ++c)
+        {
             patch(c, model.clusters[c].firstVertex | kNotResident, model.clusters[c].firstIndex, {0, 1, 0, 0, c});
+            patchNodes(c, [&](uint64_t) { return c | kNodeAbsent; });
+        }
     }
     std::vector<uint8_t> triangles;
     for (size_t i = 0; i < missing.size(); ++i) {
@@ -255,8 +335,12 @@ bool GeometryPages::ensure(vk::Device& device, GpuGeometry& geometry, const Comp
                 count = uint32_t(triangles.size());
                 firstIndex = uint32_t(base + p.rasterByte);
             }
+            const uint32_t* nodes = clusterNodes.data() + clusterNodesFirst[c];
+            for (uint64_t k = 0; k < clusterNodesFirst[c + 1] - clusterNodesFirst[c]; ++k)
+                writeNodeRecord(model, nodes[k], out + at + p.nodeByte + k * kNodeRecordBytes);
             const uint64_t firstVertex = (base + p.vertexByte) / sizeof(model::QuantizedVertex);
             patch(c, firstVertex, base + p.stripByte, {count, 1, firstIndex, int32_t(firstVertex), c});
+            patchNodes(c, [&](uint64_t k) { return uint32_t((base + p.nodeByte + k * kNodeRecordBytes) / 16); });
         }
         poolCopies.push_back({at, base, pageUsed[page]});
         frame.bytesStreamed += pageUsed[page];
@@ -269,6 +353,8 @@ bool GeometryPages::ensure(vk::Device& device, GpuGeometry& geometry, const Comp
             vkCmdCopyBuffer(cmd, staging.buffer, geometry.pool.buffer, uint32_t(poolCopies.size()), poolCopies.data());
             vkCmdCopyBuffer(cmd, staging.buffer, geometry.clusters.buffer, uint32_t(recordCopies.size()), recordCopies.data());
             vkCmdCopyBuffer(cmd, staging.buffer, geometry.indirect.buffer, uint32_t(commandCopies.size()), commandCopies.data());
+            if (!tableCopies.empty())
+                vkCmdCopyBuffer(cmd, staging.buffer, geometry.nodeTable.buffer, uint32_t(tableCopies.size()), tableCopies.data());
             vk::memoryBarrier(cmd, passes::kCopy, passes::kTransferWrite, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT,
                               VK_ACCESS_2_MEMORY_READ_BIT);
         },

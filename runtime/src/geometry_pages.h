@@ -1,17 +1,22 @@
 // Out-of-core rendering under a geometry budget (RendererOptions::
-// geometryBudgetBytes, issue 19). The BVH nodes and the cluster table stay
-// resident; the geometry of the clusters (quantized vertices, 8-bit strips
-// and, on CPU devices, the raster passes' triangle lists) lives in pages of
-// pageBytes: consecutive clusters packed together (vertices first, then strips,
+// geometryBudgetBytes, issue 19). The nodes above the clusters (the BVH's
+// top), the cluster table and one word per node (the node table) stay
+// resident; everything of a cluster (quantized vertices, 8-bit strips, its
+// own BVH nodes with their leaves' smallest altitudes and, on CPU devices, the
+// raster passes' triangle lists) lives in pages of pageBytes: consecutive
+// clusters packed together (vertices first, then strips, then node records,
 // then triangle lists), so a page is the unit of upload and eviction. The
-// device holds a pool of budget / pageBytes page slots (GpuGeometry::pool).
-// Uploading a page rewrites the device copies of its clusters' records
-// (firstVertex, firstIndex into the pool) and draw commands; evicting it sets
-// kNotResident in their firstVertex and empties their draws.
+// device holds a pool of budget / pageBytes page slots (GpuGeometry::pool),
+// followed by the top nodes' records. Uploading a page rewrites the device
+// copies of its clusters' records (firstVertex, firstIndex into the pool),
+// draw commands and node-table words (where each node's record now is);
+// evicting it sets kNotResident in their firstVertex, empties their draws and
+// sets their nodes' words to cluster | kNodeAbsent.
 //
 // Who asks for pages (renderer.cpp): the camera's culled view before the
 // G-buffer; before each light's passes, the clusters of its culled views and
-// of its thin-triangle views (clusterMayReachView); the tracer, which parks
+// of its thin-triangle views (clusterMayReachView); afsm's binned casters and
+// rh's caster batches, per range of their views' clusters; the tracer, which parks
 // rays that reach a cluster that is not resident (trace.comp.glsl) and marks
 // every cluster it visits, after which the frame script uploads what they
 // need and traces them again (FrameScript::traceParked), until none is left.
@@ -40,9 +45,15 @@ class GeometryPages {
     // Lays the model's clusters out in pages and sizes the pool for budgetBytes
     // (pageBytes: a multiple of 48; both checked with a one-line error).
     // Afterwards poolBytes() is what uploadCompressed allocates.
-    void build(const CompressedModel& model, RasterIndices raster, uint64_t pageBytes, uint64_t budgetBytes);
+    // altitudes: whether node records carry their leaves' smallest altitudes (as
+    // GpuGeometry::leafAltitudes would without a budget; zeros otherwise).
+    void build(const CompressedModel& model, RasterIndices raster, uint64_t pageBytes, uint64_t budgetBytes, bool altitudes);
     bool active() const { return slotCount != 0; }
-    uint64_t poolBytes() const { return uint64_t(slotCount) * pageBytes; }
+    // The pool: the page slots, then the top nodes' records (padded to a multiple of 48).
+    uint64_t poolBytes() const { return slotBytes() + ((uint64_t(topNodeCount) * kNodeRecordBytes + 47) / 48 * 48); }
+    uint64_t slotBytes() const { return uint64_t(slotCount) * pageBytes; }
+    // What uploadCompressed writes once: the top nodes' records and the node table with no cluster resident.
+    PagedBvh pagedBvh(const CompressedModel& model) const;
     uint64_t geometryBytes() const { return totalBytes; } // every page's contents
     uint64_t budgetBytes() const { return budget; }
     uint32_t clusterCount() const { return uint32_t(clusterPage.size()); }
@@ -86,13 +97,19 @@ class GeometryPages {
   private:
     static constexpr uint32_t kNone = ~0u;
     struct ClusterPlace {
-        uint32_t vertexByte = 0, stripByte = 0, rasterByte = 0, rasterBytes = 0; // within the page
+        uint32_t vertexByte = 0, stripByte = 0, rasterByte = 0, rasterBytes = 0, nodeByte = 0; // within the page
     };
+    // Node record (kNodeRecordBytes) of `node` at `out`: the file's node, then its leaves' altitudes.
+    void writeNodeRecord(const CompressedModel& model, uint32_t node, uint8_t* out) const;
     uint64_t budget = 0, totalBytes = 0;
     RasterIndices raster = RasterIndices::Strips;
     uint32_t slotCount = 0;
     std::vector<uint32_t> clusterPage;
     std::vector<ClusterPlace> place;
+    bool altitudes = false;
+    uint32_t topNodeCount = 0;
+    std::vector<uint64_t> clusterNodesFirst; // cluster c's nodes: clusterNodes[clusterNodesFirst[c] .. [c + 1]), ascending
+    std::vector<uint32_t> clusterNodes;
     std::vector<uint32_t> pageFirstCluster; // page p: clusters [pageFirstCluster[p], pageFirstCluster[p + 1])
     std::vector<uint32_t> pageUsed;         // bytes of contents
     std::vector<uint32_t> pageSlot, slotPage;

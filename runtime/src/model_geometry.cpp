@@ -2,12 +2,36 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <thread>
 
 #include <glm/geometric.hpp>
 
 namespace penumbra {
+
+// A node's leaf slots' smallest triangle altitudes (model_geometry.h).
+void nodeLeafAltitudes(const CompressedModel& model, uint32_t n, float out[model::kNodeChildren])
+{
+    const model::Node& node = model.nodes[n];
+    for (uint32_t slot = 0; slot < model::kNodeChildren; ++slot) {
+        out[slot] = 0.0f;
+        if (model::childKind(node, slot) != model::ChildKind::Leaf)
+            continue;
+        const model::ClusterRecord& cluster = model.clusters[node.cluster];
+        const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.child[slot] & 0xFFFF);
+        const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
+        float smallest = std::numeric_limits<float>::max();
+        forEachStripTriangle(strips, strips + (node.child[slot] >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
+            glm::vec3 p0 = decodePosition(cluster, vertices[a]), p1 = decodePosition(cluster, vertices[b]),
+                      p2 = decodePosition(cluster, vertices[c]);
+            float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
+            float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
+            smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
+        });
+        out[slot] = smallest;
+    }
+}
 
 namespace {
 
@@ -19,25 +43,8 @@ std::vector<float> leafMinimumAltitudes(const CompressedModel& model)
 {
     std::vector<float> altitudes(model.nodes.size() * model::kNodeChildren, 0.0f);
     auto work = [&](size_t begin, size_t end) {
-        for (size_t n = begin; n < end; ++n) {
-            const model::Node& node = model.nodes[n];
-            for (uint32_t slot = 0; slot < model::kNodeChildren; ++slot) {
-                if (model::childKind(node, slot) != model::ChildKind::Leaf)
-                    continue;
-                const model::ClusterRecord& cluster = model.clusters[node.cluster];
-                const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.child[slot] & 0xFFFF);
-                const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
-                float smallest = std::numeric_limits<float>::max();
-                forEachStripTriangle(strips, strips + (node.child[slot] >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
-                    glm::vec3 p0 = decodePosition(cluster, vertices[a]), p1 = decodePosition(cluster, vertices[b]),
-                              p2 = decodePosition(cluster, vertices[c]);
-                    float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
-                    float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
-                    smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
-                });
-                altitudes[n * model::kNodeChildren + slot] = smallest;
-            }
-        }
+        for (size_t n = begin; n < end; ++n)
+            nodeLeafAltitudes(model, uint32_t(n), altitudes.data() + n * model::kNodeChildren);
     };
     unsigned threads = std::max(1u, std::thread::hardware_concurrency());
     std::vector<std::thread> pool;
@@ -98,7 +105,10 @@ void createTexelViews(vk::Device& device, GpuGeometry& geometry)
 {
     const VkDeviceSize maxTexels = device.properties.limits.maxTexelBufferElements;
     GpuGeometry::TexelViews& t = geometry.texels;
-    t.nodes = createTexelView(device, geometry.nodeChunks[0], VK_FORMAT_R32G32B32A32_UINT, 16);
+    // Paged: the node records live in the pool (PagedBvh), found through the node table.
+    const vk::Buffer& nodes = geometry.paged() ? geometry.pool : geometry.nodeChunks[0];
+    t.nodes = createTexelView(device, nodes, VK_FORMAT_R32G32B32A32_UINT, 16);
+    t.nodeTable = createTexelView(device, geometry.paged() ? geometry.nodeTable : nodes, VK_FORMAT_R32_UINT, 4);
     t.clusters = createTexelView(device, geometry.clusters, VK_FORMAT_R32G32B32A32_UINT, 16);
     VkFormatProperties vertexFormat{};
     vkGetPhysicalDeviceFormatProperties(device.physical, VK_FORMAT_R16G16B16_UINT, &vertexFormat);
@@ -106,9 +116,14 @@ void createTexelViews(vk::Device& device, GpuGeometry& geometry)
     t.vertices = geometry.vertexTexelsSplit ? createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16_UINT, 2)
                                             : createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16G16B16_UINT, 6);
     t.strips = createTexelView(device, geometry.chunks[0].indices, VK_FORMAT_R32G32B32A32_UINT, 16);
-    geometry.texelsComplete = geometry.nodeChunks.size() == 1 && geometry.chunks.size() == 1 &&
-                              geometry.nodeChunks[0].size / 16 <= maxTexels && geometry.clusters.size / 16 <= maxTexels &&
+    geometry.texelsComplete = (geometry.paged() ? geometry.nodeTable.size / 4 <= maxTexels : geometry.nodeChunks.size() == 1) &&
+                              geometry.chunks.size() == 1 && nodes.size / 16 <= maxTexels && geometry.clusters.size / 16 <= maxTexels &&
                               geometry.chunks[0].vertices.size / (geometry.vertexTexelsSplit ? 2 : 6) <= maxTexels && geometry.chunks[0].indices.size / 16 <= maxTexels;
+    // Paged nodes are read through texels only (the tracer and the thin-triangle pass).
+    if (geometry.paged() && !geometry.texelsComplete)
+        fail("--geometry-budget", "the pool (" + std::to_string(geometry.pool.size >> 20) + " MiB), the node table (" +
+                                      std::to_string(geometry.nodeTable.size / 4) + " nodes) or the cluster table exceed this device's " +
+                                      std::to_string(maxTexels) + " texel-buffer elements: use a smaller budget or page");
 }
 
 VkDeviceSize chunkLimit(const vk::Device& device)
@@ -119,8 +134,14 @@ VkDeviceSize chunkLimit(const vk::Device& device)
 
 } // namespace
 
-GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, uint64_t poolBytes)
+bool leafAltitudesFit(const vk::Device& device, const CompressedModel& model)
 {
+    return model.nodes.size() * model::kNodeChildren * sizeof(float) <= chunkLimit(device);
+}
+
+GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, const PagedBvh* paged)
+{
+    const uint64_t poolBytes = paged ? paged->poolBytes : 0;
     const RasterIndices rasterIndices = device.rasterIndices == RasterIndices::Triangles ? RasterIndices::Triangles : RasterIndices::Strips;
     const auto& h = model.header;
     if (model.clusters.empty())
@@ -153,6 +174,24 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, u
                                              VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_INDEX_BUFFER_BIT |
                                                  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                              vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
+            if (!paged->topRecords.empty()) {
+                vk::Buffer staging = vk::createBuffer(device, paged->topRecords.size(), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::Upload);
+                std::memcpy(staging.mapped, paged->topRecords.data(), paged->topRecords.size());
+                try {
+                    vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
+                        VkBufferCopy region{0, paged->topRecordsByte, paged->topRecords.size()};
+                        vkCmdCopyBuffer(cmd, staging.buffer, geometry.pool.buffer, 1, &region);
+                    }, "the top nodes' upload");
+                } catch (...) {
+                    if (!device.hung)
+                        vk::destroyBuffer(device, staging);
+                    throw;
+                }
+                vk::destroyBuffer(device, staging);
+            }
+            geometry.nodeTable = vk::createBufferWithData(device, paged->nodeTable.data(), paged->nodeTable.size() * sizeof(uint32_t),
+                                                          VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                                          vk::Addressable::Yes); // afsm_bin.comp reads it by address
             GpuGeometry::Chunk chunk;
             chunk.clusterCount = uint32_t(model.clusters.size());
             chunk.vertices = chunk.indices = geometry.pool;
@@ -228,11 +267,12 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, u
                                                          VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
                                                          vk::Addressable::Yes);
         }
-        // BVH nodes in power-of-two chunks below the limit, so a shader finds node i in chunk i >> shift.
+        // BVH nodes in power-of-two chunks below the limit, so a shader finds node i in chunk i >> shift
+        // (paged: in the pool, through the node table).
         while (geometry.nodeChunkShift < 31 && (VkDeviceSize(sizeof(model::Node)) << (geometry.nodeChunkShift + 1)) <= limit)
             ++geometry.nodeChunkShift;
         const size_t nodesPerChunk = size_t(1) << geometry.nodeChunkShift;
-        for (size_t node = 0; node < model.nodes.size(); node += nodesPerChunk) {
+        for (size_t node = 0; !poolBytes && node < model.nodes.size(); node += nodesPerChunk) {
             size_t count = std::min(nodesPerChunk, model.nodes.size() - node);
             geometry.nodeChunks.push_back(vk::createBufferWithData(device, model.nodes.data() + node, count * sizeof(model::Node),
                                                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
@@ -252,7 +292,8 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, u
         }
         geometry.albedo = vk::createBufferWithData(device, albedo.data(), albedo.size() * sizeof(uint32_t),
                                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
-        if (model.nodes.size() * model::kNodeChildren * sizeof(float) <= limit) {
+        geometry.pagedAltitudes = poolBytes && leafAltitudesFit(device, model);
+        if (!poolBytes && leafAltitudesFit(device, model)) {
             std::vector<float> altitudes = leafMinimumAltitudes(model);
             geometry.leafAltitudes = vk::createBufferWithData(device, altitudes.data(), altitudes.size() * sizeof(float),
                                                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);
@@ -261,8 +302,8 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, u
         destroyGeometry(device, geometry);
         throw;
     }
-    geometry.deviceBytes = (poolBytes ? poolBytes : model.vertices.size_bytes() + model.indices.size_bytes()) + model.clusters.size_bytes() +
-                           model.nodes.size_bytes() + model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand) +
+    geometry.deviceBytes = (poolBytes ? poolBytes + geometry.nodeTable.size : model.vertices.size_bytes() + model.indices.size_bytes() + model.nodes.size_bytes()) +
+                           model.clusters.size_bytes() + model.clusters.size() * sizeof(VkDrawIndexedIndirectCommand) +
                            geometry.albedo.size +
                            geometry.leafAltitudes.size + geometry.rasterIndexBytes;
     return geometry;
@@ -297,11 +338,13 @@ GpuGeometry uploadReference(vk::Device& device, const Mesh& mesh)
 
 void destroyGeometry(vk::Device& device, GpuGeometry& geometry)
 {
-    for (VkBufferView view : {geometry.texels.nodes, geometry.texels.clusters, geometry.texels.vertices, geometry.texels.strips})
+    for (VkBufferView view : {geometry.texels.nodes, geometry.texels.clusters, geometry.texels.vertices, geometry.texels.strips,
+                              geometry.texels.nodeTable})
         if (view)
             vkDestroyBufferView(device.device, view, nullptr);
     if (geometry.paged()) {
         vk::destroyBuffer(device, geometry.pool);
+        vk::destroyBuffer(device, geometry.nodeTable);
         geometry.chunks.clear(); // their vertices and indices name the pool
     }
     for (GpuGeometry::Chunk& chunk : geometry.chunks) {

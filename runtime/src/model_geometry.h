@@ -27,6 +27,27 @@ enum class GeometryEncoding {
 // model holds fewer than 2^63 vertices). Shaders test it (bvh_traversal.glsli).
 inline constexpr uint64_t kNotResident = uint64_t(1) << 63;
 
+// Paged geometry's BVH (geometry_pages.h): each node has a record of
+// kNodeRecordBytes in the pool (the model::Node, then the four leaf slots'
+// smallest altitudes as floats, 0 where unknown) and a word in the node
+// table: the record's first texel (16 bytes) in the pool, or, for a node of a
+// cluster that is not resident, the cluster | kNodeAbsent.
+inline constexpr uint32_t kNodeRecordBytes = 80;
+inline constexpr uint32_t kNodeAbsent = 0x80000000u;
+struct PagedBvh {
+    uint64_t poolBytes = 0;          // page slots, then the top records (a multiple of 48)
+    uint64_t topRecordsByte = 0;     // where the records of the nodes above the clusters start
+    std::vector<uint8_t> topRecords; // those records, in node order
+    std::vector<uint32_t> nodeTable; // the node table with no cluster resident
+};
+
+// A node's leaf slots' smallest decoded-triangle altitudes (model units; 0
+// for slots that are not leaves): the thin-triangle pass skips leaves that
+// cannot hold a sliver.
+void nodeLeafAltitudes(const CompressedModel& model, uint32_t node, float out[model::kNodeChildren]);
+// Whether the altitudes of every node fit one buffer of this device (else the thin-triangle pass skips no leaf).
+bool leafAltitudesFit(const vk::Device& device, const CompressedModel& model);
+
 struct GpuGeometry {
     struct Chunk {
         vk::Buffer vertices;      // QuantizedVertex[] (or float3[] for the reference)
@@ -69,6 +90,7 @@ struct GpuGeometry {
     // exist anyway, over the first buffers, so that descriptors are valid.
     struct TexelViews {
         VkBufferView nodes = VK_NULL_HANDLE, clusters = VK_NULL_HANDLE, vertices = VK_NULL_HANDLE, strips = VK_NULL_HANDLE;
+        VkBufferView nodeTable = VK_NULL_HANDLE; // R32UI over GpuGeometry::nodeTable (paged); else over the nodes, unread
     } texels;
     bool texelsComplete = false;
     bool vertexTexelsSplit = false; // vertices as R16_UINT texels (3 a vertex)
@@ -84,14 +106,19 @@ struct GpuGeometry {
     // device copies GeometryPages rewrites on every upload and eviction (a
     // cluster that is not resident has bit 63 of its firstVertex set and an
     // empty draw). Empty in core.
+    // The pool also holds every resident node's record (PagedBvh), found
+    // through `nodeTable` (one uint per node; texels.nodeTable): no node
+    // chunks, no leafAltitudes buffer then; texels.nodes views the pool.
     vk::Buffer pool;
+    vk::Buffer nodeTable;
+    bool pagedAltitudes = false; // the pool's node records carry altitudes (else the thin pass skips no leaf)
     bool paged() const { return pool.buffer != VK_NULL_HANDLE; }
 };
 
 // Raster passes draw device.rasterIndices (Strips or Triangles, RendererOptions).
-// poolBytes > 0: paged geometry, a pool of that many bytes (a multiple of 48, so that both the
+// paged: paged geometry, a pool of paged->poolBytes (a multiple of 48, so that both the
 // vertices' and the strips' texel views tile it) and no cluster resident yet.
-GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, uint64_t poolBytes = 0);
+GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, const PagedBvh* paged = nullptr);
 // One cluster's strips as a triangle list (RasterIndices::Triangles), appended to out.
 void appendTriangles(const uint8_t* strips, uint32_t bytes, std::vector<uint8_t>& out);
 GpuGeometry uploadReference(vk::Device& device, const Mesh& mesh);

@@ -150,8 +150,6 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
             fail("render", "rh needs the compressed model (the uncompressed reference is for raster benchmarks)");
     }
     if (geometry.paged()) {
-        if (settings.shadows == ShadowMethod::AliasFree || settings.shadows == ShadowMethod::RayHierarchy)
-            fail("--geometry-budget", std::string(spec.name) + " is not rendered under a geometry budget yet: use sm, srt or frt");
         if (settings.measureFloors)
             fail("--geometry-budget", "floors are measured in core (no budget)");
         if (settings.cull == CullMode::None)
@@ -422,21 +420,76 @@ struct Renderer::Impl::FrameScript {
         }
     }
 
+    // Paged geometry: afsm's compute path bins a layer's casters (its view's
+    // clusters) in ranges whose pages fit the pool, each made resident in turn
+    // (its raster path draws the view in ranges through the culling's hooks).
+    // Empty in core.
+    passes::AfsmPass::PagedCasters afsmPagedCasters(uint32_t light, uint32_t view)
+    {
+        passes::AfsmPass::PagedCasters paged;
+        if (!r.geometry.paged())
+            return paged;
+        paged.ranges = r.pages.cutIntoRanges(r.shadowCulling.viewClusters(view));
+        paged.makeResident = [this, light](const std::vector<uint32_t>& range) {
+            ensureResident(range, "light " + std::to_string(light) + "'s afsm casters", true);
+        };
+        return paged;
+    }
+
+    // Paged geometry: rh's casters are drawn in batches within ranges whose
+    // pages fit the pool, each range made resident before its first batch
+    // (the device is idle then: every batch ends with a wait). Empty in core.
+    passes::RhPaging rhPaging(uint32_t light)
+    {
+        passes::RhPaging paging;
+        if (!r.geometry.paged())
+            return paging;
+        paging.cut = [this](const std::vector<uint32_t>& clusters) { return r.pages.cutIntoRanges(clusters); };
+        paging.makeResident = [this, light](const std::vector<uint32_t>& clusters) {
+            ensureResident(clusters, "light " + std::to_string(light) + "'s rh casters", true);
+        };
+        return paging;
+    }
+
     // Paged geometry: after a trace pass, the rays it parked are traced again
     // until none is left. The clusters the last dispatch visited are made
     // resident when they fit together (then its parked rays all finish: a ray
     // traced again visits no cluster it did not visit before); otherwise the
-    // first half of its parked rays is traced alone, and so on down to one ray,
-    // whose working set must fit the budget.
+    // first half of its parked rays (in Z order over the pixels) is traced
+    // alone, and so on down to one entry: a single ray is then traced once per
+    // range of its clusters that fits; a pixel's light samples must fit together.
+    // After a batch that fit, the next one taken from the rest is twice as large.
     void traceParked(uint32_t light, uint32_t samples)
     {
         GeometryPages& pages = r.pages;
         r.submitAndWait(cmd, timer.passesSinceLastSubmit());
-        std::vector<uint32_t> front(pages.parkedEntries(), pages.parkedEntries() + pages.parkedCount()), rest;
+        // Parked entries arrive in atomic order; sorted along a Z curve over the pixels, a batch's rays are
+        // neighbours whose working sets overlap, so halving leaves fewer, larger batches that fit the pool.
+        const uint32_t width = r.targets.width;
+        auto zOrder = [width](uint32_t entry) {
+            const uint32_t pixel = entry & ~uint32_t(PENUMBRA_RAY_ONE_SAMPLE);
+            uint64_t key = 0;
+            for (uint32_t bit = 0; bit < 16; ++bit)
+                key |= uint64_t(((pixel % width) >> bit) & 1u) << (2 * bit) | uint64_t(((pixel / width) >> bit) & 1u) << (2 * bit + 1);
+            return key;
+        };
+        auto parked = [&] {
+            std::vector<std::pair<uint64_t, uint32_t>> keyed;
+            keyed.reserve(pages.parkedCount());
+            for (uint32_t i = 0; i < pages.parkedCount(); ++i)
+                keyed.push_back({zOrder(pages.parkedEntries()[i]), pages.parkedEntries()[i]});
+            std::sort(keyed.begin(), keyed.end());
+            std::vector<uint32_t> entries(keyed.size());
+            for (size_t i = 0; i < keyed.size(); ++i)
+                entries[i] = keyed[i].second;
+            return entries;
+        };
+        std::vector<uint32_t> front = parked(), rest;
         std::vector<uint32_t> visited = pages.visitedClusters();
         pages.frame.parkedRays += front.size();
         size_t batch = front.size();
         const std::string what = "the rays toward light " + std::to_string(light);
+        auto dispatch = [&](const std::vector<uint32_t>& toTrace) { dispatchParked(light, samples, toTrace); };
         for (uint32_t round = 0; !front.empty() || !rest.empty(); ++round) {
             if (round > 4 * 1024 * 1024)
                 fail("--geometry-budget", "parked rays of light " + std::to_string(light) + " did not finish");
@@ -448,15 +501,45 @@ struct Renderer::Impl::FrameScript {
             } else if (pages.fits(visited)) {
                 ensureResident(visited, what, false);
                 toTrace.swap(front);
+                batch = std::max<size_t>(2 * batch, 1); // the next batch from `rest` may be larger again
+            } else if (front.size() == 1) {
+                // One entry whose clusters exceed the pool. A single ray (hard shadows, or a pixel outside
+                // the penumbra mask) is any-hit: traced once per range of its clusters that fits, it is
+                // shadowed if one range hits it and lit otherwise (each trace writes its visibility, and a
+                // ray traced again enters the same clusters). A pixel's light samples must fit together.
+                if (samples != 0 && (front[0] & PENUMBRA_RAY_ONE_SAMPLE) == 0)
+                    ensureResident(visited, "one pixel's light samples toward light " + std::to_string(light), false); // fails
+                const std::vector<std::vector<uint32_t>> ranges = pages.cutIntoRanges(visited);
+                const uint32_t entry = front[0];
+                for (const std::vector<uint32_t>& range : ranges) {
+                    ensureResident(range, "one ray toward light " + std::to_string(light), false);
+                    dispatch({entry});
+                    if (pages.parkedCount() == 0)
+                        break; // it hit
+                }
+                front.clear();
+                continue;
             } else {
-                if (front.size() == 1)
-                    ensureResident(visited, "one ray toward light " + std::to_string(light), false); // fails: the budget is too small
                 const size_t half = front.size() / 2;
                 rest.insert(rest.begin(), front.begin() + half, front.end());
                 toTrace.assign(front.begin(), front.begin() + half);
                 batch = half;
             }
             front.clear();
+            dispatch(toTrace);
+            front = parked();
+            visited = pages.visitedClusters();
+            pages.frame.parkedRays += front.size();
+        }
+        beginCommands();
+    }
+
+    // Paged geometry: traces the listed ray-list entries again (one dispatch, submitted and waited for);
+    // the parking buffer then holds what they parked and visited.
+    void dispatchParked(uint32_t light, uint32_t samples, const std::vector<uint32_t>& toTrace)
+    {
+        GeometryPages& pages = r.pages;
+        {
             // The list into the frame's ray list (its header holds the indirect dispatch), then the trace.
             auto* list = static_cast<uint32_t*>(pages.retraceList.mapped);
             const Groups2D groups = spreadGroups(uint32_t((toTrace.size() + PENUMBRA_TRACE_GROUP_SIZE - 1) / PENUMBRA_TRACE_GROUP_SIZE),
@@ -477,11 +560,7 @@ struct Renderer::Impl::FrameScript {
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kHost, kStorageRW | VK_ACCESS_2_HOST_READ_BIT);
             r.submitAndWait(cmd, "trace (parked rays)");
             ++pages.frame.parkingRounds;
-            front.assign(pages.parkedEntries(), pages.parkedEntries() + pages.parkedCount());
-            visited = pages.visitedClusters();
-            pages.frame.parkedRays += front.size();
         }
-        beginCommands();
     }
 
     // RenderSettings::measureFloors: a raster pass's floor, every triangle of
@@ -674,10 +753,11 @@ struct Renderer::Impl::FrameScript {
                 for (uint32_t k = 0; k < grid.size(); ++k) {
                     r.afsm.recordSamples(cmd, light, grid[k].index, grid[k].grid, afsmCube[light], rayOffset, true);
                     timer.mark(cmd, PassId::AfsmSamples);
+                    const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + k);
                     r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
                                          {lightFirstView[light] + k, 6 * light + grid[k].index, grid[k].grid, light, rayOffset, true,
                                           afsmBackFaces},
-                                         [this] { timer.mark(cmd, PassId::AfsmBin); });
+                                         [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
                     timer.mark(cmd, PassId::AfsmCasters);
                 }
                 return;
@@ -686,10 +766,11 @@ struct Renderer::Impl::FrameScript {
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
                 r.afsm.recordSamples(cmd, light, layer, l.viewProj[layer], layers(light) == 6, rayOffset, false);
                 timer.mark(cmd, PassId::AfsmSamples);
+                const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + layer);
                 r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
                                      {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false,
                                       afsmBackFaces},
-                                     [this] { timer.mark(cmd, PassId::AfsmBin); });
+                                     [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
                 timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
@@ -723,7 +804,8 @@ struct Renderer::Impl::FrameScript {
                              [this] {
                                  r.submitAndWait(cmd, "rh_traverse");
                                  beginCommands();
-                             });
+                             },
+                             rhPaging(light));
             for (uint32_t layer = 0; layer < layers(light); ++layer)
                 r.shadowCulling.markView(cmd, lightFirstView[light] + layer, true);
             timer.mark(cmd, PassId::RhTraverse);
@@ -899,9 +981,10 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     }
     if (r.geometry.paged()) {
         const GeometryPageStats& pages = r.pages.frame;
-        out.geometryBudgetBytes = r.pages.poolBytes();
+        out.geometryBudgetBytes = r.pages.slotBytes();
         out.geometryBytes = r.pages.geometryBytes();
         out.residentPeakBytes = pages.residentPeakBytes;
+        out.modelDeviceBytes = r.geometry.deviceBytes;
         out.pagesUploaded = pages.pagesUploaded;
         out.bytesStreamed = pages.bytesStreamed;
         out.parkingRounds = pages.parkingRounds;

@@ -161,8 +161,9 @@ void Renderer::loadModel(const CompressedModel& model)
     Impl& r = *impl;
     if (r.geometryBudgetBytes) {
         r.pages.build(model, r.device.rasterIndices == RasterIndices::Triangles ? RasterIndices::Triangles : RasterIndices::Strips,
-                      r.geometryPageBytes, r.geometryBudgetBytes);
-        r.setGeometry(uploadCompressed(r.device, model, r.pages.poolBytes()));
+                      r.geometryPageBytes, r.geometryBudgetBytes, leafAltitudesFit(r.device, model));
+        const PagedBvh bvh = r.pages.pagedBvh(model);
+        r.setGeometry(uploadCompressed(r.device, model, &bvh));
         r.pages.resetResidency();
     } else {
         impl->setGeometry(uploadCompressed(impl->device, model));

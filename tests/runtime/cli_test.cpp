@@ -80,7 +80,7 @@ TEST(Cli, RenderUnderAGeometryBudget)
     Result plain = run("render " + model + " -o " + unlimited + " --size 128x128 --shadows srt --validation");
     ASSERT_EQ(plain.status, 0) << plain.output;
     Result paged = run("render " + model + " -o " + budgeted + " --size 128x128 --shadows srt --validation --geometry-budget 0.1 "
-                       "--geometry-page 12 --stats " + stats);
+                       "--geometry-page 6 --stats " + stats);
     ASSERT_EQ(paged.status, 0) << paged.output;
     EXPECT_NE(paged.output.find("| budget "), std::string::npos) << paged.output;
     EXPECT_NE(paged.output.find("pages uploaded"), std::string::npos) << paged.output;

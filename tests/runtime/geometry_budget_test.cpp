@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <cstdlib>
 
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
@@ -20,7 +21,7 @@ namespace penumbra {
 namespace {
 
 constexpr uint32_t kSize = 256;
-constexpr uint64_t kPageBytes = 4608; // small pages, so that 1/16 of a 150k-triangle model holds several views
+constexpr uint64_t kPageBytes = 6144; // small pages, so that 1/16 of a 150k-triangle model holds several views
 
 RendererOptions budgetOptions(uint64_t budget)
 {
@@ -30,14 +31,15 @@ RendererOptions budgetOptions(uint64_t budget)
     return options;
 }
 
-Frame renderFrame(Renderer& renderer, ShadowMethod method, CullMode cull = CullMode::All)
+// samples: soft shadows' light samples (4: the fewest, the tests stay fast; afsm takes 128 or more).
+Frame renderFrame(Renderer& renderer, ShadowMethod method, CullMode cull = CullMode::All, uint32_t samples = 4)
 {
     RenderSettings settings;
     settings.cull = cull;
     settings.width = settings.height = kSize;
     settings.shadows = method;
     settings.shadowMapSize = 512;
-    settings.lightSamples = 4; // soft shadows: fewest samples, the tests stay fast
+    settings.lightSamples = samples;
     settings.readbackGBuffer = true;
     Frame frame = renderer.render(settings);
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
@@ -130,7 +132,7 @@ Bounds modelBounds(const CompressedModel& model)
 
 // Renders every (camera, light set) of the paths with each method on the unlimited renderer and the budgeted ones.
 void compareAlongPaths(const Budgeted& city, const std::vector<std::pair<Camera, std::vector<Light>>>& frames,
-                       const std::vector<ShadowMethod>& methods, const char* name, bool expectParking)
+                       const std::vector<ShadowMethod>& methods, const char* name, bool expectParking, uint32_t samples = 4)
 {
     Renderer unlimited;
     unlimited.loadModel(city.model);
@@ -139,17 +141,17 @@ void compareAlongPaths(const Budgeted& city, const std::vector<std::pair<Camera,
         budgeted.push_back(std::make_unique<Renderer>(budgetOptions(city.geometryBytes / divisor)));
         budgeted.back()->loadModel(city.model);
     }
-    uint64_t streamed = 0, rounds = 0;
+    uint64_t streamed = 0, rounds = 0, pages = 0;
     for (size_t f = 0; f < frames.size(); ++f)
         for (ShadowMethod method : methods) {
             unlimited.setCamera(frames[f].first);
             unlimited.setLights(frames[f].second);
-            const Frame expected = renderFrame(unlimited, method);
+            const Frame expected = renderFrame(unlimited, method, CullMode::All, samples);
             for (size_t b = 0; b < budgeted.size(); ++b) {
                 Renderer& renderer = *budgeted[b];
                 renderer.setCamera(frames[f].first);
                 renderer.setLights(frames[f].second);
-                const Frame frame = renderFrame(renderer, method);
+                const Frame frame = renderFrame(renderer, method, CullMode::All, samples);
                 const std::string what = std::string(name) + " frame " + std::to_string(f) + " " + shadowMethodName(method) +
                                          " budget 1/" + (b == 0 ? "4" : "16");
                 expectSameImage(expected, frame, what);
@@ -159,10 +161,12 @@ void compareAlongPaths(const Budgeted& city, const std::vector<std::pair<Camera,
                 EXPECT_LE(s.geometryBudgetBytes, city.geometryBytes / (b == 0 ? 4 : 16)) << what;
                 streamed += s.bytesStreamed;
                 rounds += s.parkingRounds;
+                pages += s.pagesUploaded;
+                EXPECT_EQ(s.bytesStreamed == 0, s.pagesUploaded == 0) << what;
             }
         }
-    std::printf("[ budget   ] %s: %llu bytes streamed, %llu parking rounds over %zu frames\n", name, (unsigned long long)streamed,
-                (unsigned long long)rounds, frames.size());
+    std::printf("[ budget   ] %s: %llu pages (%llu bytes) streamed, %llu parking rounds over %zu frames\n", name, (unsigned long long)pages,
+                (unsigned long long)streamed, (unsigned long long)rounds, frames.size());
     // Pages move; rays park where the light has no views of its own (frt's area lights draw no map).
     EXPECT_GT(streamed, 0u) << name;
     if (expectParking)
@@ -190,6 +194,79 @@ TEST(GeometryBudget, SoftShadowsSameImages)
                       {ShadowMethod::ShadowMap, ShadowMethod::Selective, ShadowMethod::FullRayTrace}, "soft", false);
 }
 
+// A point light above the camera path's patch, moving along it (six cube faces, each its own view).
+std::vector<Light> pointPath(const std::vector<Camera>& cameras, const Bounds& bounds)
+{
+    const float diagonal = glm::length(bounds.max - bounds.min);
+    std::vector<Light> path;
+    for (size_t step = 0; step < cameras.size(); ++step) {
+        Light point;
+        point.type = LightType::Point;
+        point.position = cameras[step].target + glm::vec3(0.02f + 0.01f * float(step), 0.06f, 0.015f) * diagonal;
+        point.intensity = 0.02f * diagonal * diagonal;
+        path.push_back(point);
+    }
+    return path;
+}
+
+// afsm and rh have no shadow map to draw in ranges: afsm bins its casters in
+// compute per range of its views' clusters (and rasterizes the others in the
+// views' ranges), rh gathers its casters in batches within ranges. Both OR
+// what each caster shadows, so the ranges leave the image as it is.
+TEST(GeometryBudget, AliasFreeAndRayHierarchySameImagesAlongCameraAndLightPaths)
+{
+    const Budgeted city = preparedCity();
+    const Bounds bounds = modelBounds(city.model);
+    const std::vector<Camera> cameras = cameraPath(bounds);
+    const std::vector<Light> suns = sunPath(), points = pointPath(cameras, bounds);
+    std::vector<std::pair<Camera, std::vector<Light>>> sunFrames, pointFrames;
+    for (size_t i = 0; i < 2; ++i) { // two steps of each path keep the test short (afsm and rh draw six layers per point light)
+        sunFrames.push_back({cameras[i], {suns[i]}});
+        if (i < 1)
+            pointFrames.push_back({cameras[i], {points[i]}});
+    }
+    compareAlongPaths(city, sunFrames, {ShadowMethod::AliasFree, ShadowMethod::RayHierarchy}, "afsm, rh sun", false);
+    compareAlongPaths(city, pointFrames, {ShadowMethod::AliasFree, ShadowMethod::RayHierarchy}, "afsm, rh point", false);
+}
+
+// The default camera and sun see the whole model, 16 times the budget: afsm's
+// binned casters and rh's caster batches come in many ranges.
+TEST(GeometryBudget, AliasFreeAndRayHierarchyWholeModelInRanges)
+{
+    const Budgeted city = preparedCity();
+    Renderer unlimited, budgeted(budgetOptions(city.geometryBytes / 16));
+    unlimited.loadModel(city.model);
+    budgeted.loadModel(city.model);
+    for (ShadowMethod method : {ShadowMethod::AliasFree, ShadowMethod::RayHierarchy}) {
+        const Frame expected = renderFrame(unlimited, method);
+        const Frame actual = renderFrame(budgeted, method);
+        expectSameImage(expected, actual, std::string("whole-model view, ") + shadowMethodName(method));
+        EXPECT_GT(actual.stats.pagesUploaded * kPageBytes, city.geometryBytes) << shadowMethodName(method); // the pool's contents cycle
+        EXPECT_LE(actual.stats.residentPeakBytes, actual.stats.geometryBudgetBytes);
+    }
+}
+
+// lavapipe's rasterizer threads make afsm's soft shadows differ from run to
+// run on a few pixels, budget or not (the same renderer, the same frame twice:
+// 13-27 of 65536 pixels on the first frame below; found here, not yet
+// explained). With LP_NUM_THREADS=0 (one thread, read when a device is
+// made) they repeat bit for bit, and the budget must not change them.
+struct SingleThreadedLavapipe {
+    SingleThreadedLavapipe() { setenv("LP_NUM_THREADS", "0", 1); }
+    ~SingleThreadedLavapipe() { unsetenv("LP_NUM_THREADS"); }
+};
+
+// afsm's soft shadows (section 4): every caster ORs the light samples it
+// hides into the samples' masks, in ranges under a budget.
+TEST(GeometryBudget, AliasFreeSoftShadowsSameImages)
+{
+    const SingleThreadedLavapipe singleThreaded;
+    const Budgeted city = preparedCity();
+    const Bounds bounds = modelBounds(city.model);
+    const std::vector<Camera> cameras = cameraPath(bounds);
+    compareAlongPaths(city, {{cameras[0], {rectangleAbove(cameras[0], bounds, 0.0f)}}}, {ShadowMethod::AliasFree}, "afsm soft", false, 128);
+}
+
 // frt's area lights draw no map, so no view asks for the casters: a low light's
 // rays cross streets of buildings that are not resident, park, and are traced
 // again (in several rounds when their pages exceed the budget).
@@ -207,6 +284,28 @@ TEST(GeometryBudget, ParkedRaysSameImages)
         frames.push_back({cameras[i], {low}});
     }
     compareAlongPaths(city, frames, {ShadowMethod::FullRayTrace}, "parked", true);
+}
+
+// A pool of two pages holds less than what one long shadow ray crosses: such a
+// ray is traced once per range of its clusters that fits (any-hit: shadowed if
+// one range hits it), and the image is still the same.
+TEST(GeometryBudget, OneRayLargerThanThePoolTracedInRanges)
+{
+    const Budgeted city = preparedCity();
+    Renderer unlimited, budgeted(budgetOptions(2 * kPageBytes));
+    unlimited.loadModel(city.model);
+    budgeted.loadModel(city.model);
+    Light sun;
+    sun.type = LightType::Directional;
+    sun.direction = glm::normalize(glm::vec3(0.8f, -0.35f, 0.3f)); // low: long rays across the city
+    sun.intensity = 3.0f;
+    for (Renderer* renderer : {&unlimited, &budgeted})
+        renderer->setLights({sun});
+    const Frame expected = renderFrame(unlimited, ShadowMethod::FullRayTrace);
+    const Frame actual = renderFrame(budgeted, ShadowMethod::FullRayTrace);
+    expectSameImage(expected, actual, "rays larger than the pool");
+    EXPECT_GT(actual.stats.parkingRounds, 0u);
+    EXPECT_LE(actual.stats.residentPeakBytes, 2 * kPageBytes);
 }
 
 // The default camera sees the whole model, far more than 1/16 of it: phase 2
@@ -229,21 +328,50 @@ TEST(GeometryBudget, ViewsLargerThanTheBudgetDrawnInRanges)
     EXPECT_GT(pages * kPageBytes, city.geometryBytes / 4); // more than the pool holds
 }
 
-// Raster views are drawn in ranges, so what must fit at once is a thin-triangle
-// view's clusters or one ray's: with 2 pages, srt's thin-triangle view of the
-// whole model does not.
+// Only the BVH's top (the nodes above the clusters), the cluster table and one
+// word per node stay resident: a cluster's own nodes live in its page, so the
+// device holds far less than the model's BVH besides the pool.
+TEST(GeometryBudget, ClusterNodesLiveInPages)
+{
+    const Budgeted city = preparedCity();
+    const uint64_t budget = city.geometryBytes / 16;
+    Renderer renderer(budgetOptions(budget));
+    renderer.loadModel(city.model);
+    uint64_t topNodes = 0;
+    for (const model::Node& node : city.model.nodes)
+        topNodes += node.cluster == model::kNoCluster ? 1 : 0;
+    ASSERT_LT(topNodes * 10, city.model.nodes.size());
+    const uint64_t pool = budget / kPageBytes * kPageBytes + (topNodes * 80 + 47) / 48 * 48;
+    const uint64_t perCluster = sizeof(model::ClusterRecord) + 20 /* draw */ + 4 /* colour */;
+    EXPECT_EQ(renderer.modelDeviceBytes(), pool + city.model.nodes.size() * 4 + city.model.clusters.size() * perCluster);
+    EXPECT_LT(renderer.modelDeviceBytes(), budget + city.model.nodes.size_bytes() / 3);
+    Renderer unlimited;
+    unlimited.loadModel(city.model);
+    EXPECT_GT(unlimited.modelDeviceBytes(), city.geometryBytes);
+}
+
+// Raster views and thin-triangle steps are drawn in ranges and single rays
+// traced per range, so what must fit at once is one pixel's light samples: with
+// 2 pages, a soft-shadowed pixel's samples toward a light beside the city do not.
 TEST(GeometryBudget, BudgetBelowOneViewFailsWithOneLine)
 {
     const Budgeted city = preparedCity();
     Renderer renderer(budgetOptions(2 * kPageBytes));
     renderer.loadModel(city.model);
+    const Bounds bounds = modelBounds(city.model);
+    const Camera camera = cameraPath(bounds)[0];
+    Light side = rectangleAbove(camera, bounds, 0.0f);
+    side.position = camera.target + glm::vec3(0.45f, 0.08f, 0.3f) * glm::length(bounds.max - bounds.min); // low: long rays
+    side.direction = glm::normalize(camera.target - side.position);
+    renderer.setCamera(camera);
+    renderer.setLights({side});
     try {
-        renderFrame(renderer, ShadowMethod::Selective);
+        renderFrame(renderer, ShadowMethod::FullRayTrace);
         FAIL() << "expected an error";
     } catch (const std::exception& e) {
         const std::string message = e.what();
         EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-        EXPECT_EQ(message.rfind("--geometry-budget: a budget of 9.0 KiB holds 2 pages of 4.5 KiB, smaller than the working set of", 0), 0u)
+        EXPECT_EQ(message.rfind("--geometry-budget: a budget of 12.0 KiB holds 2 pages of 6.0 KiB, smaller than the working set of", 0), 0u)
             << message;
     }
     EXPECT_THROW(Renderer(budgetOptions(kPageBytes - 1)).loadModel(city.model), std::exception); // less than a page

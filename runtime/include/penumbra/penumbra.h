@@ -248,6 +248,7 @@ struct FrameStats {
     uint64_t geometryBudgetBytes = 0;   // the pool: whole pages within the budget
     uint64_t geometryBytes = 0;         // every page's contents (the model's paged geometry)
     uint64_t residentPeakBytes = 0;     // most pages resident at once this frame, in bytes
+    uint64_t modelDeviceBytes = 0;      // all of the model on the device: the pool and what stays resident (Renderer::modelDeviceBytes)
     uint64_t pagesUploaded = 0;         // this frame
     uint64_t bytesStreamed = 0;         // page contents uploaded this frame
     uint32_t parkingRounds = 0;         // dispatches that traced parked rays again

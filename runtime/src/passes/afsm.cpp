@@ -438,8 +438,11 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
 }
 
 void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry,
-                             VkDeviceAddress modelTable, const CasterLayer& layer, const std::function<void()>& afterCompute)
+                             VkDeviceAddress modelTable, const CasterLayer& layer, const std::function<void()>& afterCompute,
+                             const PagedCasters* paged)
 {
+    if (geometry.paged() && !paged)
+        fail("afsm", "paged geometry needs the casters' ranges");
     if (!castersSet)
         fail("afsm", "this device lacks geometry shaders or fragment-shader stores (needed to rasterize the casters)");
     const uint32_t grid = targets.gridSize;
@@ -460,20 +463,41 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
         std::fill(bits, bits + clusterMaskWords, 0u);
         for (uint32_t c : culling.viewClusters(layer.view))
             bits[c >> 5] |= 1u << (c & 31);
-        const AfsmBinPush push{layer.viewProj,
-                               modelTable,
-                               vk::bufferAddress(device, clusterMasks) + VkDeviceSize(layer.maskSlot) * clusterMaskWords * 4,
-                               geometry.nodeCount,
-                               layer.lightIndex,
-                               grid,
-                               layer.originOffset,
-                               float(PENUMBRA_AFSM_COMPUTE_CELLS),
-                               layer.closedBackFaces ? 1u : 0u};
+        AfsmBinPush push{layer.viewProj,
+                         modelTable,
+                         vk::bufferAddress(device, clusterMasks) + VkDeviceSize(layer.maskSlot) * clusterMaskWords * 4,
+                         geometry.nodeCount,
+                         layer.lightIndex,
+                         grid,
+                         layer.originOffset,
+                         float(PENUMBRA_AFSM_COMPUTE_CELLS),
+                         0,
+                         0,
+                         layer.closedBackFaces ? 1u : 0u,
+                         0,
+                         0};
         const vk::ComputeKernel& kernel = layer.soft ? binSoft : bin;
         const Groups2D groups = spreadGroups(groupCount(geometry.nodeCount, PENUMBRA_AFSM_BIN_GROUP), device.properties.limits.maxComputeWorkGroupCount[0]);
-        kernel.bind(cmd);
-        kernel.push(cmd, push);
-        vkCmdDispatch(cmd, groups.x, groups.y, 1);
+        if (geometry.paged()) {
+            // One dispatch per range, resident in turn (the nodes through the node table, kGeometryBudget).
+            push.nodeTable = vk::bufferAddress(device, geometry.nodeTable);
+            push.nodeRecords = vk::bufferAddress(device, geometry.pool);
+            for (size_t j = 0; j < paged->ranges.size(); ++j) {
+                if (paged->ranges[j].empty())
+                    continue;
+                paged->makeResident(paged->ranges[j]);
+                push.clusterBegin = paged->ranges[j].front();
+                push.clusterEnd = paged->ranges[j].back() + 1;
+                kernel.bind(cmd, vk::Specialization{1u});
+                kernel.push(cmd, push);
+                vkCmdDispatch(cmd, groups.x, groups.y, 1);
+                vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+            }
+        } else {
+            kernel.bind(cmd);
+            kernel.push(cmd, push);
+            vkCmdDispatch(cmd, groups.x, groups.y, 1);
+        }
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry, kStorageRW);
     }
     afterCompute();

@@ -108,9 +108,12 @@ struct AfsmBinPush {
     uint32_t gridSize;
     float originOffset;
     float computeCells;
-    uint32_t closedBackFaces;
+    uint32_t clusterBegin, clusterEnd; // paged geometry: the clusters this dispatch bins
+    uint32_t closedBackFaces;          // closed clusters cast only light-back-facing triangles
+    uint64_t nodeTable;   // paged geometry: GpuGeometry::nodeTable's device address
+    uint64_t nodeRecords; // paged geometry: the pool's (the node records)
 };
-static_assert(sizeof(AfsmBinPush) == 104);
+static_assert(sizeof(AfsmBinPush) == 128);
 
 // afsm_bin.comp's buffers and table (binding kAfsmBinParams).
 struct AfsmParams {
@@ -231,9 +234,21 @@ class AfsmPass {
         bool soft = false;
         bool closedBackFaces = false; // closed clusters cast only light-back-facing triangles
     };
+    // Paged geometry (geometry_pages.h): the compute path bins the view's
+    // clusters in ranges whose pages fit the pool together (ascending, as
+    // GeometryPages::cutIntoRanges cuts the view's sorted list), one dispatch
+    // per range after makeResident(range) made it resident (it may submit
+    // what is recorded and begin recording again); the raster path draws in
+    // ranges through culling (Culling::cutRanges, ensureRange). Shadow flags
+    // and masks are ORed, so the result is the unlimited one.
+    struct PagedCasters {
+        std::vector<std::vector<uint32_t>> ranges;
+        std::function<void(const std::vector<uint32_t>&)> makeResident;
+    };
     // afterCompute: runs between the two paths (the frame's timestamp).
+    // paged: required with paged geometry, ignored otherwise.
     void recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable,
-                       const CasterLayer& layer, const std::function<void()>& afterCompute);
+                       const CasterLayer& layer, const std::function<void()>& afterCompute, const PagedCasters* paged = nullptr);
     // The light's visibility (and cleared marks, counted pixels; soft: cleared masks).
     void recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const;
 

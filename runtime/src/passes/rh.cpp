@@ -280,7 +280,7 @@ void RhPass::beginFrame(VkCommandBuffer cmd)
 void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& light, float originOffset,
                          const RhOptions& options, const GpuGeometry& geometry, const CullModel& model,
                          const std::vector<std::vector<uint32_t>>& viewClusters, const std::function<bool(uint32_t)>& closed,
-                         const Mark& built, const Submit& submit)
+                         const Mark& built, const Submit& submit, const RhPaging& paging)
 {
     if (!castersSet)
         fail("rh", "this device lacks geometry shaders or vertex-stage stores (needed to gather the casters)");
@@ -420,12 +420,25 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
         }
     };
     // The casters, in batches that fit the triangle list, each traversing the hierarchy until done.
+    // Paged geometry: where each range of resident clusters ends (batches stay within one).
+    std::vector<std::vector<uint32_t>> ranges;
+    if (paging.cut)
+        ranges = paging.cut(clusters);
+    std::vector<size_t> rangeEnds;
+    for (const std::vector<uint32_t>& range : ranges)
+        rangeEnds.push_back((rangeEnds.empty() ? 0 : rangeEnds.back()) + range.size());
     auto traverseCasters = [&](uint32_t select) {
-        size_t begin = 0;
+        size_t begin = 0, range = 0, limit = clusters.size();
         while (begin < clusters.size()) {
+            if (!rangeEnds.empty() && begin == (range == 0 ? 0 : rangeEnds[range - 1])) {
+                while (ranges[range].empty())
+                    ++range;
+                paging.makeResident(ranges[range]);
+                limit = rangeEnds[range++];
+            }
             size_t end = begin;
             uint64_t batchTriangles = 0;
-            while (end < clusters.size() && (end == begin || batchTriangles + model.clusterTriangles[clusters[end]] <= kTriangleCapacity))
+            while (end < limit && (end == begin || batchTriangles + model.clusterTriangles[clusters[end]] <= kTriangleCapacity))
                 batchTriangles += model.clusterTriangles[clusters[end++]];
             if (batchTriangles > kTriangleCapacity)
                 fail("rh", "a cluster of " + std::to_string(batchTriangles) + " triangles exceeds the caster list");

@@ -154,6 +154,18 @@ struct RhOptions {
 // light, the segment is the ray from the eye toward it.
 bool closedCullingExact(const CompressedModel& model, const glm::vec3& eye, const glm::vec3& light, bool directional);
 
+// Paged geometry (geometry_pages.h): the casters are drawn in ranges whose
+// pages fit the pool together (`cut`: GeometryPages::cutIntoRanges), each made
+// resident (`makeResident`, which may submit what is recorded and begin again)
+// before its first batch; a batch never spans two ranges. The casters are
+// copied to the triangle lists in world space when drawn, so the traversal
+// needs no page. Rays are shadowed by any caster (an OR), so batches of other
+// sizes give the same flags. Empty (no cut) in core.
+struct RhPaging {
+    std::function<std::vector<std::vector<uint32_t>>(const std::vector<uint32_t>&)> cut;
+    std::function<void(const std::vector<uint32_t>&)> makeResident;
+};
+
 class RhPass {
   public:
     // Record and triangle capacities: fixed, whatever the scene (bounded memory).
@@ -183,7 +195,7 @@ class RhPass {
     void recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& light, float originOffset,
                      const RhOptions& options, const GpuGeometry& geometry, const CullModel& model,
                      const std::vector<std::vector<uint32_t>>& viewClusters, const std::function<bool(uint32_t)>& closed,
-                     const Mark& built, const Submit& submit);
+                     const Mark& built, const Submit& submit, const RhPaging& paging = {});
     // After the frame's fence.
     RhFrameStats frameStats() const;
 

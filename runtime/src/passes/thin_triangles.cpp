@@ -11,7 +11,8 @@ namespace penumbra::passes {
 void ThinTrianglesPass::create(vk::Device& device)
 {
     kernel.create(device, "thin_triangles.comp",
-                  {vk::kStorageImage, vk::kTexels, vk::kTexels, vk::kTexels, vk::kTexels, vk::kStorage}, sizeof(ThinTrianglesPush));
+                  {vk::kStorageImage, vk::kTexels, vk::kTexels, vk::kTexels, vk::kTexels, vk::kStorage, vk::kTexels},
+                  sizeof(ThinTrianglesPush));
 }
 
 void ThinTrianglesPass::destroy(vk::Device& device)
@@ -50,7 +51,8 @@ void ThinTrianglesPass::writeSet(vk::Device& device) const
     if (!thinMapView || !texels.nodes)
         return;
     kernel.write(device, {vk::storageImage(thinMapView), vk::texelBuffer(texels.nodes), vk::texelBuffer(texels.clusters),
-                          vk::texelBuffer(texels.vertices), vk::texelBuffer(texels.strips), vk::storageBuffer(list.buffer)});
+                          vk::texelBuffer(texels.vertices), vk::texelBuffer(texels.strips), vk::storageBuffer(list.buffer),
+                          vk::texelBuffer(texels.nodeTable)});
 }
 
 void clearThinMap(VkCommandBuffer cmd, const vk::Image& thinMap)
@@ -86,7 +88,8 @@ void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, co
                            geometry.nodeCount,
                            view.layer,
                            modelTable,
-                           geometry.leafAltitudes.buffer ? vk::bufferAddress(device, geometry.leafAltitudes) : 0,
+                           geometry.paged() ? (geometry.pagedAltitudes ? 1u : 0u) // 1: in the pool's node records
+                           : geometry.leafAltitudes.buffer ? vk::bufferAddress(device, geometry.leafAltitudes) : 0,
                            glm::vec4(view.eye, view.perspective ? view.depthPerDistance : 0.0f),
                            view.footprint / float(mapSize),
                            view.areaLight ? thinLayers - 1 : ~0u,

@@ -43,7 +43,7 @@ void TracePass::create(vk::Device& device)
 {
     using namespace vk;
     kernel.create(device, "trace.comp",
-                  {kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kTexels, kTexels, kTexels, kTexels},
+                  {kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kTexels, kTexels, kTexels, kTexels, kTexels},
                   sizeof(TracePush));
 }
 
@@ -60,7 +60,7 @@ void TracePass::destroy(vk::Device& device)
 void TracePass::bindModel(vk::Device& device, const GpuGeometry& geometry)
 {
     tableAddress = 0; // nothing traceable until the new table exists
-    if (geometry.encoding != GeometryEncoding::Compressed || geometry.nodeChunks.empty() || geometry.chunks.empty())
+    if (geometry.encoding != GeometryEncoding::Compressed || (geometry.nodeChunks.empty() && !geometry.paged()) || geometry.chunks.empty())
         fail("ray tracer", "needs a compressed model with its BVH (the uncompressed reference cannot be traced)");
     // Header, node chunk addresses, then the geometry chunks 16-byte aligned.
     const size_t nodeChunkCount = geometry.nodeChunks.size();
@@ -114,7 +114,7 @@ void TracePass::writeSet(vk::Device& device) const
     kernel.write(device, {vk::storageImage(t.position), vk::storageImage(t.normal), vk::storageImage(t.visibility),
                           vk::uniformBuffer(t.frame), vk::storageBuffer(t.rayList), vk::storageBuffer(t.stats),
                           vk::texelBuffer(texels.nodes), vk::texelBuffer(texels.clusters), vk::texelBuffer(texels.vertices),
-                          vk::texelBuffer(texels.strips)});
+                          vk::texelBuffer(texels.strips), vk::texelBuffer(texels.nodeTable)});
 }
 
 void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightType, float originOffset, uint32_t samples,
