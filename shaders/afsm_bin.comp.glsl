@@ -60,6 +60,7 @@ layout(set = 0, binding = 8, std430) readonly buffer Params {
     uint64_t slots, softMasks, softTable;
     uint softSamples, softTableSize;
 };
+layout(set = 0, binding = 9, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
 
 #include "afsm_casters.glsli"
 
@@ -80,13 +81,15 @@ layout(push_constant) uniform AfsmBinPush {
     float computeCells;   // PENUMBRA_AFSM_COMPUTE_CELLS
     uint clusterBegin;    // kGeometryBudget: the range of clusters binned by this dispatch
     uint clusterEnd;
-    uint pad;
+    uint closedBackFaces; // closed clusters cast only light-back-facing triangles (afsm_casters.glsli)
     uint64_t nodeTable;   // kGeometryBudget: NodeTable's device address
     uint64_t nodeRecords; // kGeometryBudget: the pool's (node records, 16-byte texels: NodeArray)
 } push;
 
-void binCaster(vec3 v0, vec3 v1, vec3 v2)
+void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
 {
+    if (!afsmCasts(frame.lights[push.lightIndex], cluster, push.closedBackFaces != 0u, v0, v1, v2))
+        return;
 #ifdef PENUMBRA_AFSM_SOFT
     LightData light = frame.lights[push.lightIndex];
     float nearest;
@@ -191,7 +194,7 @@ void main()
             vec3 p2 = decodeVertex(loadVertex(strips.vertices, i2), cluster.boxMin, cluster.step);
             if (position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
                 bool odd = ((position - 2u) & 1u) != 0u;
-                binCaster(odd ? p1 : p0, odd ? p0 : p1, p2);
+                binCaster(leaf.x, odd ? p1 : p0, odd ? p0 : p1, p2);
             }
             i0 = i1;
             p0 = p1;

@@ -20,8 +20,10 @@
 #include "penumbra/light_sampling.h"
 #include "afsm.glsli"
 // C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
+layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
 layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth
+layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; };  // bit per cluster: kClusterClosed
 #define AFSM_RECTANGLES_ONLY 1
 #define AFSM_POLYGONS 1
 #include "afsm_casters.glsli"
@@ -30,6 +32,7 @@ layout(triangles) in;
 layout(triangle_strip, max_vertices = 8) out;
 
 layout(location = 0) in vec3 worldPosition[];
+layout(location = 1) flat in uint cluster[];
 layout(location = 0) flat out vec3 vertex0;
 layout(location = 1) flat out vec3 vertex1;
 layout(location = 2) flat out vec3 vertex2;
@@ -45,10 +48,14 @@ layout(push_constant) uniform AfsmCastersPush {
     uint gridSize;     // cells per side
     float originOffset;
     float computeCells; // rectangles of at most this many cells: the compute path's (0: none)
+    uint closedBackFaces; // closed clusters cast only light-back-facing triangles (afsm_casters.glsli)
+    uint pad;
 } push;
 
 void main()
 {
+    if (!afsmCasts(frame.lights[push.lightIndex], cluster[0], push.closedBackFaces != 0u, worldPosition[0], worldPosition[1], worldPosition[2]))
+        return;
     vec2 cells[3];
     bool behind;
     AfsmDepthBound depth;

@@ -26,6 +26,7 @@ layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };      
 layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };   // per cell: its farthest sample depth
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed
+layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
 
 #include "afsm_casters.glsli"
 
@@ -40,7 +41,8 @@ layout(push_constant) uniform AfsmSoftPush {
     uint samples;
     uint tableSize;     // angles | distances << 16
     float computeCells;
-    uint pad0, pad1;
+    uint closedBackFaces;
+    uint pad1;
 } push;
 
 void main()

@@ -22,6 +22,7 @@ layout(triangles) in;
 layout(triangle_strip, max_vertices = 32) out;
 
 layout(location = 0) in vec3 worldPosition[];
+layout(location = 1) flat in uint cluster[];
 layout(location = 0) flat out vec3 vertex0;
 layout(location = 1) flat out vec3 vertex1;
 layout(location = 2) flat out vec3 vertex2;
@@ -31,6 +32,7 @@ layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; }; // samples per cell
 layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
 layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };
+layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; };  // bit per cluster: kClusterClosed
 
 #define AFSM_RECTANGLES_ONLY 1
 #define AFSM_POLYGONS 1
@@ -47,11 +49,14 @@ layout(push_constant) uniform AfsmSoftPush {
     uint samples;
     uint tableSize;
     float computeCells; // rectangles of at most this many cells: the compute path's (0: none)
-    uint pad0, pad1;
+    uint closedBackFaces; // closed clusters cast only light-back-facing triangles (afsm_casters.glsli)
+    uint pad1;
 } push;
 
 void main()
 {
+    if (!afsmCasts(frame.lights[push.lightIndex], cluster[0], push.closedBackFaces != 0u, worldPosition[0], worldPosition[1], worldPosition[2]))
+        return;
     float nearest;
     AfsmRect r = afsmSoftRect(push.viewProj, frame.lights[push.lightIndex], uintBitsToFloat(farBits), worldPosition[0], worldPosition[1],
                               worldPosition[2], push.gridSize, nearest);

@@ -3,6 +3,17 @@
 // Camera pass: writes world position (w = 1 marks covered pixels) and the
 // geometric normal, flipped to face the camera (models may be open or two-sided),
 // with the packed albedo in its w (an integer below 2^24, exact as a float).
+//
+// gbuffer.frag.outside (PENUMBRA_GBUFFER_OUTSIDE): the frames in which afsm's
+// closed clusters cast only their light-back-facing triangles (the camera is
+// outside every closed mesh: AfsmPass::closedBackFaces). A triangle of a
+// closed cluster (bit 24 of albedo, from gbuffer.vert) seen from behind is not
+// drawn: from outside, the camera can see one only through the rasterizer's
+// imprecision (the two sides of a solid thinner than the depth buffer resolves
+// at that distance, a crack between separately quantized clusters, a near
+// plane cutting a solid open). Such a pixel would hold a point inside a closed
+// solid, whose shadow ray leaves it through a front face alone, which does not
+// cast then; without it the pixel shows what lies behind, seen from outside.
 
 #include "gbuffer_push.glsli"
 
@@ -14,6 +25,11 @@ layout(location = 1) out vec4 outNormal;
 
 void main()
 {
+#ifdef PENUMBRA_GBUFFER_OUTSIDE
+    // The model's winding is counter-clockwise seen from outside (pipelines.cpp: frontFace).
+    if (albedo >= (1u << 24u) && !gl_FrontFacing)
+        discard;
+#endif
     vec3 n = cross(dFdx(worldPosition), dFdy(worldPosition));
     float len = length(n);
     vec3 toCamera = camera.cameraPosition.xyz - worldPosition;
@@ -21,5 +37,5 @@ void main()
     if (dot(n, toCamera) < 0.0)
         n = -n;
     outPosition = vec4(worldPosition, 1.0);
-    outNormal = vec4(n, float(albedo));
+    outNormal = vec4(n, float(albedo & 0xFFFFFFu));
 }

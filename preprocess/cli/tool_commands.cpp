@@ -323,8 +323,9 @@ void addToolCommands(CLI::App& app, ToolCommands& tools)
     tools.preprocessCommand->add_option("--leaf-triangles", tools.preprocess.leafTriangles, "Triangles per strip-range leaf of a cluster's BVH")->capture_default_str()->check(CLI::Range(1, 1024));
     tools.preprocessCommand->add_option("--threads", tools.preprocess.threads, "Worker threads (0: all cores)")->capture_default_str();
     tools.preprocessCommand->add_flag("--separate-closed", tools.preprocess.separateClosed,
-                                "Clusters do not mix closed 2-manifold parts with open ones, so more triangles get the closed "
-                                "flag (changes the clusters, hence the quantized positions, of models with both)");
+                                "Clusters do not mix closed 2-manifold parts that no other surface comes near (within the "
+                                "shadow-ray offset) with the rest, so those get the closed flag (changes the clusters, hence "
+                                "the quantized positions, of models with both)");
     tools.preprocessCommand->add_option("--memory-limit", tools.preprocess.memoryLimitMiB,
                                   "Streamed build within this many MiB (plus the process's baseline): the input is read in "
                                   "passes, partitioned into chunks on disk, each built in memory, merged; for models larger "

@@ -227,8 +227,24 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
     // Closed components (kClusterClosed), before the per-triangle arrays of the tree stage so that
     // its temporary memory does not add to their peak.
     const auto closedStart = Clock::now();
-    std::vector<uint8_t> closed = extras.closed ? std::vector<uint8_t>(extras.closed, extras.closed + inputTriangles)
-                                                : closedTriangles(mesh, threads);
+    std::vector<uint32_t> component = extras.component ? std::vector<uint32_t>(extras.component, extras.component + inputTriangles)
+                                                       : closedComponents(mesh, threads);
+    // Closed components that another surface comes within the shadow rays' offset of are not
+    // flagged (crowdedComponents); closedTriangles still counts them.
+    std::vector<uint8_t> crowded;
+    if (!extras.component) {
+        float lo[3], hi[3];
+        meshBounds(mesh, lo, hi);
+        crowded = crowdedComponents(mesh, component.data(), closedClearance(lo, hi), nullptr, nullptr, threads);
+    }
+    const uint8_t* crowdedOf = extras.component ? extras.crowded : crowded.data();
+    for (uint64_t t = 0; t < inputTriangles; ++t)
+        if (component[t] != kOpenComponent) {
+            ++stats.closedTriangles;
+            if (crowdedOf && crowdedOf[component[t]])
+                component[t] = kOpenComponent;
+        }
+    crowded = {};
     stats.closedSeconds = secondsSince(closedStart);
     std::vector<TriangleRef> refs(triangleCount);
     std::vector<glm::dvec3> extentSums(chunks, glm::dvec3(0.0));
@@ -268,13 +284,13 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
     if (splitMaterials || options.separateClosed) {
         uint8_t seen = 0; // bit 0: an open triangle, bit 1: a closed one
         for (uint64_t t = 0; t < inputTriangles && seen != 3; ++t)
-            seen |= closed[t] ? 2 : 1;
+            seen |= component[t] != kOpenComponent ? 2 : 1;
         if (splitMaterials || seen == 3) {
             splitKeys.resize(inputTriangles);
             const bool byClosed = options.separateClosed && seen == 3;
             parallelFor(threads, chunks, [&](uint64_t c) {
                 for (uint64_t t = c * chunkSize, e = std::min(inputTriangles, t + chunkSize); t < e; ++t)
-                    splitKeys[t] = (splitMaterials ? mesh.triangleMaterials[t] : 0u) * 2u + (byClosed ? closed[t] : 0u);
+                    splitKeys[t] = (splitMaterials ? mesh.triangleMaterials[t] : 0u) * 2u + (byClosed && component[t] != kOpenComponent ? 1u : 0u);
             });
         }
     }
@@ -307,16 +323,13 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
     // Per cluster: its material (split: the first triangle's; all the same unless the depth budget
     // forbade the split) or the mean colour of its triangles.
     std::vector<uint32_t> clusterMaterial(clusterCount, 0);
-    std::vector<uint8_t> clusterClosed(clusterCount, 0);
+    const std::vector<uint8_t> clusterClosed =
+        closedClusterFlags(component.data(), triangles.data(), tree.clusters.data(), clusterCount, inputTriangles, threads);
     std::vector<glm::vec3> clusterColor(clusterColors ? clusterCount : 0);
     parallelFor(
         threads, clusterCount,
         [&](uint64_t c) {
             const ClusterRange& r = tree.clusters[c];
-            uint8_t allClosed = 1;
-            for (uint32_t i = r.begin; i < r.end; ++i)
-                allClosed &= closed[triangles[i]];
-            clusterClosed[c] = allClosed;
             if (splitMaterials)
                 clusterMaterial[c] = mesh.triangleMaterials[triangles[r.begin]];
             if (clusterColors) {
@@ -353,12 +366,10 @@ CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, P
     }
     for (size_t c = 0; c < clusterCount; ++c) {
         const uint32_t n = tree.clusters[c].end - tree.clusters[c].begin;
-        for (uint32_t i = tree.clusters[c].begin; i < tree.clusters[c].end; ++i)
-            stats.closedTriangles += closed[triangles[i]];
         stats.closedClusters += clusterClosed[c];
         stats.closedClusterTriangles += clusterClosed[c] ? n : 0;
     }
-    closed = {};
+    component = {};
     triangles = {};
     stats.clusterSeconds = secondsSince(stageStart);
 

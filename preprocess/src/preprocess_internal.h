@@ -168,6 +168,55 @@ bool appendLeafStrips(const uint32_t* localIndices, uint32_t count, uint32_t ver
 // a chunk boundary cuts, or a neighbour from another chunk). Indices must be in range.
 std::vector<uint8_t> closedTriangles(const Mesh& mesh, unsigned threads, const uint8_t* openSeed = nullptr);
 
+// The same test, per triangle its closed component's id (below
+// mesh.triangleCount(): one of its triangles' indices), or kOpenComponent.
+inline constexpr uint32_t kOpenComponent = 0xFFFFFFFFu;
+std::vector<uint32_t> closedComponents(const Mesh& mesh, unsigned threads, const uint8_t* openSeed = nullptr);
+
+// The clearance a closed component needs to be flagged: an upper bound of the
+// runtime's default shadow-ray offset (shadowRayOffset, runtime/src/api.cpp:
+// max(1e-5 x |box extent|, 4 x header.maxPositionError)) for a model whose
+// vertices lie in this box, known before any cluster is quantized: half a
+// 16-bit step of the box's widest axis bounds every cluster's error. The same
+// box (the input's vertices) gives the same bound to in-core, streamed and
+// chunk builds.
+double closedClearance(const float* boundsMin, const float* boundsMax);
+
+// The box of all of mesh's vertices (referenced or not, as a streamed build's
+// scan sees them); an empty mesh gives zeros.
+void meshBounds(const Mesh& mesh, float* boundsMin, float* boundsMax);
+
+// Per closed component id (component[t], closedComponents' ids; the result has
+// one entry per triangle of mesh): 1 when a triangle of another component or
+// an open triangle of mesh comes closer than `distance` to one of its
+// triangles (exact triangle-triangle distance, double precision), or, with a
+// chunk's cell (cellMin/cellMax, infinite faces allowed; else nullptr), when
+// one of its triangles comes within `distance` of a cell face: a neighbour
+// there may be another chunk's and not in the halo. A shadow ray starts
+// `distance` off its receiver along the normal, so it can start inside a
+// closed solid only where that solid comes that close to another surface;
+// such a solid must not be flagged (casting back faces only, a ray from inside
+// it would see no caster). Same-component triangles are not tested against
+// each other (a solid's own folds closer than `distance` are not caught).
+// A binary BVH over the triangles' boxes whose nodes name the one component
+// under them (a query skips its own solid); only triangles of closed
+// components not yet crowded query (the distance is symmetric), in parallel.
+// Memory: 12 B per triangle (box centres, freed after the build) plus about
+// 18 B per triangle of nodes and order, below the tree stage's peak.
+std::vector<uint8_t> crowdedComponents(const Mesh& mesh, const uint32_t* component, double distance, const float* cellMin,
+                                       const float* cellMax, unsigned threads);
+
+// model::kClusterClosed per cluster (`clusters`: ranges of `triangles`, which
+// index `component`, closedComponents' ids below componentLimit): a cluster is
+// flagged when all its triangles are closed and every component of them lies
+// wholly in flagged clusters. So a closed component is flagged everywhere or
+// nowhere: the runtime may treat "flagged" as "this whole solid is closed"
+// (afsm draws no flagged triangle seen from behind, and casts only the
+// light-back-facing ones); a component split between a flagged cluster and
+// one mixed with open triangles would be neither.
+std::vector<uint8_t> closedClusterFlags(const uint32_t* component, const uint32_t* triangles, const ClusterRange* clusters,
+                                        size_t clusterCount, uint64_t componentLimit, unsigned threads);
+
 // ---- node array (node_layout.cpp) ------------------------------------------------
 
 struct Layout {
@@ -213,7 +262,8 @@ struct BuildExtras {
     // layout keeps kMaxBvhDepth - (rootDepth - 1) levels; header.bvhDepth
     // counts from the model's root.
     uint32_t rootDepth = 1;
-    const uint8_t* closed = nullptr;   // per input triangle: computed outside (streaming: with neighbours and seeds)
+    const uint32_t* component = nullptr; // per input triangle: closedComponents computed outside (streaming: with neighbours and seeds)
+    const uint8_t* crowded = nullptr;    // with component: crowdedComponents computed outside (streaming: halo and cell)
 };
 CompressedModel buildModel(const Mesh& mesh, const PreprocessOptions& options, PreprocessStats* stats,
                            std::vector<uint32_t>* decodedTriangleSource, const BuildExtras& extras);

@@ -155,7 +155,9 @@ Plan makePlan(std::vector<float>& points, uint32_t count, const Cell& cell)
 using namespace streamed_detail;
 using preprocess_detail::BuildExtras;
 using preprocess_detail::buildModel;
-using preprocess_detail::closedTriangles;
+using preprocess_detail::closedClearance;
+using preprocess_detail::closedComponents;
+using preprocess_detail::crowdedComponents;
 
 namespace {
 
@@ -169,8 +171,9 @@ double secondsSince(Clock::time_point start)
 // Peak memory of the in-core builder per triangle (PreprocessOptions defaults,
 // 2 threads; measured with bench/streamed_memory.sh and Preprocess tests: the
 // tree stage's mesh, references, stamps and the cluster stage's output), plus
-// the chunk's records, its sorted vertex ids and the closed test's lists.
-constexpr uint64_t kBytesPerChunkTriangle = 96;
+// the chunk's records, its sorted vertex ids and the closed test's lists
+// (+3 B for the closed components' ids, 4 B instead of a flag byte; not re-measured).
+constexpr uint64_t kBytesPerChunkTriangle = 99;
 // Memory that does not grow with the chunk: buffers of the stream, the vertex
 // cache, the partition's temporaries (at most 1/8 of the limit each).
 constexpr uint64_t kFixedBytes = uint64_t(12) << 20;
@@ -295,6 +298,7 @@ struct Build {
     uint64_t fingerprint = 0;
     uint64_t inputTriangles = 0;
     uint32_t chunkCount = 0;
+    float boundsMin[3] = {0, 0, 0}, boundsMax[3] = {0, 0, 0}; // of all the input's vertices (the scan)
     StreamedStats* stats = nullptr;
     uint64_t temporaryBytes = 0;  // at the moment
     void addTemporary(int64_t bytes)
@@ -604,9 +608,16 @@ void buildChunkInMemory(Build& build, ChunkTemp& temp, chunk::ChunkHeader header
     build.addTemporary(-int64_t(temp.haloTriangles * 36));
     temp.halo.reset();
     const unsigned threads = threadCount(build.options->build);
-    std::vector<uint8_t> closed = closedTriangles(mesh, threads, seeds.data());
+    // A closed component has no halo triangle (they seed "open"), and its id is its smallest
+    // triangle index (closed.cpp), so every id left is below own.
+    std::vector<uint32_t> component = closedComponents(mesh, threads, seeds.data());
     seeds = {};
-    closed.resize(own);
+    // Closed components near another surface (the halo's included) or near the cell's faces
+    // (a neighbour beyond may be in no halo here) are not flagged.
+    std::vector<uint8_t> crowded = crowdedComponents(mesh, component.data(), closedClearance(build.boundsMin, build.boundsMax),
+                                                     header.cellMin, header.cellMax, threads);
+    component.resize(own);
+    crowded.resize(own);
     mesh.indices.resize(3 * own);
     mesh.indices.shrink_to_fit();
     mesh.positions.resize(3 * ownVertices);
@@ -614,13 +625,15 @@ void buildChunkInMemory(Build& build, ChunkTemp& temp, chunk::ChunkHeader header
 
     BuildExtras extras;
     extras.rootDepth = rootDepth;
-    extras.closed = closed.data();
+    extras.component = component.data();
+    extras.crowded = crowded.data();
     PreprocessOptions options = build.options->build;
     options.progress = nullptr;
     PreprocessStats stats;
     CompressedModel model = buildModel(mesh, options, &stats, nullptr, extras);
     mesh = Mesh();
-    closed = {};
+    component = {};
+    crowded = {};
     model = withScene(model, build.stream->cameras(), build.stream->lights(), build.stream->path());
     model.header.sourceTriangleCount = build.inputTriangles;
     header.closedTriangles = stats.closedTriangles;
@@ -851,9 +864,15 @@ Scanned scanAndPlan(const std::string& input, const StreamedOptions& options, ui
     ModelStream& stream = *scanned.stream;
     Reservoir sample{size_t(std::clamp<uint64_t>(options.memoryLimit / 96, 4096, 1 << 20)), {}};
     uint64_t vertices = 0;
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     stream.scan([&](const float* positions, size_t count) {
-        for (size_t v = 0; v < count; ++v)
+        for (size_t v = 0; v < count; ++v) {
             sample.add(positions + 3 * v);
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], positions[3 * v + size_t(a)]);
+                hi[a] = std::max(hi[a], positions[3 * v + size_t(a)]);
+            }
+        }
         vertices += count;
         if ((vertices & ((1 << 22) - 1)) < count)
             build.progress("scan", 0.0);
@@ -881,6 +900,10 @@ Scanned scanAndPlan(const std::string& input, const StreamedOptions& options, ui
     build.fingerprint = scanned.fingerprint;
     build.inputTriangles = stream.triangleCount();
     build.chunkCount = chunks;
+    for (int a = 0; a < 3; ++a) {
+        build.boundsMin[a] = vertices ? lo[a] : 0.0f;
+        build.boundsMax[a] = vertices ? hi[a] : 0.0f;
+    }
     build.idBytes = stream.vertexCount() > 0xFFFFFFFFull ? 8 : 4;
     build.materials = !stream.materials().empty();
     return scanned;

@@ -421,6 +421,8 @@ std::string summaryLine(const FrameStats& stats)
         std::snprintf(buffer, sizeof(buffer), " | samples %u | penumbra %.2f%%", stats.lightSamples, stats.penumbraFraction * 100.0);
         line += buffer;
     }
+    if (stats.shadows == ShadowMethod::AliasFree)
+        line += " | closed clusters " + std::to_string(stats.afsmClosedClusters) + ": " + stats.afsmClosedCasting;
     if (stats.geometryBudgetBytes) {
         std::snprintf(buffer, sizeof(buffer),
                       " | budget %.1f of %.1f MiB | model on device %.1f MiB | resident peak %.1f MiB | pages uploaded %llu | streamed %.1f MiB | parking rounds %u",
@@ -469,6 +471,8 @@ std::string statsJson(const FrameStats& stats)
     if (stats.shadows == ShadowMethod::RayHierarchy)
         json["rh"] = {{"casters", stats.rhCasters}, {"cone_tests", stats.nodesVisited}, {"ray_tests", stats.triangleTests},
                       {"batches", stats.rhBatches}, {"rounds", stats.rhRounds}, {"peak_pair_bytes", stats.rhPeakPairBytes}};
+    if (stats.shadows == ShadowMethod::AliasFree)
+        json["afsm"] = {{"closed_clusters", stats.afsmClosedClusters}, {"closed_casting", stats.afsmClosedCasting}};
     if (stats.geometryBudgetBytes)
         json["geometry_budget"] = {{"budget_bytes", stats.geometryBudgetBytes},     {"geometry_bytes", stats.geometryBytes},
                                    {"resident_peak_bytes", stats.residentPeakBytes}, {"pages_uploaded", stats.pagesUploaded},

@@ -181,6 +181,9 @@ struct Renderer::Impl::FrameScript {
     // afsm, area lights: each light's grid layers and whether they are cube faces.
     std::vector<std::vector<AfsmLayer>> afsmLayers;
     std::vector<bool> afsmCube;
+    uint64_t afsmClosedClusters = 0; // afsm: the model's closed clusters
+    bool afsmBackFaces = false;      // afsm: they cast only light-back-facing triangles this frame
+    bool afsmOffsetClear = true;     // afsm: the rays' offset is at most the default (closedClearance's bound)
 
     FrameScript(Impl& renderer, const RenderSettings& s)
         : r(renderer), settings(s), spec(shadowMethodSpec(s.shadows)), bounds(r.geometry.bounds),
@@ -202,6 +205,14 @@ struct Renderer::Impl::FrameScript {
             r.bindTargets();
         if (s.shadows == ShadowMethod::AliasFree) {
             r.ensureAfsmTargets();
+            // Closed meshes cast only their light-back-facing triangles unless the camera may see inside one,
+            // or the rays start farther off their receivers than the default offset the preprocessor kept
+            // flagged solids clear of (closedClearance): then a ray might start inside a flagged solid.
+            const bool compressed = r.geometry.encoding == GeometryEncoding::Compressed && r.model && r.shadowCulling.model;
+            afsmOffsetClear = rayOffset <= shadowRayOffset(bounds, r.geometry.maxPositionError);
+            afsmClosedClusters = r.afsm.prepareModel(r.device, compressed ? &*r.model : nullptr);
+            afsmBackFaces = compressed && afsmOffsetClear &&
+                            r.afsm.closedBackFaces(*r.model, *r.shadowCulling.model, view.eye, view.viewProj);
             afsmLayers.resize(lights.size());
             afsmCube.assign(lights.size(), false);
             for (size_t i = 0; i < lights.size(); ++i)
@@ -589,7 +600,8 @@ struct Renderer::Impl::FrameScript {
         vkCmdFillBuffer(cmd, t.stats.buffer, 0, VK_WHOLE_SIZE, 0);
         vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
         r.gbuffer.record(cmd, r.culling, 0, r.geometry, {&t.position, &t.normal, &t.depth},
-                         {view.viewProj, glm::vec4(view.eye, 1.0f), r.geometry.albedo.buffer ? vk::bufferAddress(r.device, r.geometry.albedo) : 0});
+                         {view.viewProj, glm::vec4(view.eye, 1.0f), r.geometry.albedo.buffer ? vk::bufferAddress(r.device, r.geometry.albedo) : 0,
+                          afsmBackFaces ? r.afsm.closedBitsAddress(r.device) : 0});
         timer.mark(cmd, PassId::Camera);
         for (vk::Image* image : {&t.color, &t.visibility})
             vk::transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, kNone, 0, kCompute, kStorageRW);
@@ -759,7 +771,8 @@ struct Renderer::Impl::FrameScript {
                     timer.mark(cmd, PassId::AfsmSamples);
                     const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + k);
                     r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
-                                         {lightFirstView[light] + k, 6 * light + grid[k].index, grid[k].grid, light, rayOffset, true},
+                                         {lightFirstView[light] + k, 6 * light + grid[k].index, grid[k].grid, light, rayOffset, true,
+                                          afsmBackFaces},
                                          [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
                     timer.mark(cmd, PassId::AfsmCasters);
                 }
@@ -771,7 +784,8 @@ struct Renderer::Impl::FrameScript {
                 timer.mark(cmd, PassId::AfsmSamples);
                 const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + layer);
                 r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
-                                     {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false},
+                                     {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false,
+                                      afsmBackFaces},
                                      [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
                 timer.mark(cmd, PassId::AfsmCasters);
             }
@@ -959,6 +973,13 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
                                                                                                    : 0;
     out.rayOffset = spec.traces() || settings.shadows == ShadowMethod::AliasFree || settings.shadows == ShadowMethod::RayHierarchy ? rayOffset
                                                                                                                                 : 0.0f;
+    if (settings.shadows == ShadowMethod::AliasFree) {
+        out.afsmClosedClusters = afsmClosedClusters;
+        out.afsmClosedCasting = !afsmClosedClusters ? "none closed"
+                                : afsmBackFaces     ? "back faces"
+                                : !afsmOffsetClear  ? "both sides (ray offset above the default)"
+                                                    : "both sides (camera inside a closed mesh)";
+    }
     if (settings.shadows == ShadowMethod::RayHierarchy) {
         const passes::RhFrameStats rh = r.rh.frameStats();
         out.rays = rh.rays;

@@ -193,6 +193,23 @@ CompressedModel streamed(const std::string& input, const std::string& output, co
     return openModelFile(output); // validates every byte
 }
 
+// Per input triangle: whether a build flags its cluster kClusterClosed (source: matchTriangles).
+std::vector<uint8_t> flaggedTriangles(const Mesh& mesh, const CompressedModel& model, uint64_t* count = nullptr)
+{
+    const std::vector<int64_t> source = matchTriangles(mesh, model);
+    std::vector<uint8_t> flagged(mesh.triangleCount(), 0);
+    uint64_t k = 0, n = 0;
+    for (const model::ClusterRecord& c : model.clusters)
+        for (uint32_t i = 0; i < c.triangleCount; ++i, ++k)
+            if ((c.flags & model::kClusterClosed) && source[k] >= 0) {
+                flagged[size_t(source[k])] = 1;
+                ++n;
+            }
+    if (count)
+        *count = n;
+    return flagged;
+}
+
 TEST(Streamed, ScenesInManyChunksKeepEveryTriangle)
 {
     for (const char* name : {"city", "plant", "scan", "interior"}) {
@@ -336,6 +353,19 @@ TEST(Streamed, ClosedFlagStaysConservative)
     streamed(input, tmp("streamed_closed1.penumbra"), smallChunks(1'000'000), &one);
     EXPECT_EQ(one.chunks, 1u);
     EXPECT_EQ(one.closedTriangles, inCore);
+    // The clearance rule (crowdedComponents) with the same bound in both: a streamed build with
+    // closed parts kept apart flags no triangle that the in-core build does not (every city part
+    // touches the ground or another part: neither flags any).
+    StreamedOptions separate = smallChunks(5'000);
+    separate.build.separateClosed = true;
+    uint64_t streamedFlags = 0, inCoreFlags = 0;
+    const std::vector<uint8_t> chunked = flaggedTriangles(s.mesh, streamed(input, tmp("streamed_closed_sep.penumbra"), separate), &streamedFlags);
+    PreprocessOptions build = separate.build;
+    const std::vector<uint8_t> whole = flaggedTriangles(s.mesh, buildCompressedModel(s.mesh, build), &inCoreFlags);
+    for (size_t t = 0; t < chunked.size(); ++t)
+        ASSERT_LE(chunked[t], whole[t]) << "triangle " << t << " flagged only by the streamed build";
+    std::printf("[ closed ] separated: %llu triangles flagged streamed, %llu in core\n", (unsigned long long)streamedFlags,
+                (unsigned long long)inCoreFlags);
 }
 
 // Closed parts that no chunk boundary cuts stay closed: a field of small spheres.
@@ -378,6 +408,19 @@ TEST(Streamed, ClosedPartsInsideChunksStayClosed)
     // At most the spheres that a cell boundary cuts are lost: a handful per plane.
     EXPECT_GE(stats.closedTriangles, total * 3 / 4);
     EXPECT_LT(stats.closedTriangles, total) << "some sphere must straddle a boundary";
+    // The spheres are 1 apart, far beyond the shadow rays' offset: every closed one is flagged
+    // (separated from nothing open) unless it comes within the offset of its cell's faces, where
+    // a neighbour in the next chunk could lie outside the halo; in core every sphere is flagged.
+    StreamedOptions separate = smallChunks(3'000);
+    separate.build.separateClosed = true;
+    uint64_t flagged = 0, inCore = 0;
+    flaggedTriangles(field.mesh, streamed(input, tmp("streamed_spheres_sep.penumbra"), separate), &flagged);
+    flaggedTriangles(field.mesh, buildCompressedModel(field.mesh, separate.build), &inCore);
+    std::printf("[ closed ] 144 spheres, closed parts separated: %llu triangles flagged streamed, %llu in core\n",
+                (unsigned long long)flagged, (unsigned long long)inCore);
+    EXPECT_EQ(inCore, total);
+    EXPECT_GE(flagged, total * 3 / 4);
+    EXPECT_LE(flagged, stats.closedTriangles);
 }
 
 // ---- chunk files and the merge as separate processes -----------------------------------------

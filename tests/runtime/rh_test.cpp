@@ -248,7 +248,7 @@ TEST(ConeRayHierarchies, ClosedMeshesCastOnlyTheirLightBackFacingTriangles)
     // winding, so the frame casts them all (rh.h, closedCullingExact): every pixel inside stays in shadow.
     Mesh room;
     test::addBox(room, {-5, 0, -5}, {5, 4, 5});
-    test::addBox(room, {-1, 0, -1}, {1, 1, 1});
+    test::addBox(room, {-1, 0.5f, -1}, {1, 1.5f, 1}); // over the floor: touching it, neither would be flagged (clearance)
     Camera inside;
     inside.position = {3.5f, 3.0f, 3.5f};
     inside.target = {0.0f, 0.0f, 0.0f};

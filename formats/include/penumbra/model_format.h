@@ -111,11 +111,14 @@ enum ClusterFlags : uint32_t {
     // 2-manifold connected component of the input: with vertices welded by
     // exact position, every undirected edge of the component is used by exactly
     // two of its triangles, in opposite directions (components connected by
-    // edges). Conservative: the preprocessor never sets it on a cluster that has
-    // one triangle of an open component (formats/README.md, "Cluster flags").
-    // A shadow method may then cast only the light-back-facing triangles of
-    // such clusters. The claim is about the input positions; decoded positions
-    // differ from them by at most the header's maxPositionError.
+    // edges), and it encloses positive volume. Conservative: the preprocessor
+    // never sets it on a cluster that has one triangle of an open component,
+    // sets it in all clusters of such a component or in none, and only where
+    // no other surface comes within the default shadow-ray offset of the
+    // component (formats/README.md, "Cluster flags"). A shadow method may then
+    // cast only the light-back-facing triangles of such clusters. The claim is
+    // about the input positions; decoded positions differ from them by at most
+    // the header's maxPositionError.
     kClusterClosed = 1u << 0,
 };
 inline constexpr uint32_t kClusterFlagsMask = kClusterClosed; // every other bit is zero

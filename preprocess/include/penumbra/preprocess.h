@@ -23,8 +23,9 @@ struct PreprocessOptions {
                                         // bench scenes within 8 (scan) and 10 (plant) bytes per triangle with 4-wide nodes
     uint32_t sahBins = 16;              // bins of the top-level binned SAH build, 2..256
     unsigned threads = 0;               // worker threads including the caller; 0 = hardware concurrency
-    // Clusters do not mix triangles of closed components with open ones (as they do not
-    // mix materials), so that closed parts get model::kClusterClosed; false: purely spatial.
+    // Clusters do not mix triangles of closed components clear of other surfaces (those
+    // that can be flagged) with the rest (as they do not mix materials), so that those
+    // parts get model::kClusterClosed; false: purely spatial.
     bool separateClosed = false;
     // Optional. Called on the calling thread only, at most every ~0.5% of a stage,
     // with the stage name ("filter", "tree", "clusters", "layout") and its fraction done.
@@ -82,10 +83,14 @@ CompressedModel buildCompressedModel(const Mesh& mesh, const PreprocessOptions& 
 // triangle belongs to a closed, consistently oriented 2-manifold connected
 // component (vertices welded by exact position, components connected through
 // edges, every edge of the component used by exactly two of its triangles in
-// opposite directions, no triangle with two corners at one position), else 0.
-// Triangles with a repeated vertex index get 0 (they are not stored). A
-// cluster is flagged closed when all its triangles are. Throws
-// Error("preprocess: ...") for an index out of range. threads: 0 = all cores.
+// opposite directions, no triangle with two corners at one position, positive
+// enclosed volume), else 0. Triangles with a repeated vertex index get 0 (they
+// are not stored). A cluster is flagged closed when all its triangles are, each
+// of their components lies wholly in flagged clusters, and no other surface
+// (another component or an open triangle) comes within the default shadow-ray
+// offset of those components (the clearance rule, preprocess/README.md): this
+// function is the topological test only. Throws Error("preprocess: ...") for
+// an index out of range. threads: 0 = all cores.
 std::vector<uint8_t> findClosedTriangles(const Mesh& mesh, unsigned threads = 0);
 
 // The format's size limits (model::kMaxNodes, kMaxClusters: 32-bit node and

@@ -230,6 +230,16 @@ struct FrameStats {
     uint64_t rhCasters = 0;
     uint32_t rhBatches = 0, rhRounds = 0;
     uint64_t rhPeakPairBytes = 0;
+    // afsm: clusters of the model flagged closed (kClusterClosed), and how they
+    // cast this frame: "back faces" (the paper's light-back-facing triangles
+    // only), "both sides (camera inside a closed mesh)" (the rays of what it
+    // sees leave through front faces), "both sides (ray offset above the
+    // default)" (RenderSettings::rayOffset larger than the offset the
+    // preprocessor kept flagged solids clear of: a ray could start inside
+    // one), "none closed"; open clusters cast both sides, with the tracer's
+    // ray offset (rayOffset) as the only epsilon.
+    uint64_t afsmClosedClusters = 0;
+    std::string afsmClosedCasting;
     uint32_t rhLights = 0, rhSortedLights = 0; // hierarchies built (one per light), and those over rays sorted by direction
     uint64_t rhAcceptedNodes = 0;              // nodes found covered by a triangle and accepted whole (early accept, section 3.3)
     double rhIncoherence = 0;                  // --rh-sort auto: the last light's measured screen-space incoherence (README, rh)

@@ -23,13 +23,13 @@ constexpr VkBufferUsageFlags kStorageDst = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | 
 std::vector<VkDescriptorType> castersBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
 }
 
 std::vector<VkDescriptorType> binBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
 }
 
 // A perspective frustum from eye along forward with a square field of view
@@ -125,6 +125,76 @@ std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, 
     return layers;
 }
 
+namespace {
+
+bool rayHitsBox(const glm::dvec3& origin, const glm::dvec3& inverse, glm::dvec3 lo, glm::dvec3 hi)
+{
+    const glm::dvec3 t0 = (lo - origin) * inverse, t1 = (hi - origin) * inverse;
+    const glm::dvec3 near = glm::min(t0, t1), far = glm::max(t0, t1);
+    const double enter = std::max({near.x, near.y, near.z, 0.0}), leave = std::min({far.x, far.y, far.z});
+    return enter <= leave;
+}
+
+// Closed triangles left minus entered along the ray from origin to infinity.
+int closedCrossings(const CompressedModel& model, const CullModel& cull, const glm::dvec3& origin, const glm::dvec3& direction)
+{
+    const glm::dvec3 inverse = 1.0 / direction;
+    const glm::dvec3 margin(cull.boxMargin + 1e-6);
+    int balance = 0;
+    std::vector<uint32_t> stack{0};
+    while (!stack.empty()) {
+        const CullModel::TopNode& node = cull.topNodes[stack.back()];
+        stack.pop_back();
+        if (!rayHitsBox(origin, inverse, glm::dvec3(node.min) - margin, glm::dvec3(node.max) + margin))
+            continue;
+        if (node.childCount) {
+            for (uint32_t c = 0; c < node.childCount; ++c)
+                stack.push_back(node.firstChild + c);
+            continue;
+        }
+        const model::ClusterRecord& cluster = model.clusters[node.cluster];
+        if (!(cluster.flags & model::kClusterClosed))
+            continue;
+        const uint8_t* begin = model.indices.data() + cluster.firstIndex;
+        forEachStripTriangle(begin, begin + cluster.indexBytes, [&](uint32_t a, uint32_t b, uint32_t c) {
+            const glm::dvec3 v0(decodePosition(cluster, model.vertices[cluster.firstVertex + a]));
+            const glm::dvec3 v1(decodePosition(cluster, model.vertices[cluster.firstVertex + b]));
+            const glm::dvec3 v2(decodePosition(cluster, model.vertices[cluster.firstVertex + c]));
+            // Moller-Trumbore.
+            const glm::dvec3 e1 = v1 - v0, e2 = v2 - v0, p = glm::cross(direction, e2);
+            const double det = glm::dot(e1, p);
+            if (std::abs(det) < 1e-300)
+                return;
+            const glm::dvec3 s = origin - v0, q = glm::cross(s, e1);
+            const double u = glm::dot(s, p) / det, v = glm::dot(direction, q) / det, t = glm::dot(e2, q) / det;
+            if (u < 0.0 || v < 0.0 || u + v > 1.0 || t <= 0.0)
+                return;
+            balance += glm::dot(glm::cross(e1, e2), direction) > 0.0 ? 1 : -1;
+        });
+    }
+    return balance;
+}
+
+} // namespace
+
+bool afsmSeesInsideClosed(const CompressedModel& model, const CullModel& cull, glm::vec3 eye, const glm::mat4& cameraViewProj)
+{
+    if (cull.topNodes.empty())
+        return false;
+    std::vector<glm::dvec3> origins{glm::dvec3(eye)};
+    const glm::dmat4 inverse = glm::inverse(glm::dmat4(cameraViewProj));
+    for (int y = -1; y <= 1; ++y)
+        for (int x = -1; x <= 1; ++x) {
+            const glm::dvec4 p = inverse * glm::dvec4(0.999 * x, 0.999 * y, 0.0, 1.0); // the near plane (Vulkan depth 0)
+            origins.push_back(glm::dvec3(p) / p.w);
+        }
+    const glm::dvec3 direction = glm::normalize(glm::dvec3(0.3141593, 0.8660254, 0.3891902));
+    for (const glm::dvec3& origin : origins)
+        if (closedCrossings(model, cull, origin, direction) > 0)
+            return true;
+    return false;
+}
+
 void AfsmPass::create(vk::Device& device)
 {
     using namespace vk;
@@ -137,12 +207,14 @@ void AfsmPass::create(vk::Device& device)
     bin.create(device, "afsm_bin.comp", binBindingTypes(), sizeof(AfsmBinPush));
     binSoft.create(device, "afsm_bin.comp.soft", binBindingTypes(), sizeof(AfsmBinPush));
     params = createBuffer(device, sizeof(AfsmParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
+    closedBits = createBuffer(device, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload, Addressable::Yes);
+    std::memset(closedBits.mapped, 0, 16);
     if (!device.aliasFree)
         return;
     castersSetLayout = createSetLayout(device, castersBindingTypes(), VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
     castersSet = allocateSet(device, castersSetLayout, castersBindingTypes(), castersPool);
     GraphicsPipelineDesc desc;
-    desc.vertexShader = "afsm_casters.vert";
+    desc.vertexShader = "afsm_cast.vert";
     desc.geometryShader = "afsm_casters.geom";
     desc.fragmentShader = "afsm_casters.frag";
     desc.depthFormat = VK_FORMAT_D32_SFLOAT;
@@ -170,10 +242,12 @@ void AfsmPass::destroy(vk::Device& device)
     castersPool = VK_NULL_HANDLE;
     castersSetLayout = VK_NULL_HANDLE;
     castersSet = VK_NULL_HANDLE;
-    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &params, &clusterMasks})
+    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &params, &clusterMasks, &closedBits})
         vk::destroyBuffer(device, *buffer);
     tableCounts[0] = tableCounts[1] = 0;
     maskWords = maskPixels = clusterMaskWords = 0;
+    closedModel = insideModel = nullptr;
+    closedCount = 0;
 }
 
 void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
@@ -194,10 +268,13 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
                                              vk::storageBuffer(t.slotShadowed->buffer), vk::storageBuffer(t.cellAlive->buffer)};
     std::vector<vk::Binding> binBindings = common;
     binBindings.push_back(vk::storageBuffer(params.buffer));
+    binBindings.push_back(vk::storageBuffer(closedBits.buffer));
     bin.write(device, binBindings);
     binSoft.write(device, binBindings);
+    std::vector<vk::Binding> casterBindings = common;
+    casterBindings.push_back(vk::storageBuffer(closedBits.buffer));
     if (castersSet)
-        vk::writeSet(device, castersSet, common);
+        vk::writeSet(device, castersSet, casterBindings);
     writeParams();
 }
 
@@ -252,6 +329,46 @@ void AfsmPass::prepareSoft(vk::Device& device, VkCommandBuffer cmd, uint32_t lig
     softSamples = lightSamples;
     softTable = size;
     writeParams();
+}
+
+uint64_t AfsmPass::prepareModel(vk::Device& device, const CompressedModel* model)
+{
+    const void* key = model ? static_cast<const void*>(model->clusters.data()) : nullptr;
+    if (closedBits.buffer && key == closedModel)
+        return closedCount;
+    const size_t clusters = model ? model->clusters.size() : 0;
+    const VkDeviceSize bytes = std::max<VkDeviceSize>((clusters + 31) / 32 * 4, 16);
+    if (closedBits.size < bytes) {
+        vkDeviceWaitIdle(device.device);
+        vk::destroyBuffer(device, closedBits);
+        closedBits = vk::createBuffer(device, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Upload, vk::Addressable::Yes);
+        if (targets.cellFirst)
+            bind(device, targets);
+    }
+    auto* bits = static_cast<uint32_t*>(closedBits.mapped);
+    std::fill(bits, bits + closedBits.size / 4, 0u);
+    closedCount = 0;
+    for (size_t c = 0; c < clusters; ++c)
+        if (model->clusters[c].flags & model::kClusterClosed) {
+            bits[c >> 5] |= 1u << (c & 31);
+            ++closedCount;
+        }
+    closedModel = key;
+    insideModel = nullptr;
+    return closedCount;
+}
+
+bool AfsmPass::closedBackFaces(const CompressedModel& model, const CullModel& cull, glm::vec3 eye, const glm::mat4& cameraViewProj)
+{
+    if (!closedCount)
+        return false;
+    if (insideModel != closedModel || insideCamera != cameraViewProj || insideEye != eye) {
+        insideAnswer = afsmSeesInsideClosed(model, cull, eye, cameraViewProj);
+        insideModel = closedModel;
+        insideCamera = cameraViewProj;
+        insideEye = eye;
+    }
+    return !insideAnswer;
 }
 
 void AfsmPass::clear(VkCommandBuffer cmd) const
@@ -356,7 +473,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                          float(PENUMBRA_AFSM_COMPUTE_CELLS),
                          0,
                          0,
-                         0,
+                         layer.closedBackFaces ? 1u : 0u,
                          0,
                          0};
         const vk::ComputeKernel& kernel = layer.soft ? binSoft : bin;
@@ -395,9 +512,10 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     rendering.layerCount = 1;
     rendering.pDepthAttachment = &depthAttachment;
     const float computeCells = compute ? float(PENUMBRA_AFSM_COMPUTE_CELLS) : 0.0f;
-    const AfsmCastersPush hardPush{layer.viewProj, slotsAddress, layer.lightIndex, grid, layer.originOffset, computeCells};
+    const uint32_t closed = layer.closedBackFaces ? 1u : 0u;
+    const AfsmCastersPush hardPush{layer.viewProj, slotsAddress, layer.lightIndex, grid, layer.originOffset, computeCells, closed, 0};
     const AfsmSoftPush softPush{layer.viewProj, slotsAddress, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,
-                                softSamples,   softTable.packed(), computeCells, {}};
+                                softSamples,   softTable.packed(), computeCells, closed, 0};
     const vk::RasterPipelines& pipelines = layer.soft ? softCasters : casters;
     const VkPipeline pipeline = pipelines[geometry.encoding];
     const VkDescriptorSet set = castersSet;

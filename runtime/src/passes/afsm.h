@@ -44,11 +44,11 @@ enum AfsmScanBinding : uint32_t { kAfsmScanCounts, kAfsmScanBlockSums, kAfsmScan
 // The raster path's set (hard and soft pipelines).
 enum AfsmCastersBinding : uint32_t {
     kAfsmCastersFrame, kAfsmCastersCellFirst, kAfsmCastersCellCount, kAfsmCastersShadowed, kAfsmCastersFar, kAfsmCastersCellDepth,
-    kAfsmCastersSlotShadowed, kAfsmCastersCellAlive, kAfsmCastersBindingCount
+    kAfsmCastersSlotShadowed, kAfsmCastersCellAlive, kAfsmCastersClosedBits, kAfsmCastersBindingCount
 };
 enum AfsmBinBinding : uint32_t {
     kAfsmBinFrame, kAfsmBinCellFirst, kAfsmBinCellCount, kAfsmBinShadowed, kAfsmBinFar, kAfsmBinCellDepth, kAfsmBinSlotShadowed, kAfsmBinCellAlive, kAfsmBinParams,
-    kAfsmBinBindingCount
+    kAfsmBinClosedBits, kAfsmBinBindingCount
 };
 
 struct AfsmSamplesPush {
@@ -80,8 +80,10 @@ struct AfsmCastersPush {
     uint32_t gridSize;
     float originOffset;
     float computeCells; // casters of at most this many cells are the compute path's (0: none)
+    uint32_t closedBackFaces; // closed clusters cast only light-back-facing triangles
+    uint32_t pad;
 };
-static_assert(sizeof(AfsmCastersPush) == 88);
+static_assert(sizeof(AfsmCastersPush) == 96);
 
 struct AfsmSoftPush {
     glm::mat4 viewProj;
@@ -92,7 +94,8 @@ struct AfsmSoftPush {
     uint32_t samples;
     uint32_t tableSize;
     float computeCells;
-    uint32_t pad[2];
+    uint32_t closedBackFaces;
+    uint32_t pad;
 };
 static_assert(sizeof(AfsmSoftPush) == 120);
 
@@ -106,7 +109,7 @@ struct AfsmBinPush {
     float originOffset;
     float computeCells;
     uint32_t clusterBegin, clusterEnd; // paged geometry: the clusters this dispatch bins
-    uint32_t pad;
+    uint32_t closedBackFaces;          // closed clusters cast only light-back-facing triangles
     uint64_t nodeTable;   // paged geometry: GpuGeometry::nodeTable's device address
     uint64_t nodeRecords; // paged geometry: the pool's (the node records)
 };
@@ -181,6 +184,16 @@ struct AfsmLayer {
 // it left out). cube: whether the layers are cube faces.
 std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, bool& cube);
 
+// Whether what the camera of cameraViewProj sees may lie inside a closed mesh
+// (clusters flagged kClusterClosed, wound counter-clockwise outside): a point
+// it sees lies in the same region as the camera (nothing between them) unless
+// the near plane cut a surface away, so rays go from the eye and from 3 x 3
+// points of the near plane along one direction; a point lies inside closed
+// meshes when the closed triangles it crosses to infinity are more often left
+// (the ray along the winding normal) than entered. Host-side, in double
+// precision, over the clusters whose boxes the rays cross (the culling BVH).
+bool afsmSeesInsideClosed(const CompressedModel& model, const CullModel& cull, glm::vec3 eye, const glm::mat4& cameraViewProj);
+
 class AfsmPass {
   public:
     // The casters' pipelines need geometry shaders and fragment stores
@@ -193,6 +206,17 @@ class AfsmPass {
     // the masks and per-slot data for the bound image; then the soft passes
     // use them.
     void prepareSoft(vk::Device& device, VkCommandBuffer cmd, uint32_t samples, bool rectangle);
+    // The model's closed clusters (kClusterClosed) for the casters, when the
+    // model changed (none for the uncompressed reference); returns how many.
+    uint64_t prepareModel(vk::Device& device, const CompressedModel* model);
+    // Whether closed clusters may cast only their light-back-facing triangles
+    // in a frame seen through cameraViewProj: not when what the camera sees
+    // may lie inside a closed mesh (afsmSeesInsideClosed); cached per camera.
+    bool closedBackFaces(const CompressedModel& model, const CullModel& cull, glm::vec3 eye, const glm::mat4& cameraViewProj);
+    // The device address of the closed clusters' bits (prepareModel), for
+    // the camera pass of a frame whose closed clusters cast only back faces
+    // (GBufferPush::closedAddress).
+    VkDeviceAddress closedBitsAddress(const vk::Device& device) const { return vk::bufferAddress(device, closedBits); }
     // Clears the samples' shadow flags (before a light's layers).
     void clear(VkCommandBuffer cmd) const;
     // Counts, offsets and lists the samples of layer `layer` of the light in the grid of viewProj.
@@ -208,6 +232,7 @@ class AfsmPass {
         uint32_t lightIndex = 0;
         float originOffset = 0;
         bool soft = false;
+        bool closedBackFaces = false; // closed clusters cast only light-back-facing triangles
     };
     // Paged geometry (geometry_pages.h): the compute path bins the view's
     // clusters in ranges whose pages fit the pool together (ascending, as
@@ -250,6 +275,13 @@ class AfsmPass {
     uint32_t softSamples = 0;
     AfsmTableSize softTable;
     vk::Buffer params;       // AfsmParams (host-visible)
+    vk::Buffer closedBits;   // bit per cluster: kClusterClosed (host-visible)
+    const void* closedModel = nullptr; // the model closedBits describe (its cluster array)
+    uint64_t closedCount = 0;
+    glm::mat4 insideCamera{0.0f};       // the last camera (view-projection, eye) closedBackFaces answered for, and its answer
+    glm::vec3 insideEye{0.0f};
+    const void* insideModel = nullptr;
+    bool insideAnswer = false;
     vk::Buffer clusterMasks; // per light layer: bit per cluster in its view (host-visible)
     uint32_t clusterMaskWords = 0;
 };

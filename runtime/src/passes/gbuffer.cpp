@@ -14,9 +14,15 @@ void GBufferPass::create(vk::Device& device)
     desc.depthFormat = kDepthFormat;
     desc.pushBytes = sizeof(GBufferPush);
     pipelines.create(device, desc, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
+    desc.fragmentShader = "gbuffer.frag.outside";
+    outsidePipelines.create(device, desc, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
 }
 
-void GBufferPass::destroy(vk::Device& device) { pipelines.destroy(device); }
+void GBufferPass::destroy(vk::Device& device)
+{
+    pipelines.destroy(device);
+    outsidePipelines.destroy(device);
+}
 
 void GBufferPass::record(VkCommandBuffer cmd, Culling& culling, uint32_t view, const GpuGeometry& geometry, const GBufferTargets& t,
                          const GBufferPush& push) const
@@ -46,14 +52,15 @@ void GBufferPass::record(VkCommandBuffer cmd, Culling& culling, uint32_t view, c
     rendering.colorAttachmentCount = 2;
     rendering.pColorAttachments = colors;
     rendering.pDepthAttachment = &depthAttachment;
-    const VkPipeline pipeline = pipelines[geometry.encoding];
+    const vk::RasterPipelines& chosen = push.closedAddress ? outsidePipelines : pipelines;
+    const VkPipeline pipeline = chosen[geometry.encoding];
     culling.recordView(cmd, view, geometry, [&](bool clear) {
         for (VkRenderingAttachmentInfo* attachment : {&colors[0], &colors[1], &depthAttachment})
             attachment->loadOp = clear ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_LOAD;
         vkCmdBeginRendering(cmd, &rendering);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
         vk::setViewport(cmd, t.position->width, t.position->height);
-        vkCmdPushConstants(cmd, pipelines.layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(push), &push);
+        vkCmdPushConstants(cmd, chosen.layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(push), &push);
     }, [&] { vkCmdEndRendering(cmd); });
 
     for (const vk::Image* image : {t.position, t.normal})

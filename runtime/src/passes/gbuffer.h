@@ -18,7 +18,10 @@ struct GBufferPush {
     glm::mat4 viewProj;
     glm::vec4 cameraPosition;
     uint64_t albedoAddress = 0; // GpuGeometry::albedo, 0: none (white)
-    uint64_t pad = 0;
+    // Bit per cluster (AfsmPass::closedBitsAddress), 0: none. When set, the
+    // camera never sees the inside of a cluster flagged kClusterClosed: its
+    // triangles seen from behind are not drawn (gbuffer.frag.outside).
+    uint64_t closedAddress = 0;
 };
 static_assert(sizeof(GBufferPush) == 96);
 
@@ -39,7 +42,7 @@ class GBufferPass {
                 const GBufferPush& push) const;
 
   private:
-    vk::RasterPipelines pipelines;
+    vk::RasterPipelines pipelines, outsidePipelines;
 };
 
 } // namespace penumbra::passes
