@@ -594,8 +594,9 @@ TEST(Streamed, InterruptedBuildLeavesNoModel)
         if (WIFEXITED(status))
             continue; // finished before the signal (a fast machine): nothing to check this time
         // Killed between the rename and the exit, the model is complete; else there is none.
-        if (std::filesystem::exists(output))
+        if (std::filesystem::exists(output)) {
             EXPECT_NO_THROW(openModelFile(output)) << "a killed build left a partial " << output;
+        }
         std::filesystem::remove(output);
     }
     std::string err;

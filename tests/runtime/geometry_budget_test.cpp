@@ -169,8 +169,9 @@ void compareAlongPaths(const Budgeted& city, const std::vector<std::pair<Camera,
                 (unsigned long long)streamed, (unsigned long long)rounds, frames.size());
     // Pages move; rays park where the light has no views of its own (frt's area lights draw no map).
     EXPECT_GT(streamed, 0u) << name;
-    if (expectParking)
+    if (expectParking) {
         EXPECT_GT(rounds, 0u) << name;
+    }
 }
 
 TEST(GeometryBudget, HardShadowsSameImagesAlongCameraAndLightPaths)
