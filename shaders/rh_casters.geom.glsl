@@ -4,7 +4,7 @@
 // Cone ray hierarchies, the casters of one batch (rh.glsli): the clusters of
 // the light's culled views are drawn with the rasterizer off; each triangle,
 // decoded by the vertex shader exactly as the tracer decodes it
-// (afsm_casters.vert.glsl), is appended to the batch's triangle list in world
+// (world_casters.vert.glsl), is appended to the batch's triangle list in world
 // space. Triangles without area are left out (the watertight test never hits
 // them). The two-pass traversal draws the casters twice, the large ones
 // first, then the rest. The host sizes each batch by its clusters' triangle

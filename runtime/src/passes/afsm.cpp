@@ -214,7 +214,7 @@ void AfsmPass::create(vk::Device& device)
     castersSetLayout = createSetLayout(device, castersBindingTypes(), VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
     castersSet = allocateSet(device, castersSetLayout, castersBindingTypes(), castersPool);
     GraphicsPipelineDesc desc;
-    desc.vertexShader = "afsm_cast.vert";
+    desc.vertexShader = "world_casters.vert";
     desc.geometryShader = "afsm_casters.geom";
     desc.fragmentShader = "afsm_casters.frag";
     desc.depthFormat = VK_FORMAT_D32_SFLOAT;

@@ -1,5 +1,5 @@
 // Alias-free shadow maps (Sintorn, Eisemann, Assarsson 2008; shaders
-// afsm_samples.comp, afsm_scan.comp, afsm_casters.vert/geom/frag,
+// afsm_samples.comp, afsm_scan.comp, world_casters.vert, afsm_casters.geom/frag,
 // afsm_soft.geom/frag, afsm_table.comp, afsm.glsli). Per layer of the light,
 // the camera's samples are counted per grid cell, the counts turned into
 // offsets by a prefix sum and the samples listed per cell; then every caster

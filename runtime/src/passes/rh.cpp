@@ -132,7 +132,7 @@ void RhPass::create(vk::Device& device)
     castersSetLayout = createSetLayout(device, castersBindingTypes(), VK_SHADER_STAGE_GEOMETRY_BIT);
     castersSet = allocateSet(device, castersSetLayout, castersBindingTypes(), castersPool);
     GraphicsPipelineDesc desc;
-    desc.vertexShader = "rh_casters.vert";
+    desc.vertexShader = "world_casters.vert";
     desc.geometryShader = "rh_casters.geom";
     desc.depthWrite = false;
     desc.rasterizerDiscard = true;

@@ -1,6 +1,6 @@
 // Cone ray hierarchies (Olsson and Assarsson 2011), hard shadows of point,
 // spot and directional lights without a projection plane; shaders
-// rh_rays.comp, rh_scan.comp, rh_build.comp, rh_casters.vert/geom,
+// rh_rays.comp, rh_scan.comp, rh_build.comp, world_casters.vert, rh_casters.geom,
 // rh_step.comp, rh_traverse.comp and rh.glsli (which explains the data). Per
 // light, one hierarchy over all its rays: the light-facing pixels' rays are
 // listed (by pixel, or sorted by direction), a 4-way hierarchy of cones from
