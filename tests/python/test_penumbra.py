@@ -131,9 +131,10 @@ class Preprocess(unittest.TestCase):
         self.assertGreater(os.path.getsize(output), 0)
         self.assertEqual(stats["triangles"], 20_000)
         self.assertGreater(stats["clusters"], 0)
-        # Format version 3's closed flag: the generated city's parts are closed, its ground is not.
-        self.assertGreater(stats["closed_cluster_triangles"], 0)
-        self.assertLessEqual(stats["closed_cluster_triangles"], stats["closed_triangles"])
+        # The city's parts are closed and its ground is not; every part stands on the ground, within the
+        # ray offset of another surface, so no cluster is flagged closed (preprocess/README.md, "Clearance").
+        self.assertGreater(stats["closed_triangles"], 0)
+        self.assertEqual(stats["closed_cluster_triangles"], 0)
         self.assertLess(stats["closed_triangles"], stats["triangles"])
         source = penumbra.render(CITY, size=SIZE, camera=CAMERA, lights=[SPOT])
         preprocessed = penumbra.render(output, size=np.array(SIZE), camera=CAMERA, lights=[SPOT])
