@@ -24,7 +24,6 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -35,27 +34,14 @@
 #include "penumbra/model_format.h"
 #include "penumbra/penumbra.h"
 #include "penumbra/preprocess.h"
+#include "tool_util.h"
 
 namespace {
 
+using penumbra::bench_tool::median;
+using penumbra::bench_tool::splitCommas;
+
 using namespace penumbra;
-
-std::vector<std::string> split(const std::string& text)
-{
-    std::vector<std::string> out;
-    std::stringstream stream(text);
-    for (std::string item; std::getline(stream, item, ',');)
-        out.push_back(item);
-    return out;
-}
-
-double median(std::vector<double> v)
-{
-    if (v.empty())
-        return 0;
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-}
 
 bool sameImage(const Frame& a, const Frame& b)
 {
@@ -84,13 +70,13 @@ int main(int argc, char** argv)
             const std::string key = argv[i], value = argv[i + 1];
             if (key == "--size") size = uint32_t(std::stoul(value));
             else if (key == "--frames") frames = uint32_t(std::stoul(value));
-            else if (key == "--methods") methods = split(value);
+            else if (key == "--methods") methods = splitCommas(value);
             else if (key == "--divisors") {
                 divisors.clear();
-                for (const std::string& d : split(value))
+                for (const std::string& d : splitCommas(value))
                     divisors.push_back(std::stoull(d));
             } else if (key == "--budgets") {
-                for (const std::string& b : split(value))
+                for (const std::string& b : splitCommas(value))
                     budgets.push_back(uint64_t(std::stod(b) * 1048576.0));
             } else if (key == "--reference") {
                 if (value != "none") {

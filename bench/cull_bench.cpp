@@ -20,16 +20,13 @@
 #include "penumbra/generate.h"
 #include "penumbra/penumbra.h"
 #include "penumbra/preprocess.h"
+#include "tool_util.h"
 
 namespace {
 
 using namespace penumbra;
 
-double median(std::vector<double> v)
-{
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0.0 : v[v.size() / 2];
-}
+using penumbra::bench_tool::median;
 
 struct Result {
     std::vector<double> camera, shadow; // shadow: the shadow-map pass and, for a sun, fitting its map to the view

@@ -10,6 +10,7 @@
 
 #include "penumbra/penumbra.h"
 #include "penumbra/preprocess.h"
+#include "tool_util.h"
 
 namespace {
 
@@ -17,11 +18,7 @@ struct Timing {
     double cameraMedian, cameraBest, shadowMedian, shadowBest;
 };
 
-double median(std::vector<double> v)
-{
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-}
+using penumbra::bench_tool::median;
 
 Timing measure(penumbra::Renderer& renderer, const penumbra::RenderSettings& settings, int frames)
 {

@@ -27,6 +27,7 @@
 #include "penumbra/generate.h"
 #include "penumbra/oracle.h"
 #include "penumbra/penumbra.h"
+#include "tool_util.h"
 
 namespace {
 
@@ -76,13 +77,7 @@ Config parseConfig(const std::string& text, uint32_t size)
     return c;
 }
 
-double median(std::vector<double> v)
-{
-    if (v.empty())
-        return 0.0;
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-}
+using penumbra::bench_tool::median;
 
 struct Runs {
     std::vector<double> gpu, cpu;
