@@ -24,7 +24,9 @@ enum class GeometryEncoding {
 
 // Paged geometry: bit 63 of a cluster's firstVertex in the DEVICE copy of its
 // ClusterRecord marks it not resident (the file's records never set it: a
-// model holds fewer than 2^63 vertices). Shaders test it (bvh_traversal.glsli).
+// model holds fewer than 2^63 vertices). Shaders learn residency from the
+// node table (kNodeAbsent) instead, which is reached before any record; the
+// bit keeps an evicted record from naming another page's vertices.
 inline constexpr uint64_t kNotResident = uint64_t(1) << 63;
 
 // Paged geometry's BVH (geometry_pages.h): each node has a record of
