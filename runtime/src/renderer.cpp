@@ -347,23 +347,20 @@ struct Renderer::Impl::FrameScript {
     void ensureResident(const std::vector<uint32_t>& clusters, const std::string& what, bool inFrame)
     {
         GeometryPages& pages = r.pages;
-        // Draw commands follow residency (culling.h). The tracer's rounds change residency without
-        // drawing: they leave the refresh (a pass over every planned draw) to the next raster use.
-        const bool draws = inFrame;
-        if (pages.allResident(clusters)) {
+        // Draw commands follow residency (culling.h). The tracer's rounds (not inFrame) change residency
+        // without drawing: they leave the refresh (a pass over every planned draw) to the next in-frame call.
+        if (!pages.allResident(clusters)) {
+            if (inFrame)
+                r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+            pages.ensure(r.device, r.geometry, *r.model, clusters, what);
+            drawsStale = true;
+            if (inFrame)
+                beginCommands();
+        } else {
             pages.ensure(r.device, r.geometry, *r.model, clusters, what); // the pages' last use only
-            if (draws && drawsStale)
-                refreshDraws();
-            return;
         }
-        if (inFrame)
-            r.submitAndWait(cmd, timer.passesSinceLastSubmit());
-        pages.ensure(r.device, r.geometry, *r.model, clusters, what);
-        drawsStale = true;
-        if (draws)
+        if (inFrame && drawsStale)
             refreshDraws();
-        if (inFrame)
-            beginCommands();
     }
 
     bool drawsStale = false; // residency changed since the culling's draw commands were refreshed
