@@ -46,8 +46,9 @@ layout(constant_id = 3) const uint kSplitVertexTexels = 0u;
 // script made every cluster that can reach this view resident (clusterMayReachView); the others
 // write no texel of it.
 layout(constant_id = 4) const uint kGeometryBudget = 0u;
-// The slivers of this view: count, the fill's indirect dispatch, then per sliver its cluster and
-// strip position (the byte of its third vertex, relative to the cluster's strips) | odd << 16.
+// The slivers of this view: count, the fill's indirect dispatch, then per run of consecutive
+// slivers (stripByte) its cluster and its first sliver's strip position (the byte of its third
+// vertex, relative to the cluster's strips) | odd << 16 | (slivers - 1) << 17.
 // Written by the host once: capacity (entries the list holds); cleared per view: count.
 layout(set = 0, binding = 5, std430) buffer ThinList
 {
