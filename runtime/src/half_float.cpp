@@ -25,10 +25,12 @@ uint32_t bitsFromFloat(float f)
     return u;
 }
 
+} // namespace
+
 // The exponent rebias of a normal half; Inf/NaN get the float's all-ones
 // exponent; a subnormal half (exponent 0) is renormalized by one float
 // subtraction (F. Giesen's "half_to_float_fast5").
-void halfToFloatScalar(const uint16_t* in, float* out, size_t count)
+void halfToFloatPortable(const uint16_t* in, float* out, size_t count)
 {
     constexpr uint32_t kExponentMask = 0x7c00u << 13;
     for (size_t i = 0; i < count; ++i) {
@@ -42,6 +44,8 @@ void halfToFloatScalar(const uint16_t* in, float* out, size_t count)
         out[i] = floatFromBits(bits | (h & 0x8000u) << 16);
     }
 }
+
+namespace {
 
 #ifdef PENUMBRA_HAVE_F16C_PATH
 __attribute__((target("avx,f16c"))) size_t halfToFloatF16c(const uint16_t* in, float* out, size_t count)
@@ -63,7 +67,7 @@ void halfToFloat(const uint16_t* in, float* out, size_t count)
     if (f16c)
         done = halfToFloatF16c(in, out, count);
 #endif
-    halfToFloatScalar(in + done, out + done, count - done);
+    halfToFloatPortable(in + done, out + done, count - done);
 }
 
 } // namespace penumbra

@@ -12,4 +12,7 @@ namespace penumbra {
 // with F16C where the CPU has it, else a branch-free conversion.
 void halfToFloat(const uint16_t* in, float* out, size_t count);
 
+// The branch-free conversion alone (what halfToFloat does without F16C).
+void halfToFloatPortable(const uint16_t* in, float* out, size_t count);
+
 } // namespace penumbra
