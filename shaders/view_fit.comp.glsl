@@ -114,7 +114,8 @@ void writeBounds(uint l, uint k, vec3 lo, vec3 negHi, bool behind)
 // is projectToShadowMap's (and shadowLayer's), written out on the uniform's
 // fields: passing the LightData to them copies it per pixel, which made this
 // pass about 30 ms slower on lavapipe at 1024^2. Keep the two in step.
-void fitPointLikeLight(uint l, ivec2 origin, ivec2 size)
+// Returns the block's covered pixels when `count` (the frame's counter), else 0.
+uint fitPointLikeLight(uint l, ivec2 origin, ivec2 size, bool count)
 {
     const float inf = uintBitsToFloat(0x7F800000u);
     const bool grid = (kGridMask & (1u << l)) != 0u, fit = (kFitMask & (1u << l)) != 0u;
@@ -127,11 +128,12 @@ void fitPointLikeLight(uint l, ivec2 origin, ivec2 size)
     // Cells are ORed into one word of the grid (32 cells of a row) per lane,
     // written with an atomic when the next point's cell lies in another word,
     // and at the end once per subgroup when all its lanes share the word.
-    uint word = ~0u, bits = 0u;
+    uint word = ~0u, bits = 0u, covered = 0u;
     vec3 lo = vec3(inf), negHi = vec3(inf);
     for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
         vec3 p;
         bool valid = blockPoint(origin, size, i, p);
+        covered += count && valid ? 1u : 0u;
         uint layer = 0u; // shadowLayer: a point light's cube face
         if (pointLight) {
             vec3 d = p - lightPosition;
@@ -172,13 +174,16 @@ void fitPointLikeLight(uint l, ivec2 origin, ivec2 size)
     }
     if (fit)
         writeBounds(l, 0u, lo, negHi, false);
+    return covered;
 }
 
-// Light l, an area light: the bounds of each of its perspective maps.
-void fitAreaLight(uint l, ivec2 origin, ivec2 size)
+// Light l, an area light: the bounds of each of its perspective maps; the
+// block's covered pixels when `count`, else 0.
+uint fitAreaLight(uint l, ivec2 origin, ivec2 size, bool count)
 {
     const float inf = uintBitsToFloat(0x7F800000u);
     const uint maps = uint(frame.lights[l].spotCosLayers.w);
+    uint covered = 0u;
     for (uint k = 0u; k < maps; ++k) {
         const mat4 viewProj = frame.lights[l].viewProj[k];
         vec3 lo = vec3(inf), negHi = vec3(inf);
@@ -186,6 +191,7 @@ void fitAreaLight(uint l, ivec2 origin, ivec2 size)
         for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
             vec3 q;
             bool used = blockPoint(origin, size, i, q);
+            covered += count && k == 0u && used ? 1u : 0u;
             vec4 clip = viewProj * vec4(q, 1.0);
             behind = behind || (used && clip.w <= 0.0);
             used = used && clip.w > 0.0;
@@ -195,6 +201,7 @@ void fitAreaLight(uint l, ivec2 origin, ivec2 size)
         }
         writeBounds(l, k, lo, negHi, behind);
     }
+    return covered;
 }
 
 #ifdef PENUMBRA_FLOOR
@@ -221,16 +228,23 @@ void main()
     // The block's points are read again for every light and map: a private
     // array of them, indexed in a loop, costs far more on lavapipe (so does
     // unrolling these loops).
-    for (uint lights = (kFitMask | kGridMask) & ~kAreaMask; lights != 0u; lights &= lights - 1u)
-        fitPointLikeLight(uint(findLSB(lights)), origin, size);
-    for (uint lights = kFitMask & kAreaMask; lights != 0u; lights &= lights - 1u)
-        fitAreaLight(uint(findLSB(lights)), origin, size);
-    if (kCountCovered != 0u) {
-        uint covered = 0u;
-        for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
-            vec3 p;
-            covered += blockPoint(origin, size, i, p) ? 1u : 0u;
+    // The first light's walk over the block also counts its covered pixels (kCountCovered).
+    uint covered = 0u;
+    bool count = kCountCovered != 0u;
+    // Unrolled over the lights: each light index is a constant, so that the
+    // compiler drops the code of the other light types (fitPointLikeLight's
+    // cube-face matrices are per-lane uniform loads).
+    [[unroll]] for (uint l = 0u; l < PENUMBRA_MAX_LIGHTS; ++l)
+        if ((((kFitMask | kGridMask) & ~kAreaMask) & (1u << l)) != 0u) {
+            covered += fitPointLikeLight(l, origin, size, count);
+            count = false;
         }
+    [[unroll]] for (uint l = 0u; l < PENUMBRA_MAX_LIGHTS; ++l)
+        if ((kFitMask & kAreaMask & (1u << l)) != 0u) {
+            covered += fitAreaLight(l, origin, size, count);
+            count = false;
+        }
+    if (kCountCovered != 0u) {
         covered = subgroupAdd(covered);
         if (subgroupElect() && covered != 0u)
             atomicAdd(Counter(push.covered).count, uint64_t(covered));

@@ -246,8 +246,9 @@ void ComputeKernel::destroy(Device& device)
     VkDevice d = device.device;
     if (pool) vkDestroyDescriptorPool(d, pool, nullptr);
     if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
-    for (auto& [specialization, variant] : variants)
-        vkDestroyPipeline(d, variant, nullptr);
+    for (auto* cache : {&variants, &floorVariants})
+        for (auto& [specialization, variant] : *cache)
+            vkDestroyPipeline(d, variant, nullptr);
     if (floorPipeline) vkDestroyPipeline(d, floorPipeline, nullptr);
     if (layout) vkDestroyPipelineLayout(d, layout, nullptr);
     if (setLayout) vkDestroyDescriptorSetLayout(d, setLayout, nullptr);
@@ -264,14 +265,19 @@ void ComputeKernel::bind(VkCommandBuffer cmd, bool floor) const
 
 void ComputeKernel::bind(VkCommandBuffer cmd, const Specialization& specialization, bool floor) const
 {
-    if (floor || specialization.count == 0) {
+    if (specialization.count == 0) {
         bind(cmd, floor);
         return;
     }
-    auto it = std::find_if(variants.begin(), variants.end(), [&](const auto& v) { return v.first == specialization; });
-    if (it == variants.end()) {
-        variants.emplace_back(specialization, createComputePipeline(*device, shader, layout, pushBytes, specialization));
-        it = variants.end() - 1;
+    if (floor && !floorPipeline)
+        fail("renderer", std::string(shader) + ": null pass recorded before createFloor");
+    // The null twin takes the same constants: those that shape the dispatch (view_fit's block size) must agree.
+    auto& cache = floor ? floorVariants : variants;
+    auto it = std::find_if(cache.begin(), cache.end(), [&](const auto& v) { return v.first == specialization; });
+    if (it == cache.end()) {
+        const std::string name = std::string(shader) + (floor ? ".floor" : "");
+        cache.emplace_back(specialization, createComputePipeline(*device, name.c_str(), layout, pushBytes, specialization));
+        it = cache.end() - 1;
     }
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, it->second);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, nullptr);

@@ -94,8 +94,8 @@ struct ComputeKernel {
     const char* shader = nullptr;
     uint32_t pushBytes = 0;
     Device* device = nullptr;
-    // Pipelines specialized by bind(cmd, specialization), made on first use.
-    mutable std::vector<std::pair<Specialization, VkPipeline>> variants;
+    // Pipelines specialized by bind(cmd, specialization), made on first use (and their null twins').
+    mutable std::vector<std::pair<Specialization, VkPipeline>> variants, floorVariants;
 
     void create(Device& device, const char* shader, const std::vector<VkDescriptorType>& bindings, uint32_t pushBytes);
     // Makes the null twin once (same layout and set).
@@ -105,7 +105,7 @@ struct ComputeKernel {
     // Binds the pipeline (floor: its null twin) and its set.
     void bind(VkCommandBuffer cmd, bool floor = false) const;
     // Binds the pipeline specialized with `specialization` (made on first use;
-    // floor: the null twin, unspecialized) and its set.
+    // floor: the null twin, with the same constants) and its set.
     void bind(VkCommandBuffer cmd, const Specialization& specialization, bool floor = false) const;
     template <typename Push>
     void push(VkCommandBuffer cmd, const Push& push) const
