@@ -128,10 +128,10 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
             if (count == 0u || beyond || cellAlive[cell] == 0u)
                 continue;
 #ifdef PENUMBRA_AFSM_SOFT
-            afsmTestCellSoft(cell, light, table, v0, v1, v2);
+            afsmTestCellSoft(cell, 0u, count, light, table, v0, v1, v2); // at most PENUMBRA_AFSM_COMPUTE_BUDGET iterations
 #else
             if (afsmCellMayMeetTriangle(corner + 0.5, projected, !behind))
-                afsmTestCellHard(cell, slots, v0, v1, v2);
+                afsmTestCellHard(cell, 0u, count, slots, v0, v1, v2);
 #endif
         }
 }

@@ -12,7 +12,10 @@
 // paper, on the ray the sample's slot holds (afsm.glsli: AfsmRaySlot); a hit
 // sets the sample's shadow flag (afsm_casters.glsli). No depth is
 // compared, so there is no acne and no aliasing, and the result equals the
-// tracer's.
+// tracer's. One fragment tests one slice of the cell's list, at most
+// afsmSliceSamples(0) samples from push.sliceBegin (afsm.glsli: lavapipe's
+// loop limit); a crowded cell's later slices come in later draws
+// (afsm_casters.geom.glsl).
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -46,7 +49,7 @@ layout(push_constant) uniform AfsmCastersPush {
     float originOffset;
     float computeCells;
     uint closedBackFaces;
-    uint pad;
+    uint sliceBegin;    // the first sample of each cell's list this draw tests (0, or a later slice of the crowded cells)
 } push;
 
 void main()
@@ -55,7 +58,7 @@ void main()
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     vec2 v[3] = vec2[](projected01.xy, projected01.zw, projected2.xy);
     // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_casters.geom.glsl).
-    if (cellAlive[cell] == 0u || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0))
+    if (cellAlive[cell] == 0u || cellCount[cell] <= push.sliceBegin || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0))
         return;
-    afsmTestCellHard(cell, push.slots, vertex0, vertex1, vertex2);
+    afsmTestCellHard(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(0u), push.slots, vertex0, vertex1, vertex2);
 }

@@ -10,7 +10,11 @@
 //  PENUMBRA_AFSM_COUNT: the sample's grid cell in layer `layer` gets one more
 //    sample (atomicAdd on cellCount) and keeps its farthest sample's depth
 //    (afsmDepth of the ray origin: the casters' depth test), and the layer
-//    its farthest sample's clip.w (soft: the influence regions' far plane);
+//    its farthest sample's clip.w (soft: the influence regions' far plane),
+//    its most samples in one cell (cellMost; also the frame's counter
+//    PENUMBRA_STAT_AFSM_CELL_MOST) and the rectangle of its cells holding
+//    more than push.sliceSamples (crowded: the raster path tests those in
+//    slices, one more draw per slice; afsm_casters.glsli);
 //  PENUMBRA_AFSM_LIST: after the prefix sum (afsm_scan.comp.glsl) turned the
 //    counts into offsets, the sample writes its ray and pixel index
 //    (AfsmRaySlot, afsm.glsli) into its cell's range of the flat list of
@@ -43,7 +47,9 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 layout(set = 0, binding = 6, std430) buffer CellCount { uint cellCount[]; };   // per cell: samples, then (scan) first slot
 layout(set = 0, binding = 7, std430) buffer CellFill { uint cellFill[]; };     // per cell: slots taken (PENUMBRA_AFSM_LIST)
 layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };     // per pixel: 1 when a caster blocks its ray (soft: all its samples)
-layout(set = 0, binding = 9, std430) buffer Far { uint farBits; };             // the layer's farthest sample's clip.w (float bits)
+// The layer's farthest sample's clip.w (float bits), its most samples in a cell, and its crowded cells' rectangle
+// (min x, min y, max x, max y; cleared to ~0, ~0, 0, 0). C++: afsm.h (AfsmFar).
+layout(set = 0, binding = 9, std430) buffer Far { uint farBits; uint cellMost; uint crowded[4]; };
 layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth (float bits)
 layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared here)
 layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (counted here)
@@ -61,6 +67,8 @@ layout(push_constant) uniform AfsmSamplesPush {
     uint cube;          // 1: the layers are the six cube faces around the light's position
     uint samples;       // soft: light samples n
     uint tableSize;     // soft: angles | distances << 16
+    uint sliceSamples;  // COUNT: a cell with more samples is crowded (afsmSliceSamples)
+    uint pad;
 } push;
 
 #ifdef PENUMBRA_AFSM_SOFT
@@ -159,11 +167,17 @@ uvec2 samplePixel()
     }
 #endif
     if (push.mode == PENUMBRA_AFSM_COUNT) {
-        atomicAdd(cellCount[cell], 1u);
+        uint before = atomicAdd(cellCount[cell], 1u);
+        if (before == push.sliceSamples) { // the cell's first sample past one slice: once per crowded cell
+            atomicMin(crowded[0], cell % push.gridSize);
+            atomicMin(crowded[1], cell / push.gridSize);
+            atomicMax(crowded[2], cell % push.gridSize);
+            atomicMax(crowded[3], cell / push.gridSize);
+        }
         // Depths lie in [0, 1] (the grid's depth range holds the model) but for a hair past it; clamped as the casters' depth
         // test clamps; non-negative floats order as uints.
         atomicMax(cellDepth[cell], floatBitsToUint(clamp(depth, 0.0, 1.0)));
-        return uvec2(0u, floatBitsToUint(w));
+        return uvec2(before + 1u, floatBitsToUint(w)); // the cell's last sample sees its count
     } else {
         uint slot = cellCount[cell] + atomicAdd(cellFill[cell], 1u);
         slotShadowed[slot] = 0u;
@@ -185,10 +199,15 @@ uvec2 samplePixel()
 void main()
 {
     uvec2 counts = samplePixel(); // covered pixels are counted by shade
-    // The layer's farthest sample (clip.w): one atomic per subgroup.
+    // The layer's farthest sample (clip.w) and its most samples in a cell: one atomic each per subgroup.
     if (push.mode == PENUMBRA_AFSM_COUNT) {
         uint farthest = subgroupMax(counts.y);
+        uint most = subgroupMax(counts.x);
         if (subgroupElect() && farthest != 0u)
             atomicMax(farBits, farthest);
+        if (subgroupElect() && most != 0u) {
+            atomicMax(cellMost, most);
+            atomicMax(stats[PENUMBRA_STAT_AFSM_CELL_MOST], uint64_t(most));
+        }
     }
 }

@@ -4,8 +4,11 @@
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Alias-free shadow maps, soft shadows (Sintorn et al. 2008, section 4.2):
 // for one caster and one grid cell of its influence region
-// (afsm_soft.geom.glsl), every sample listed in the cell against the caster
-// (afsm_casters.glsli: afsmTestCellSoft, four table lookups per sample).
+// (afsm_soft.geom.glsl), the samples listed in the cell against the caster
+// (afsm_casters.glsli: afsmTestCellSoft, four table lookups per sample): one
+// slice of the cell's list, at most afsmSliceSamples(samples) from
+// push.sliceBegin (afsm.glsli: lavapipe's loop limit); a crowded cell's
+// later slices come in later draws (afsm_soft.geom.glsl).
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -42,7 +45,7 @@ layout(push_constant) uniform AfsmSoftPush {
     uint tableSize;     // angles | distances << 16
     float computeCells;
     uint closedBackFaces;
-    uint pad1;
+    uint sliceBegin;    // the first sample of each cell's list this draw tests (0, or a later slice of the crowded cells)
 } push;
 
 void main()
@@ -50,8 +53,8 @@ void main()
     uvec2 cellXY = uvec2(gl_FragCoord.xy);
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_soft.geom.glsl).
-    if (cellAlive[cell] == 0u)
+    if (cellAlive[cell] == 0u || cellCount[cell] <= push.sliceBegin)
         return;
-    afsmTestCellSoft(cell, frame.lights[push.lightIndex], AfsmSoftTable(push.slots, push.masks, push.table, push.samples, push.tableSize),
+    afsmTestCellSoft(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(push.samples), frame.lights[push.lightIndex], AfsmSoftTable(push.slots, push.masks, push.table, push.samples, push.tableSize),
                      vertex0, vertex1, vertex2);
 }

@@ -11,6 +11,14 @@
 // afsm_soft.frag.glsl tests every sample listed there. With
 // push.computeCells > 0 the casters whose rectangle spans at most that many
 // cells were tested by the compute path (afsm_bin.comp.glsl) and are left out.
+//
+// Slices (push.sliceBegin > 0): a fragment tests at most afsmSliceSamples
+// of its cell's samples (lavapipe silently ends an invocation's loops after
+// 65535 iterations in all, afsm.glsli), so when some cell holds more
+// (crowded; afsm_samples.comp.glsl counts them), the layer's casters are
+// drawn again once per further slice, each draw's fragments testing the
+// samples from push.sliceBegin on; those draws cover only the rectangle of
+// the crowded cells and leave out the casters that miss it.
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -30,7 +38,7 @@ layout(location = 2) flat out vec3 vertex2;
 // C++: runtime/src/passes/afsm.h (AfsmSoftBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; }; // samples per cell
-layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
+layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; uint cellMost; uint crowded[4]; }; // afsm_samples.comp.glsl
 layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };
 layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; };  // bit per cluster: kClusterClosed
 
@@ -50,7 +58,7 @@ layout(push_constant) uniform AfsmSoftPush {
     uint tableSize;
     float computeCells; // rectangles of at most this many cells: the compute path's (0: none)
     uint closedBackFaces; // closed clusters cast only light-back-facing triangles (afsm_casters.glsli)
-    uint pad1;
+    uint sliceBegin;      // > 0: a later slice of the crowded cells (see above)
 } push;
 
 void main()
@@ -64,6 +72,12 @@ void main()
         return;
     // The region's hull grown by half a cell, within the rectangle.
     vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);
+    if (push.sliceBegin > 0u) { // the crowded cells' rectangle only
+        lo = max(lo, vec2(crowded[0], crowded[1]));
+        hi = min(hi, vec2(crowded[2] + 1u, crowded[3] + 1u));
+        if (any(greaterThan(lo, hi)))
+            return;
+    }
     afsmRectPolygon(lo, hi);
     if (!r.whole) {
         for (int i = 0; i < afsmPointCount; ++i)

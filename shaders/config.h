@@ -34,6 +34,9 @@
 #define PENUMBRA_AFSM_BIN_GROUP 64       // afsm_bin.comp: BVH nodes per workgroup (their leaves then decoded one per invocation)
 #define PENUMBRA_AFSM_COMPUTE_CELLS 16.0 // afsm: casters whose grown rectangle spans at most this many grid cells are tested in compute
 #define PENUMBRA_AFSM_COMPUTE_BUDGET 384u // ... when their cells and samples take at most this many loop iterations (lavapipe: 65535 per invocation)
+#define PENUMBRA_AFSM_FRAGMENT_ITERATIONS 60000u // afsm raster path: most loop iterations one fragment spends on a cell's samples
+                                         // (lavapipe silently ends an invocation's loops after 65535 in all); a cell with more
+                                         // samples is tested in slices, one more draw per slice (afsm.h: afsmSliceSamples)
 #define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: records or nodes per workgroup
 #define PENUMBRA_RH_MAX_LEVELS 16        // rh: most levels of a cone hierarchy (4^15 leaves: far more than any image's rays)
 #define PENUMBRA_RH_MAX_SORT_ORDER 10u   // rh sorted: at most 2^10 x 2^10 Hilbert cells per face (about 2 cells per pixel's ray, rh.cpp)
@@ -135,6 +138,7 @@
 #define PENUMBRA_STAT_PIP 4              // pixels marked potentially incorrect (srt) or light-facing (frt)
 #define PENUMBRA_STAT_COVERED 5          // covered pixels (counted once per light)
 #define PENUMBRA_STAT_PENUMBRA 6         // pixels whose visibility of an area light is strictly between 0 and 1
+#define PENUMBRA_STAT_AFSM_CELL_MOST 7   // afsm: the most samples listed in one grid cell of any layer (atomicMax)
 #define PENUMBRA_STAT_COUNT 8
 
 #define PENUMBRA_LIGHT_POINT 0

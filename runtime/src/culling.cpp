@@ -608,6 +608,14 @@ void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeome
         vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * viewIndex + 1);
 }
 
+void Culling::recordViewAgain(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry, const BeginRendering& begin,
+                              const EndRendering& end)
+{
+    if (viewIndex < plans.size() && plans[viewIndex].view.occlusion)
+        fail("culling", "view " + plans[viewIndex].view.name + " has occlusion queries and cannot be drawn again");
+    recordPhases(cmd, viewIndex, geometry, begin, end);
+}
+
 void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry,
                            const BeginRendering& begin, const EndRendering& end)
 {

@@ -131,6 +131,10 @@ struct Culling {
     // Records view `view` of beginFrame's list (with CullMode::None or no model: the whole geometry).
     void recordView(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
                     const EndRendering& end);
+    // The same view's draws once more, after recordView, untimed (afsm's
+    // slices of crowded cells); only for views without occlusion queries.
+    void recordViewAgain(VkCommandBuffer cmd, uint32_t view, const GpuGeometry& geometry, const BeginRendering& begin,
+                         const EndRendering& end);
     // After the frame's fence: reads the queries, updates the histories and
     // returns per-view stats (empty without a compressed model).
     std::vector<ViewCullStats> endFrame(vk::Device& device);

@@ -177,7 +177,7 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     afsmSlots = vk::createBuffer(device, pixels * 48, kStorageDst, vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
     afsmSlotShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
-    afsmFar = vk::createBuffer(device, 16, kStorageDst, vk::MemoryUse::DeviceLocal);
+    afsmFar = vk::createBuffer(device, 32, kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal); // passes::AfsmFar
     afsmGrid = gridSize;
     return true;
 }

@@ -52,7 +52,7 @@ struct FrameTargets {
     vk::Buffer afsmCellFirst, afsmCellCount, afsmBlockSums; // per grid cell
     vk::Buffer afsmSlots, afsmShadowed;                     // per pixel: a slot of the sample list (48 bytes, addressable), a flag
     vk::Buffer afsmSlotShadowed;                            // per slot: its pixel's flag
-    vk::Buffer afsmFar;                                     // the layer's farthest sample depth
+    vk::Buffer afsmFar;                                     // the layer's farthest sample depth, most samples in a cell, crowded cells (passes::AfsmFar)
     vk::Buffer afsmCellDepth, afsmCellAlive;                // per grid cell: its farthest sample depth, its samples not yet shadowed
     vk::Image afsmDepth;                                    // D32 grid: the cells' farthest sample depths (the casters' depth test)
     // RenderSettings::readbackLightLayers only, made on first use: every light's

@@ -240,12 +240,14 @@ struct Renderer::Impl::FrameScript {
         }
         receiverMasks.resize(6 * lights.size());
         thinClusterMask.assign(6 * lights.size(), 0);
-        // Maps fitted to what the camera sees: directional lights, and area lights whose maps are drawn.
-        // Views that cull the casters beside the points the camera sees: every light but area lights.
+        // Maps fitted to what the camera sees: directional lights, area lights whose maps are drawn, and afsm's
+        // area-light grids (afsmAreaLayers). Views that cull the casters beside the points the camera sees: every
+        // light but area lights.
         const bool gridsAllowed = s.cullBesideReceivers && s.cull != CullMode::None && r.geometry.encoding == GeometryEncoding::Compressed;
         for (uint32_t i = 0; i < lights.size(); ++i) {
             const bool area = isAreaLight(lights[i]);
-            if (s.fitShadowMapsToView && (lights[i].type == LightType::Directional || (area && spec.drawsAreaMaps())))
+            const bool afsmGrid = area && s.shadows == ShadowMethod::AliasFree;
+            if (s.fitShadowMapsToView && (lights[i].type == LightType::Directional || (area && spec.drawsAreaMaps()) || afsmGrid))
                 viewFitMask |= 1u << i;
             if (gridsAllowed && !area)
                 receiverGridMask |= 1u << i;
@@ -451,6 +453,21 @@ struct Renderer::Impl::FrameScript {
         return paged;
     }
 
+    // afsm, after a layer's samples: its most samples in one cell, read back
+    // (the frame's commands so far submitted and waited for) when a cell of
+    // the grid could hold more than one fragment's slice (AfsmPass::mayCrowd;
+    // the casters then draw the crowded cells once per further slice); 0
+    // otherwise.
+    uint32_t afsmCellMost(bool soft)
+    {
+        if (!r.afsm.mayCrowd(soft))
+            return 0;
+        r.afsm.recordCellMostReadback(cmd);
+        r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+        beginCommands();
+        return r.afsm.cellMost();
+    }
+
     // Paged geometry: rh's casters are drawn in batches within ranges whose
     // pages fit the pool, each range made resident before its first batch
     // (the device is idle then: every batch ends with a wait). Empty in core.
@@ -635,7 +652,14 @@ struct Renderer::Impl::FrameScript {
             if (viewFitMask & (1u << i)) {
                 ViewClip clips[6];
                 readViewClips(r.targets.viewBounds, i, clips);
-                data.lights[i] = packLight(lights[i], bounds, settings, clips);
+                if (settings.shadows == ShadowMethod::AliasFree && isAreaLight(lights[i])) {
+                    // afsm's grid of the area light around the samples (its map 0 stays model-fitted: the bounds' space).
+                    bool cube = false;
+                    afsmLayers[i] = afsmAreaLayers(lights[i], bounds, cube, &clips[0], r.targets.afsmGrid);
+                    afsmCube[i] = cube;
+                } else {
+                    data.lights[i] = packLight(lights[i], bounds, settings, clips);
+                }
             }
             if (receiverGridMask & (1u << i))
                 for (uint32_t layer = 0; layer < layers(i); ++layer)
@@ -770,10 +794,11 @@ struct Renderer::Impl::FrameScript {
                 for (uint32_t k = 0; k < grid.size(); ++k) {
                     r.afsm.recordSamples(cmd, light, grid[k].index, grid[k].grid, afsmCube[light], rayOffset, true);
                     timer.mark(cmd, PassId::AfsmSamples);
+                    const uint32_t most = afsmCellMost(true);
                     const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + k);
                     r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
                                          {lightFirstView[light] + k, 6 * light + grid[k].index, grid[k].grid, light, rayOffset, true,
-                                          afsmBackFaces},
+                                          afsmBackFaces, most},
                                          [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
                     timer.mark(cmd, PassId::AfsmCasters);
                 }
@@ -783,10 +808,11 @@ struct Renderer::Impl::FrameScript {
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
                 r.afsm.recordSamples(cmd, light, layer, l.viewProj[layer], layers(light) == 6, rayOffset, false);
                 timer.mark(cmd, PassId::AfsmSamples);
+                const uint32_t most = afsmCellMost(false);
                 const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + layer);
                 r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
                                      {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false,
-                                      afsmBackFaces},
+                                      afsmBackFaces, most},
                                      [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
                 timer.mark(cmd, PassId::AfsmCasters);
             }
@@ -987,6 +1013,8 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
                                                                                                                                 : 0.0f;
     if (settings.shadows == ShadowMethod::AliasFree) {
         out.afsmClosedClusters = afsmClosedClusters;
+        out.afsmCellMost = uint32_t(counters[PENUMBRA_STAT_AFSM_CELL_MOST]);
+        out.afsmSliceDraws = r.afsm.takeSliceDraws();
         out.afsmClosedCasting = !afsmClosedClusters ? "none closed"
                                 : afsmBackFaces     ? "back faces"
                                 : !afsmOffsetClear  ? "both sides (ray offset above the default)"

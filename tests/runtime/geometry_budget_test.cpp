@@ -16,6 +16,8 @@
 #include "penumbra/generate.h"
 #include "penumbra/penumbra.h"
 #include "penumbra/preprocess.h"
+#include "penumbra/oracle.h"
+#include "passes/afsm.h"
 
 namespace penumbra {
 namespace {
@@ -247,25 +249,79 @@ TEST(GeometryBudget, AliasFreeAndRayHierarchyWholeModelInRanges)
     }
 }
 
-// lavapipe's rasterizer threads make afsm's soft shadows differ from run to
-// run on a few pixels, budget or not (the same renderer, the same frame twice:
-// 13-27 of 65536 pixels on the first frame below; found here, not yet
-// explained). With LP_NUM_THREADS=0 (one thread, read when a device is
-// made) they repeat bit for bit, and the budget must not change them.
-struct SingleThreadedLavapipe {
-    SingleThreadedLavapipe() { setenv("LP_NUM_THREADS", "0", 1); }
-    ~SingleThreadedLavapipe() { unsetenv("LP_NUM_THREADS"); }
-};
-
 // afsm's soft shadows (section 4): every caster ORs the light samples it
 // hides into the samples' masks, in ranges under a budget.
 TEST(GeometryBudget, AliasFreeSoftShadowsSameImages)
 {
-    const SingleThreadedLavapipe singleThreaded;
     const Budgeted city = preparedCity();
     const Bounds bounds = modelBounds(city.model);
     const std::vector<Camera> cameras = cameraPath(bounds);
     compareAlongPaths(city, {{cameras[0], {rectangleAbove(cameras[0], bounds, 0.0f)}}}, {ShadowMethod::AliasFree}, "afsm soft", false, 128);
+}
+
+// afsm's soft grid on the close-up (issue 17). Fitted to the whole model
+// (fitShadowMapsToView off) the grid puts every sample of the frame into one
+// cell, more than one fragment may test (lavapipe ends an invocation's loops
+// after 65535 iterations: afsmSliceSamples), so the casters draw that cell
+// again per further slice of its list; before the slices, the later samples
+// went untested and which ones followed lavapipe's threads. Fitted to the
+// view (the default) the samples spread over the grid. Both must give the
+// same image (every sample tested against every caster; only the grid
+// differs), repeat it bit for bit with lavapipe's threads, and differ from
+// the oracle tracing the table's own samples only by the table.
+TEST(GeometryBudget, AliasFreeCrowdedSoftGridIsSlicedAndExact)
+{
+    const Budgeted city = preparedCity();
+    const Bounds bounds = modelBounds(city.model);
+    const std::vector<Camera> cameras = cameraPath(bounds);
+    const Light light = rectangleAbove(cameras[0], bounds, 0.0f);
+    const uint32_t samples = 128;
+    Renderer renderer;
+    renderer.loadModel(city.model);
+    renderer.setCamera(cameras[0]);
+    renderer.setLights({light});
+    auto render = [&](bool fit) {
+        RenderSettings settings;
+        settings.width = settings.height = kSize;
+        settings.shadows = ShadowMethod::AliasFree;
+        settings.lightSamples = samples;
+        settings.readbackGBuffer = true;
+        settings.fitShadowMapsToView = fit;
+        Frame frame = renderer.render(settings);
+        EXPECT_EQ(renderer.validationMessageCount(), 0u);
+        return frame;
+    };
+    const Frame fitted = render(true);
+    const Frame crowded = render(false);
+    const Frame again = render(false);
+    const uint32_t slice = passes::afsmSliceSamples(samples);
+    std::printf("[ afsm     ] most samples in a cell: %u fitted to the view, %u fitted to the model (%u slice draws; a slice holds %u)\n",
+                fitted.stats.afsmCellMost, crowded.stats.afsmCellMost, crowded.stats.afsmSliceDraws, slice);
+    EXPECT_LE(fitted.stats.afsmCellMost, slice);
+    EXPECT_EQ(fitted.stats.afsmSliceDraws, 0u);
+    EXPECT_GT(crowded.stats.afsmCellMost, 2 * slice); // the case the slices are for
+    EXPECT_EQ(crowded.stats.afsmSliceDraws, (crowded.stats.afsmCellMost - 1) / slice);
+    expectSameImage(crowded, again, "crowded grid, twice");
+    expectSameImage(fitted, crowded, "grid fitted to the view against the crowded one");
+
+    EmbreeOracle oracle(decodeMesh(city.model));
+    OracleOptions options;
+    options.originOffset = crowded.stats.rayOffset;
+    options.afsmSamples = true;
+    const std::vector<float> reference = oracle.softShadowVisibility(crowded.positions, crowded.normals, kSize, light, 0, samples, options);
+    size_t compared = 0, beyond = 0;
+    double sum = 0.0;
+    for (size_t i = 0; i < reference.size(); ++i) {
+        if (reference[i] == -1.0f)
+            continue;
+        const double d = std::abs(double(std::max(reference[i], 0.0f)) - double(std::max(crowded.visibility[i], 0.0f)));
+        ++compared;
+        sum += d;
+        beyond += d * samples > 4.0; // the table's bound for 128 samples (afsm_test: SoftShadowsDifferFromTheOracleOnlyByTheTable)
+    }
+    EXPECT_GT(compared, 30'000u);
+    EXPECT_LE(sum / double(compared), 0.0005);
+    EXPECT_EQ(beyond, 0u);
 }
 
 // frt's area lights draw no map, so no view asks for the casters: a low light's

@@ -240,6 +240,13 @@ struct FrameStats {
     // ray offset (rayOffset) as the only epsilon.
     uint64_t afsmClosedClusters = 0;
     std::string afsmClosedCasting;
+    // afsm: the most view samples listed in one grid cell of any layer, and
+    // the extra draws of the casters over crowded cells (one per slice of a
+    // cell's list past the first; a fragment tests at most
+    // passes::afsmSliceSamples of a cell's samples: lavapipe ends a shader
+    // invocation's loops after 65535 iterations).
+    uint32_t afsmCellMost = 0;
+    uint32_t afsmSliceDraws = 0;
     uint32_t rhLights = 0, rhSortedLights = 0; // hierarchies built (one per light), and those over rays sorted by direction
     uint64_t rhAcceptedNodes = 0;              // nodes found covered by a triangle and accepted whole (early accept, section 3.3)
     double rhIncoherence = 0;                  // --rh-sort auto: the last light's measured screen-space incoherence (README, rh)

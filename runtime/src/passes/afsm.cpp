@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 
 #include <glm/geometric.hpp>
@@ -33,11 +34,13 @@ std::vector<VkDescriptorType> binBindingTypes()
 }
 
 // A perspective frustum from eye along forward with a square field of view
-// (half-angle tangent halfTan); y is not flipped (culling only).
-glm::mat4 cullFrustum(glm::vec3 eye, glm::vec3 forward, float halfTan, float nearPlane, float farPlane)
+// (half-angle tangent halfTan), its square's sides along up (0: an axis not
+// along forward); y is not flipped (culling only).
+glm::mat4 cullFrustum(glm::vec3 eye, glm::vec3 forward, float halfTan, float nearPlane, float farPlane, glm::vec3 up = glm::vec3(0.0f))
 {
     const glm::vec3 f = glm::normalize(forward);
-    const glm::vec3 up = std::abs(f.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
+    if (glm::length(up) == 0.0f)
+        up = std::abs(f.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
     return glm::perspectiveRH_ZO(2.0f * std::atan(halfTan), 1.0f, nearPlane, farPlane) * glm::lookAtRH(eye, eye + f, up);
 }
 
@@ -46,11 +49,12 @@ glm::mat4 cullFrustum(glm::vec3 eye, glm::vec3 forward, float halfTan, float nea
 // `radius` of the centre lies inside: it then holds every segment from a point
 // of the light to a point of the original frustum (both convex), so every
 // caster between the light and a sample of the layer.
-glm::mat4 pulledBackFrustum(glm::vec3 centre, glm::vec3 forward, float halfTan, float radius, float farPlane)
+// up: the original frustum's (its square's sides; 0: cullFrustum's choice).
+glm::mat4 pulledBackFrustum(glm::vec3 centre, glm::vec3 forward, float halfTan, float radius, float farPlane, glm::vec3 up = glm::vec3(0.0f))
 {
     const float pull = radius * std::sqrt(1.0f + halfTan * halfTan) / halfTan * 1.001f + 1e-6f * farPlane;
     const float far = (farPlane + pull) * 1.001f;
-    return cullFrustum(centre - glm::normalize(forward) * pull, forward, halfTan, far * 1e-6f, far);
+    return cullFrustum(centre - glm::normalize(forward) * pull, forward, halfTan, far * 1e-6f, far, up);
 }
 
 } // namespace
@@ -89,7 +93,14 @@ uint64_t afsmLargestBuffer(uint32_t width, uint32_t height, uint32_t samples, bo
     return std::max<uint64_t>(soft ? pixels * afsmTableSize(samples).words * 4 : 0, pixels * 48);
 }
 
-std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, bool& cube)
+uint32_t afsmSliceSamples(uint32_t samples)
+{
+    // afsm.glsli: afsmSliceSamples (a loop of n rounds takes n + 1 iterations; soft: each sample's loop over its quads).
+    const uint32_t quads = (samples + 127) / 128;
+    return samples == 0 ? PENUMBRA_AFSM_FRAGMENT_ITERATIONS - 1 : (PENUMBRA_AFSM_FRAGMENT_ITERATIONS - 1) / (quads + 2);
+}
+
+std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, bool& cube, const ViewClip* viewClip, uint32_t gridSize)
 {
     const bool oneSided = light.type != LightType::Sphere;
     glm::vec3 u, v;
@@ -97,11 +108,19 @@ std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, 
     const float radius = light.type == LightType::Rectangle ? glm::length(u + v) : light.radius;
     glm::vec3 axis = oneSided ? glm::normalize(light.direction) : bounds.center() - light.position;
     axis = glm::length(axis) > 0.0f ? glm::normalize(axis) : glm::vec3(0, -1, 0);
-    const AreaMapProjection map = areaMapProjection(light.position, axis, light.up, bounds);
+    const AreaMapProjection model = areaMapProjection(light.position, axis, light.up, bounds);
+    AreaMapProjection map = model;
+    if (viewClip && viewClip->valid)
+        map = fitAreaMapToView(model, light.position, light.up, bounds, glm::vec2(viewClip->min), glm::vec2(viewClip->max), 0.0f,
+                               std::max(gridSize, 16u));
+    const bool fitted = map.footprint != model.footprint || map.viewProj != model.viewProj;
     std::vector<AfsmLayer> layers;
-    cube = map.capped;
+    cube = model.capped && !fitted;
     if (!cube) {
-        layers.push_back({map.viewProj, pulledBackFrustum(light.position, axis, 0.5f * map.footprint, radius, map.farPlane), 0});
+        // The cull frustum's square turned as the grid's (its view's x and y axes), so that it holds the grid's corners.
+        const glm::vec3 forward = -glm::vec3(map.view[0][2], map.view[1][2], map.view[2][2]);
+        const glm::vec3 up = glm::vec3(map.view[0][1], map.view[1][1], map.view[2][1]);
+        layers.push_back({map.viewProj, pulledBackFrustum(light.position, forward, 0.5f * map.footprint, radius, map.farPlane, up), 0});
         return layers;
     }
     // Six faces of a cube around the centre (the point light's, same order and matrices).
@@ -207,6 +226,7 @@ void AfsmPass::create(vk::Device& device)
     bin.create(device, "afsm_bin.comp", binBindingTypes(), sizeof(AfsmBinPush));
     binSoft.create(device, "afsm_bin.comp.soft", binBindingTypes(), sizeof(AfsmBinPush));
     params = createBuffer(device, sizeof(AfsmParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
+    cellMostReadback = createBuffer(device, 16, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUse::Readback);
     closedBits = createBuffer(device, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload, Addressable::Yes);
     std::memset(closedBits.mapped, 0, 16);
     if (!device.aliasFree)
@@ -242,7 +262,7 @@ void AfsmPass::destroy(vk::Device& device)
     castersPool = VK_NULL_HANDLE;
     castersSetLayout = VK_NULL_HANDLE;
     castersSet = VK_NULL_HANDLE;
-    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &params, &clusterMasks, &closedBits})
+    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &params, &clusterMasks, &closedBits, &cellMostReadback})
         vk::destroyBuffer(device, *buffer);
     tableCounts[0] = tableCounts[1] = 0;
     maskWords = maskPixels = clusterMaskWords = 0;
@@ -381,7 +401,8 @@ void AfsmPass::clear(VkCommandBuffer cmd) const
 AfsmSamplesPush AfsmPass::samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube,
                                       float originOffset, bool soft) const
 {
-    AfsmSamplesPush push{viewProj, slotsAddress, 0, 0, lightIndex, mode, layer, targets.gridSize, originOffset, cube ? 1u : 0u, 0, 0};
+    AfsmSamplesPush push{viewProj, slotsAddress, 0, 0, lightIndex, mode, layer, targets.gridSize, originOffset, cube ? 1u : 0u, 0, 0,
+                         afsmSliceSamples(soft ? softSamples : 0), 0};
     if (soft) {
         push.masks = masksAddress;
         push.table = tableAddress;
@@ -407,7 +428,9 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     vk::memoryBarrier(cmd, kFragment | kGeometry | kCompute | kCopy, kStorageRead | kTransferRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, targets.cellFirst->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.cellCount->buffer, 0, VkDeviceSize(cells) * 4, 0);
-    vkCmdFillBuffer(cmd, targets.far->buffer, 0, VK_WHOLE_SIZE, 0);
+    vkCmdFillBuffer(cmd, targets.far->buffer, 0, offsetof(AfsmFar, crowded), 0);
+    vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded), 2 * sizeof(uint32_t), ~0u); // the crowded cells' minima
+    vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded) + 8, 2 * sizeof(uint32_t), 0);
     vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.cellAlive->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
@@ -513,13 +536,13 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     rendering.pDepthAttachment = &depthAttachment;
     const float computeCells = compute ? float(PENUMBRA_AFSM_COMPUTE_CELLS) : 0.0f;
     const uint32_t closed = layer.closedBackFaces ? 1u : 0u;
-    const AfsmCastersPush hardPush{layer.viewProj, slotsAddress, layer.lightIndex, grid, layer.originOffset, computeCells, closed, 0};
-    const AfsmSoftPush softPush{layer.viewProj, slotsAddress, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,
-                                softSamples,   softTable.packed(), computeCells, closed, 0};
+    AfsmCastersPush hardPush{layer.viewProj, slotsAddress, layer.lightIndex, grid, layer.originOffset, computeCells, closed, 0};
+    AfsmSoftPush softPush{layer.viewProj, slotsAddress, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,
+                          softSamples,   softTable.packed(), computeCells, closed, 0};
     const vk::RasterPipelines& pipelines = layer.soft ? softCasters : casters;
     const VkPipeline pipeline = pipelines[geometry.encoding];
     const VkDescriptorSet set = castersSet;
-    culling.recordView(cmd, layer.view, geometry, [&](bool) {
+    auto begin = [&](bool) {
         vkCmdBeginRendering(cmd, &rendering);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipelines.layout, 0, 1, &set, 0, nullptr);
@@ -529,8 +552,45 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
             vkCmdPushConstants(cmd, pipelines.layout, stages, 0, sizeof(softPush), &softPush);
         else
             vkCmdPushConstants(cmd, pipelines.layout, stages, 0, sizeof(hardPush), &hardPush);
-    }, [&] { vkCmdEndRendering(cmd); });
+    };
+    auto end = [&] { vkCmdEndRendering(cmd); };
+    culling.recordView(cmd, layer.view, geometry, begin, end);
+    // Crowded cells (more samples than one fragment may loop over, afsmSliceSamples): the casters again over those
+    // cells, once per further slice of their lists (afsm_casters.geom.glsl, afsm_soft.geom.glsl). The compute path
+    // takes no caster of a crowded cell (its work budget is far smaller than a slice).
+    const uint32_t slice = afsmSliceSamples(layer.soft ? softSamples : 0);
+    for (uint32_t first = slice; first < layer.cellMost; first += slice) {
+        vk::memoryBarrier(cmd, kFragment, kStorageWrite, kFragment, kStorageRW);
+        hardPush.sliceBegin = softPush.sliceBegin = first;
+        culling.recordViewAgain(cmd, layer.view, geometry, begin, end);
+        ++sliceDraws;
+    }
     vk::memoryBarrier(cmd, kFragment, kStorageWrite, kCompute | kClear, kStorageRW | kTransferWrite);
+}
+
+bool AfsmPass::mayCrowd(bool soft) const
+{
+    return uint64_t(targets.width) * targets.height > afsmSliceSamples(soft ? softSamples : 0);
+}
+
+void AfsmPass::recordCellMostReadback(VkCommandBuffer cmd) const
+{
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCopy, kTransferRead);
+    const VkBufferCopy region{offsetof(AfsmFar, cellMost), 0, sizeof(uint32_t)};
+    vkCmdCopyBuffer(cmd, targets.far->buffer, cellMostReadback.buffer, 1, &region);
+    vk::memoryBarrier(cmd, kCopy, kTransferWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
+}
+
+uint32_t AfsmPass::cellMost() const
+{
+    return *static_cast<const uint32_t*>(cellMostReadback.mapped);
+}
+
+uint32_t AfsmPass::takeSliceDraws()
+{
+    const uint32_t draws = sliceDraws;
+    sliceDraws = 0;
+    return draws;
 }
 
 void AfsmPass::recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const

@@ -20,6 +20,7 @@
 #include <glm/mat4x4.hpp>
 
 #include "culling.h"
+#include "lights.h"
 #include "model_geometry.h"
 #include "passes/pixel_bindings.h"
 #include "penumbra/penumbra.h"
@@ -64,8 +65,18 @@ struct AfsmSamplesPush {
     uint32_t cube;      // the layers are the six cube faces around the light's position
     uint32_t samples;   // soft: light samples
     uint32_t tableSize; // soft: angles | distances << 16
+    uint32_t sliceSamples; // a cell with more samples is crowded (afsmSliceSamples)
+    uint32_t pad;
 };
-static_assert(sizeof(AfsmSamplesPush) == 120);
+static_assert(sizeof(AfsmSamplesPush) == 128);
+
+// The layer's buffer kAfsmFar (afsm_samples.comp.glsl writes it).
+struct AfsmFar {
+    uint32_t farBits;    // the farthest sample's clip.w (float bits)
+    uint32_t cellMost;   // the most samples in one cell
+    uint32_t crowded[4]; // the cells holding more than afsmSliceSamples: min x, min y, max x, max y (~0, ~0, 0, 0: none)
+};
+static_assert(sizeof(AfsmFar) == 24);
 
 struct AfsmScanPush {
     uint32_t count;
@@ -81,7 +92,7 @@ struct AfsmCastersPush {
     float originOffset;
     float computeCells; // casters of at most this many cells are the compute path's (0: none)
     uint32_t closedBackFaces; // closed clusters cast only light-back-facing triangles
-    uint32_t pad;
+    uint32_t sliceBegin;      // the first sample of each cell's list the draw tests (> 0: a later slice of the crowded cells)
 };
 static_assert(sizeof(AfsmCastersPush) == 96);
 
@@ -95,7 +106,7 @@ struct AfsmSoftPush {
     uint32_t tableSize;
     float computeCells;
     uint32_t closedBackFaces;
-    uint32_t pad;
+    uint32_t sliceBegin; // as AfsmCastersPush
 };
 static_assert(sizeof(AfsmSoftPush) == 120);
 
@@ -146,6 +157,14 @@ struct AfsmTargets {
     uint32_t width = 0, height = 0, gridSize = 0;
 };
 
+// The most samples of one cell a fragment of the raster path tests (one
+// slice of the cell's list; afsm.glsli, afsmSliceSamples: lavapipe silently
+// ends a shader invocation's loops after 65535 iterations in all). A cell
+// with more (crowded) is tested in slices: the layer's casters are drawn
+// again over the crowded cells once per further slice. samples 0: hard
+// shadows; else the light samples of soft shadows.
+uint32_t afsmSliceSamples(uint32_t samples);
+
 // Cells per side of the grid for a width x height view: one cell per pixel of
 // the longer side, rounded up to a multiple of 16 (the paper fits one sample
 // per texel).
@@ -182,7 +201,18 @@ struct AfsmLayer {
 // model, or, when that would be wider than PENUMBRA_AREA_MAX_HALF_FOV, the six
 // faces of a cube around its centre (a one-sided light's faces wholly behind
 // it left out). cube: whether the layers are cube faces.
-std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, bool& cube);
+// Fitted to the view (viewClip valid: the bounds of the points the camera
+// sees in the clip space of the model-fitted grid's projection, the light's
+// map 0 of packLight, view_fit.comp.glsl): one grid around those points
+// alone (fitAreaMapToView, no widening: the grid holds the samples, the
+// casters are found through the cull frustum; a margin of
+// PENUMBRA_VIEW_FIT_MARGIN_TEXELS cells of a gridSize grid), as sm and srt
+// fit their area maps, also where the model needed the cube; the model's
+// layers when the fit would not narrow the grid. A close-up then spreads its
+// samples over the grid instead of crowding a few cells of a grid over the
+// whole model (issue 17: cells over afsmSliceSamples are tested in slices).
+std::vector<AfsmLayer> afsmAreaLayers(const Light& light, const Bounds& bounds, bool& cube, const ViewClip* viewClip = nullptr,
+                                      uint32_t gridSize = 0);
 
 // Whether what the camera of cameraViewProj sees may lie inside a closed mesh
 // (clusters flagged kClusterClosed, wound counter-clockwise outside): a point
@@ -233,6 +263,7 @@ class AfsmPass {
         float originOffset = 0;
         bool soft = false;
         bool closedBackFaces = false; // closed clusters cast only light-back-facing triangles
+        uint32_t cellMost = 0;        // the layer's most samples in one cell (cellMost; 0: none crowded, mayCrowd false)
     };
     // Paged geometry (geometry_pages.h): the compute path bins the view's
     // clusters in ranges whose pages fit the pool together (ascending, as
@@ -249,6 +280,16 @@ class AfsmPass {
     // paged: required with paged geometry, ignored otherwise.
     void recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable,
                        const CasterLayer& layer, const std::function<void()>& afterCompute, const PagedCasters* paged = nullptr);
+    // Whether a cell of the bound image's grid could hold more than
+    // afsmSliceSamples (soft: of the prepared sample count): then the
+    // frame reads the layer's cellMost back before its casters.
+    bool mayCrowd(bool soft) const;
+    // After recordSamples: copies the layer's most samples in one cell
+    // where cellMost() reads it once the commands have run.
+    void recordCellMostReadback(VkCommandBuffer cmd) const;
+    uint32_t cellMost() const;
+    // Draws of the casters over crowded cells since the last call (one per slice past the first).
+    uint32_t takeSliceDraws();
     // The light's visibility (and cleared marks, counted pixels; soft: cleared masks).
     void recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const;
 
@@ -275,6 +316,8 @@ class AfsmPass {
     uint32_t softSamples = 0;
     AfsmTableSize softTable;
     vk::Buffer params;       // AfsmParams (host-visible)
+    vk::Buffer cellMostReadback; // AfsmFar::cellMost of the last layer read back (host-visible)
+    uint32_t sliceDraws = 0;
     vk::Buffer closedBits;   // bit per cluster: kClusterClosed (host-visible)
     const void* closedModel = nullptr; // the model closedBits describe (its cluster array)
     uint64_t closedCount = 0;
