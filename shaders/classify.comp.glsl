@@ -83,9 +83,19 @@ void main()
     float sum;
     if (!floorPixel(size, pixel, sum))
         return;
-    ivec2 texel = pixel * textureSize(shadowMap, 0).xy / size;
+    ivec2 mapSize = textureSize(shadowMap, 0).xy;
+    ivec2 texel = pixel * mapSize / size;
     float depth = texelFetch(shadowMap, ivec3(texel, 0), 0).r;
-    float thin = push.mode == PENUMBRA_CLASSIFY_PIP ? uintBitsToFloat(imageLoad(thinMap, ivec3(texel, 0)).r) : 0.0;
+    float thin = 0.0;
+    if (push.mode == PENUMBRA_CLASSIFY_PIP) {
+        // The PIP test's inputs: the thin map's texel and the 3x3 texels around the pixel's, as the four
+        // gathers depthDiscontinuityNear reads (shadow_common.glsli).
+        thin = uintBitsToFloat(imageLoad(thinMap, ivec3(texel, 0)).r);
+        vec2 corner = vec2(texel) / vec2(mapSize), texelSize = 1.0 / vec2(mapSize);
+        vec4 q = textureGather(shadowMap, vec3(corner, 0.0)) + textureGather(shadowMap, vec3(corner + vec2(texelSize.x, 0.0), 0.0)) +
+                 textureGather(shadowMap, vec3(corner + vec2(0.0, texelSize.y), 0.0)) + textureGather(shadowMap, vec3(corner + texelSize, 0.0));
+        depth += q.x + q.y + q.z + q.w;
+    }
     sum += depth + thin + frame.lights[push.lightIndex].positionType.x;
     imageStore(visibilityImage, pixel, vec4(floorNever(sum) ? 0.5 : 1.0));
     marks[uint(pixel.y * size.x + pixel.x)] = floorNever(sum) ? 1u : 0u;

@@ -167,9 +167,18 @@ void main()
     if (!floorPixel(size, pixel, sum))
         return;
     uint index = uint(pixel.y * size.x + pixel.x);
-    ivec2 texel = pixel * textureSize(shadowMap, 0).xy / size;
+    ivec2 mapSize = textureSize(shadowMap, 0).xy;
+    ivec2 texel = pixel * mapSize / size;
     float depth = texelFetch(shadowMap, ivec3(texel, 0), 0).r;
-    uint maskWord = kMode == PENUMBRA_SOFT_AVERAGE ? 0u : mask[(uint(texel.y) * push.mapSize + uint(texel.x)) >> 5u];
+    if (push.mode == PENUMBRA_SOFT_CENTRE_MASK) {
+        // The boundary tests' inputs: the thin map's texel and the 3x3 texels as four gathers (shadow_common.glsli).
+        depth += uintBitsToFloat(imageLoad(thinMap, ivec3(texel, 0)).r);
+        vec2 corner = vec2(texel) / vec2(mapSize), texelSize = 1.0 / vec2(mapSize);
+        vec4 q = textureGather(shadowMap, vec3(corner, 0.0)) + textureGather(shadowMap, vec3(corner + vec2(texelSize.x, 0.0), 0.0)) +
+                 textureGather(shadowMap, vec3(corner + vec2(0.0, texelSize.y), 0.0)) + textureGather(shadowMap, vec3(corner + texelSize, 0.0));
+        depth += q.x + q.y + q.z + q.w;
+    }
+    uint maskWord = push.mode == PENUMBRA_SOFT_AVERAGE ? 0u : mask[(uint(texel.y) * push.mapSize + uint(texel.x)) >> 5u];
     sum += depth + uintBitsToFloat(maskWord) + frame.lights[push.lightIndex].positionType.x;
     // The averaged visibility and the marks are read back by later maps: written unchanged.
     vec4 visibility = imageLoad(visibilityImage, pixel);

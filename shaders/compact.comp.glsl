@@ -1,13 +1,17 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_EXT_shader_atomic_int64 : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
-// Stream compaction of marked pixels into a dense ray list: per subgroup, a
-// ballot gives each marked pixel its exclusive prefix and the subgroup's
-// total, one elected invocation reserves the subgroup's range with a single
-// atomicAdd, then every marked pixel writes its slot (no workgroup barriers,
-// which are expensive on CPU drivers). Phase 1 (one invocation) writes the
+// Stream compaction of marked pixels into a dense ray list: each invocation
+// takes a 2x2 quad of pixels; per subgroup, an exclusive sum gives each
+// invocation the slot of its first marked pixel and the subgroup's total,
+// one elected invocation reserves the subgroup's range with a single
+// atomicAdd, then every invocation writes its marked pixels' slots (no
+// workgroup barriers, which are expensive on CPU drivers; four pixels an
+// invocation make a quarter of the reservations, each an atomic on one cache
+// line that lavapipe's threads take turns at). Phase 1 (one invocation) writes the
 // tracer's indirect dispatch size from the final count (2-D above 65535 groups)
 // and adds the count to the frame's PIP counter (the pixels given rays).
 
@@ -26,18 +30,24 @@ layout(push_constant) uniform CompactPush {
     uint height;  // of the image
 } push;
 
-// Each workgroup covers four 8x8 tiles side by side (workgroup (x, y): tiles
-// 4x .. 4x + 3 of tile row y), row by row inside a tile, so the rays of a SIMD
-// register of the tracer come from one tile: neighbouring points, coherent
-// rays (the list keeps this order). No integer division: llvmpipe runs it per
-// lane, three of them cost more than the rest of the pass. Returns the pixel
-// index, or ~0u outside the image.
-uint tilePixel()
+// Each workgroup covers a 32x32 block of pixels: 16 tiles of 8x8 (4 x 4),
+// each 16 invocations, each a 2x2 quad (the tile's quads row by row), so the
+// rays of a SIMD register of the tracer come from two quads, a 4x2 block of
+// neighbouring points: coherent rays (the list keeps this order). No integer
+// division: llvmpipe runs it per lane, three of them cost more than the rest
+// of the pass. Returns pixel k (0..3, row by row) of the invocation's quad.
+uvec2 quadPixel(uint k)
 {
-    uint inside = gl_LocalInvocationID.x & 63u;
-    uint x = (gl_WorkGroupID.x * 4u + (gl_LocalInvocationID.x >> 6)) * 8u + (inside & 7u);
-    uint y = gl_WorkGroupID.y * 8u + (inside >> 3);
-    return x < push.width && y < push.height ? y * push.width + x : ~0u;
+    uint invocation = gl_LocalInvocationID.x;
+    uint tile = invocation >> 4, quad = invocation & 15u;
+    uvec2 tileOrigin = gl_WorkGroupID.xy * 32u + uvec2(tile & 3u, tile >> 2) * 8u;
+    return tileOrigin + uvec2(quad & 3u, quad >> 2) * 2u + uvec2(k & 1u, k >> 1);
+}
+
+// The index of pixel p, or ~0u outside the image.
+uint pixelIndex(uvec2 p)
+{
+    return p.x < push.width && p.y < push.height ? p.y * push.width + p.x : ~0u;
 }
 
 #ifdef PENUMBRA_FLOOR
@@ -46,11 +56,13 @@ void main()
 {
     if (push.phase == PENUMBRA_COMPACT_DISPATCH)
         return;
-    uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * PENUMBRA_COMPACT_GROUP_SIZE + gl_LocalInvocationID.x;
-    // Each marked pixel writes one list entry (at its own index: the real
-    // pass then writes the list from its start, over these).
-    if (i < push.pixelCount && marks[i] != 0u)
-        rays[PENUMBRA_RAY_LIST_HEADER_UINTS + i] = i;
+    // The same quads; each marked pixel writes one list entry (at its own
+    // index: the real pass then writes the list from its start, over these).
+    for (uint k = 0u; k < 4u; ++k) {
+        uint i = pixelIndex(quadPixel(k));
+        if (i != ~0u && marks[i] != 0u)
+            rays[PENUMBRA_RAY_LIST_HEADER_UINTS + i] = i;
+    }
 }
 #else
 void main()
@@ -67,18 +79,24 @@ void main()
         atomicAdd(stats[PENUMBRA_STAT_PIP], uint64_t(rays[0]));
         return;
     }
-    uint i = tilePixel();
-    bool marked = i != ~0u && marks[i] != 0u;
-    uvec4 ballot = subgroupBallot(marked);
-    uint total = subgroupBallotBitCount(ballot);
+    uint entries[4];
+    uint count = 0u;
+    for (uint k = 0u; k < 4u; ++k) {
+        uint i = pixelIndex(quadPixel(k));
+        uint mark = i != ~0u ? marks[i] : 0u;
+        entries[k] = i | (mark == PENUMBRA_MARK_ONE_SAMPLE ? PENUMBRA_RAY_ONE_SAMPLE : 0u);
+        entries[k] = mark != 0u ? entries[k] : ~0u;
+        count += mark != 0u ? 1u : 0u;
+    }
+    uint total = subgroupAdd(count);
     if (total == 0u)
         return;
     uint base = 0u;
     if (subgroupElect())
         base = atomicAdd(rays[0], total);
-    base = subgroupBroadcastFirst(base);
-    if (marked)
-        rays[PENUMBRA_RAY_LIST_HEADER_UINTS + base + subgroupBallotExclusiveBitCount(ballot)] =
-            i | (marks[i] == PENUMBRA_MARK_ONE_SAMPLE ? PENUMBRA_RAY_ONE_SAMPLE : 0u);
+    uint slot = PENUMBRA_RAY_LIST_HEADER_UINTS + subgroupBroadcastFirst(base) + subgroupExclusiveAdd(count);
+    for (uint k = 0u; k < 4u; ++k)
+        if (entries[k] != ~0u)
+            rays[slot++] = entries[k];
 }
 #endif

@@ -41,6 +41,46 @@ layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };
 RH_STATE_DECLARE();
 #define RH_STEP_BINDING 10
 RH_STEP_DECLARE();
+// 1: the rays, nodes, triangles and records are read through the texel views below (RhPass::texelAccess):
+// on lavapipe a texel fetch is a gather, any other load that is not uniform a loop over the lanes.
+layout(constant_id = 0) const uint kTexelAccess = 0u;
+layout(set = 0, binding = 11) uniform usamplerBuffer rayTexels;       // RGBA32UI: rayQuads
+layout(set = 0, binding = 12) uniform usamplerBuffer nodeTexels;      // RGBA32UI: nodes, two a node
+layout(set = 0, binding = 13) uniform usamplerBuffer triangleTexelsA; // RGBA32UI: trianglesA, two a triangle
+layout(set = 0, binding = 14) uniform usamplerBuffer triangleTexelsB; // RG32UI: trianglesB
+layout(set = 0, binding = 15) uniform usamplerBuffer recordTexels;    // RG32UI: records
+
+u64vec4 loadNode(uint index)
+{
+    if (kTexelAccess == 0u)
+        return nodes[index];
+    uvec4 a = texelFetch(nodeTexels, int(2u * index)), b = texelFetch(nodeTexels, int(2u * index + 1u));
+    return u64vec4(pack64(a.xy), pack64(a.zw), pack64(b.xy), pack64(b.zw));
+}
+
+u64vec4 loadTriangleA(uint index)
+{
+    if (kTexelAccess == 0u)
+        return trianglesA[index];
+    uvec4 a = texelFetch(triangleTexelsA, int(2u * index)), b = texelFetch(triangleTexelsA, int(2u * index + 1u));
+    return u64vec4(pack64(a.xy), pack64(a.zw), pack64(b.xy), pack64(b.zw));
+}
+
+uvec2 loadTriangleB(uint index)
+{
+    return kTexelAccess != 0u ? texelFetch(triangleTexelsB, int(index)).xy : trianglesB[index];
+}
+
+// A record as (triangle, node).
+uvec2 loadRecord(uint index)
+{
+    return kTexelAccess != 0u ? texelFetch(recordTexels, int(index)).xy : unpack32(records[index]);
+}
+
+uvec4 loadRayQuad(uint index)
+{
+    return kTexelAccess != 0u ? texelFetch(rayTexels, int(index)) : rayQuads[index];
+}
 
 layout(push_constant) uniform RhTraversePush {
     uint lightIndex;
@@ -66,20 +106,20 @@ void main()
         triangle = index / rootNodes;
         node = index - triangle * rootNodes;
     } else {
-        uvec2 record = unpack32(records[stepInfo.stepBegin + (live ? i : 0u)]);
+        uvec2 record = loadRecord(stepInfo.stepBegin + (live ? i : 0u));
         triangle = record.x;
         node = record.y;
     }
     vec3 v0, v1, v2;
-    uvec2 b = trianglesB[triangle];
-    unpackTriangle(trianglesA[triangle], uintBitsToFloat(b.x), v0, v1, v2);
+    uvec2 b = loadTriangleB(triangle);
+    unpackTriangle(loadTriangleA(triangle), uintBitsToFloat(b.x), v0, v1, v2);
     // The cube faces whose rays this caster may shadow (its cluster's culled views, rh_casters.geom).
     bool gate = push.faces > 1u;
     uint casterFaces = b.y;
     // A record whose node was covered since it was written: every ray below is in shadow.
     PENUMBRA_SKIP_UNLESS(push.earlyAccept != 0u && depth > 0u && live)
     {
-        live = unpack32(nodes[RH_LEVEL_WORD(stepInfo.levelOffset, level) + node].w).y != floatBitsToUint(-1.0);
+        live = unpack32(loadNode(RH_LEVEL_WORD(stepInfo.levelOffset, level) + node).w).y != floatBitsToUint(-1.0);
     }
 #ifdef PENUMBRA_RH_PARALLEL
     vec3 toLight = -normalize(frame.lights[push.lightIndex].directionRange.xyz);
@@ -117,7 +157,7 @@ void main()
 #endif
         for (uint k = 0u; k < 4u; ++k) {
             uint child = 4u * node + k;
-            Node c = unpackNode(nodes[childOffset + min(child, childCount - 1u)]);
+            Node c = unpackNode(loadNode(childOffset + min(child, childCount - 1u)));
             bool faced = !gate || (casterFaces & nodeFaces(c)) != 0u;
 #ifdef PENUMBRA_RH_PARALLEL
             bool valid = live && faced && child < childCount && c.a.x <= c.a.z && !nodeCovered(c);
@@ -166,7 +206,7 @@ void main()
     // Leaf: the exact test of each of its rays not yet in shadow.
     PENUMBRA_SKIP_UNLESS(level == 0u)
     {
-        uvec4 pixels = live ? rayQuads[node] : uvec4(RH_NO_RAY);
+        uvec4 pixels = live ? loadRayQuad(node) : uvec4(RH_NO_RAY);
         uint open = 0u;
         for (uint k = 0u; k < 4u; ++k)
             if (pixels[k] != RH_NO_RAY && shadowed[pixels[k]] == 0u)

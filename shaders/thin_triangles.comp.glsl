@@ -46,8 +46,9 @@ layout(constant_id = 3) const uint kSplitVertexTexels = 0u;
 // script made every cluster that can reach this view resident (clusterMayReachView); the others
 // write no texel of it.
 layout(constant_id = 4) const uint kGeometryBudget = 0u;
-// The slivers of this view: count, the fill's indirect dispatch, then per sliver its cluster and
-// strip position (the byte of its third vertex, relative to the cluster's strips) | odd << 16.
+// The slivers of this view: count, the fill's indirect dispatch, then per run of consecutive
+// slivers (stripByte) its cluster and its first sliver's strip position (the byte of its third
+// vertex, relative to the cluster's strips) | odd << 16 | (slivers - 1) << 17.
 // Written by the host once: capacity (entries the list holds); cleared per view: count.
 layout(set = 0, binding = 5, std430) buffer ThinList
 {
@@ -146,45 +147,37 @@ vec4 projectVertex(vec3 v)
     return vec4((ndc.xy * 0.5 + 0.5) * push.mapSize, ndc.z, clip.w > 0.0 ? 1.0 : 0.0);
 }
 
-// True when triangle (v0, v1, v2) (projectVertex) is a sliver whose conservative rectangle is filled.
-bool isSliver(vec4 v0, vec4 v1, vec4 v2)
+// A sliver's conservative rectangle {A + d t + nrm u : t in [d0, d1], u in
+// [n0, n1]} (texels) around its longest edge A -> B, grown by the texel
+// square's half width in each direction of the edge's frame, so that it
+// holds the centre of every texel the triangle touches; zMin: its nearest
+// NDC depth; area: (d1 - d0) (n1 - n0).
+struct SliverRect {
+    vec2 A, d, nrm;
+    float d0, d1, n0, n1, zMin;
+};
+
+float rectArea(SliverRect r)
 {
+    return (r.d1 - r.d0) * (r.n1 - r.n0);
+}
+
+// False unless triangle (v0, v1, v2) (projectVertex) is a sliver whose
+// rectangle is filled: in front of the light's near plane, its depth not
+// clipped, under PENUMBRA_THIN_TEXELS texels high over its longest edge and
+// at least that long. Slivers only (long and narrow: wires, poles, bars):
+// triangles small in every direction belong to dense surfaces whose
+// neighbours cover the texels; the depth-discontinuity test handles their
+// silhouettes.
+bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
+{
+    r = SliverRect(vec2(0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), 0.0, 0.0, 0.0, 0.0, 1.0);
     if (v0.w == 0.0 || v1.w == 0.0 || v2.w == 0.0)
         return false; // crosses the light's near plane: the shadow map clips it too
     vec2 p[3] = vec2[3](v0.xy, v1.xy, v2.xy);
-    float zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
-    if (!(zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
+    r.zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
+    if (!(r.zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
         return false;
-    float longest = -1.0;
-    int a = 0;
-    for (int i = 0; i < 3; ++i) {
-        float len = distance(p[i], p[(i + 1) % 3]);
-        if (len > longest) {
-            longest = len;
-            a = i;
-        }
-    }
-    vec2 A = p[a], B = p[(a + 1) % 3], C = p[(a + 2) % 3];
-    float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
-    float height = longest > 0.0 ? twiceArea / longest : 0.0;
-    // Slivers only (long and narrow: wires, poles, bars). Triangles small in
-    // every direction belong to dense surfaces whose neighbours cover the
-    // texels; the depth-discontinuity test handles their silhouettes.
-    return !(height >= PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_TEXELS);
-}
-
-// Fills the conservative rectangle of triangle (v0, v1, v2) (projectVertex)
-// when it is thin: the texels x = first, first + step, ... of each row (the
-// lanes of a subgroup share one sliver's rows).
-void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step)
-{
-    if (v0.w == 0.0 || v1.w == 0.0 || v2.w == 0.0)
-        return; // crosses the light's near plane: the shadow map clips it too
-    vec2 p[3] = vec2[3](v0.xy, v1.xy, v2.xy);
-    float z[3] = float[3](v0.z, v1.z, v2.z);
-    float zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
-    if (!(zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
-        return;
     // Longest edge a -> b, third vertex c.
     int a = 0;
     float longest = -1.0;
@@ -196,21 +189,78 @@ void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step)
         }
     }
     vec2 A = p[a], B = p[(a + 1) % 3], C = p[(a + 2) % 3];
-    float zA = z[a], zB = z[(a + 1) % 3], zC = z[(a + 2) % 3];
     float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
     float height = longest > 0.0 ? twiceArea / longest : 0.0;
-    // Slivers only (long and narrow: wires, poles, bars). Triangles small in
-    // every direction belong to dense surfaces whose neighbours cover the
-    // texels; the depth-discontinuity test handles their silhouettes.
     if (height >= PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_TEXELS)
-        return;
+        return false;
     vec2 d = longest > 1e-12 ? (B - A) / longest : vec2(1.0, 0.0);
     vec2 nrm = vec2(-d.y, d.x);
     float c = dot(C - A, nrm);
     float along = dot(C - A, d);
     float e_d = 0.5 * (abs(d.x) + abs(d.y)), e_n = 0.5 * (abs(nrm.x) + abs(nrm.y));
-    float d0 = min(0.0, along) - e_d, d1 = max(longest, along) + e_d;
-    float n0 = min(0.0, c) - e_n, n1 = max(0.0, c) + e_n;
+    r.A = A;
+    r.d = d;
+    r.nrm = nrm;
+    r.d0 = min(0.0, along) - e_d;
+    r.d1 = max(longest, along) + e_d;
+    r.n0 = min(0.0, c) - e_n;
+    r.n1 = max(0.0, c) + e_n;
+    return true;
+}
+
+// True when triangle (v0, v1, v2) (projectVertex) is a sliver whose conservative rectangle is filled.
+bool isSliver(vec4 v0, vec4 v1, vec4 v2)
+{
+    SliverRect r;
+    return sliverRect(v0, v1, v2, r);
+}
+
+// `into` grown to hold rectangle r, in into's frame (r's corners projected
+// onto into's axes: the result holds both rectangles).
+SliverRect unionRect(SliverRect into, SliverRect r)
+{
+    for (int k = 0; k < 4; ++k) {
+        vec2 corner = r.A + r.d * ((k & 1) != 0 ? r.d1 : r.d0) + r.nrm * ((k & 2) != 0 ? r.n1 : r.n0) - into.A;
+        float t = dot(corner, into.d), u = dot(corner, into.nrm);
+        into.d0 = min(into.d0, t);
+        into.d1 = max(into.d1, t);
+        into.n0 = min(into.n0, u);
+        into.n1 = max(into.n1, u);
+    }
+    into.zMin = min(into.zMin, r.zMin);
+    return into;
+}
+
+// Fills the conservative rectangle of triangle (v0, v1, v2) (projectVertex)
+// when it is thin, or rectangle `run` (merged slivers, hard shadows: pass
+// merged = true): the texels x = first, first + step, ... of each row (the
+// lanes of a subgroup share one sliver's rows).
+void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, SliverRect run)
+{
+    SliverRect r = run;
+    if (!merged && !sliverRect(v0, v1, v2, r))
+        return;
+    const vec2 A = r.A, d = r.d, nrm = r.nrm;
+    const float d0 = r.d0, d1 = r.d1, n0 = r.n0, n1 = r.n1, zMin = r.zMin;
+    // Area lights: the edges' depths along the longest edge (recomputed: no merging there).
+    float zA = 0.0, zB = 0.0, zC = 0.0, longest = 0.0, along = 0.0, e_d = 0.5 * (abs(d.x) + abs(d.y));
+    if (kLocalDepths != 0u) {
+        vec2 p[3] = vec2[3](v0.xy, v1.xy, v2.xy);
+        float z[3] = float[3](v0.z, v1.z, v2.z);
+        int a = 0;
+        longest = -1.0;
+        for (int i = 0; i < 3; ++i) {
+            float len = distance(p[i], p[(i + 1) % 3]);
+            if (len > longest) {
+                longest = len;
+                a = i;
+            }
+        }
+        zA = z[a];
+        zB = z[(a + 1) % 3];
+        zC = z[(a + 2) % 3];
+        along = dot(p[(a + 2) % 3] - A, d);
+    }
     vec2 corners[4] = vec2[4](A + d * d0 + nrm * n0, A + d * d1 + nrm * n0, A + d * d0 + nrm * n1, A + d * d1 + nrm * n1);
     vec2 lo = min(min(corners[0], corners[1]), min(corners[2], corners[3]));
     vec2 hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]));
@@ -283,12 +333,31 @@ bool mayHoldSlivers(ModelTable table, uint slot, uint clusterIndex, uint record)
 
 // The strip walk of one leaf (forEachStripTriangle, as the tracer's leaf
 // test): the last two projected vertices are kept, so each strip byte
-// decodes and projects one vertex.
+// decodes and projects one vertex. Hard shadows: consecutive slivers of a
+// strip (a pipe's or a bar's triangles side by side, whose rectangles cover
+// nearly the same texels) are merged into one run while the rectangle
+// holding them all is no larger than their rectangles' areas added; the
+// fill draws the run's rectangle once (its texels were written 3.5 times
+// each on the plant).
 struct StripWalk {
     uint i0, i1;
     vec4 p0, p1;
     uint position; // bytes of the current strip so far
+    uint runLength; // slivers in the open run (0: none)
+    uint runEntry;  // its first sliver's strip position | odd << 16
+    uint runLast;   // strip position of its last sliver
+    SliverRect run; // the rectangle holding the run's, in its first sliver's frame
 };
+
+void listRun(uint cluster, inout StripWalk w)
+{
+    if (w.runLength == 0u)
+        return;
+    uint slot = atomicAdd(thinCount, 1u);
+    if (slot < thinCapacity)
+        thinTriangles[slot] = uvec2(cluster, w.runEntry | (w.runLength - 1u) << 17);
+    w.runLength = 0u;
+}
 
 // byte: the strip position of i2 relative to the cluster's strips.
 void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded)
@@ -298,10 +367,22 @@ void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded
     bool odd = ((w.position - 2u) & 1u) != 0u;
     // Slivers are listed for the fill phase: on lavapipe a fill here would
     // run (masked) for every triangle.
-    if (!restart && w.position >= 2u && w.i0 != w.i1 && w.i1 != i2 && w.i0 != i2 && isSliver(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2)) {
-        uint slot = atomicAdd(thinCount, 1u);
-        if (slot < thinCapacity)
-            thinTriangles[slot] = uvec2(cluster, byte | (odd ? 1u << 16 : 0u));
+    SliverRect r;
+    bool sliver = !restart && w.position >= 2u && w.i0 != w.i1 && w.i1 != i2 && w.i0 != i2 &&
+                  sliverRect(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2, r);
+    bool merged = false;
+    if (sliver && kLocalDepths == 0u && w.runLength != 0u && w.runLast + 1u == byte && w.runLength < PENUMBRA_THIN_RUN_MAX) {
+        SliverRect grown = unionRect(w.run, r);
+        merged = rectArea(grown) <= rectArea(w.run) + rectArea(r);
+        w.run = merged ? grown : w.run;
+    }
+    if (!merged)
+        listRun(cluster, w);
+    if (sliver) {
+        w.runEntry = merged ? w.runEntry : byte | (odd ? 1u << 16 : 0u);
+        w.run = merged ? w.run : r;
+        w.runLength = merged ? w.runLength + 1u : 1u;
+        w.runLast = byte;
     }
     w.i0 = w.i1;
     w.p0 = w.p1;
@@ -313,7 +394,11 @@ void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded
 void decodeLeaf(ModelTable table, GeometryChunks chunks, uvec2 leaf)
 {
     ClusterInfo cluster = clusterInfo(table, leaf.x);
-    StripWalk w = StripWalk(0u, 0u, vec4(0.0), vec4(0.0), 0u);
+    StripWalk w;
+    w.i0 = w.i1 = 0u;
+    w.p0 = w.p1 = vec4(0.0);
+    w.position = 0u;
+    w.runLength = w.runEntry = w.runLast = 0u;
     if (kTexelAccess != 0u) {
         // Strip bytes 16 a texel: an outer loop over the leaf's texels, an inner one over their bytes.
         const uint begin = uint(cluster.firstIndex) + (leaf.y & 0xFFFFu), end = begin + (leaf.y >> 16);
@@ -335,35 +420,57 @@ void decodeLeaf(ModelTable table, GeometryChunks chunks, uvec2 leaf)
             stripByte(w, leaf.x, (leaf.y & 0xFFFFu) + k, i2, decodeVertex(loadVertex(strips.vertices, min(i2, 254u)), cluster.boxMin, cluster.step));
         }
     }
+    listRun(leaf.x, w);
 }
 
-// The fill of listed sliver `index`: its three vertices decoded again.
+// The fill of listed run `index`: its slivers' vertices decoded again (the
+// run's first sliver's bytes, then one byte per sliver), their rectangles
+// joined in the first one's frame.
 void fillListed(ModelTable table, uint index)
 {
     uvec2 entry = thinTriangles[index];
     ClusterInfo cluster = clusterInfo(table, entry.x);
     uint byte = entry.y & 0xFFFFu;
-    bool odd = (entry.y >> 16) != 0u;
-    uvec3 local;
-    vec3 v[3];
-    if (kTexelAccess != 0u) {
-        uint first = uint(cluster.firstIndex) + byte - 2u;
-        for (uint k = 0u; k < 3u; ++k) {
-            uint b = first + k;
+    bool odd = ((entry.y >> 16) & 1u) != 0u;
+    uint slivers = (entry.y >> 17) + 1u;
+    LeafStrips strips;
+    if (kTexelAccess == 0u)
+        strips = openLeaf(table, geometryChunksOf(push.modelTable, table), cluster, byte - 2u);
+    vec4 p[2] = vec4[2](vec4(0.0), vec4(0.0));
+    SliverRect run;
+    bool have = false; // a rectangle in `run` (each of the run's slivers passed sliverRect when listed)
+    vec4 first[3] = vec4[3](vec4(0.0), vec4(0.0), vec4(0.0));
+    for (uint k = 0u; k < slivers + 2u; ++k) {
+        vec3 v;
+        if (kTexelAccess != 0u) {
+            uint b = uint(cluster.firstIndex) + byte - 2u + k;
             uvec4 bytes = texelFetch(modelStrips, int(b >> 4));
             uint i = (bytes[(b >> 2) & 3u] >> ((b & 3u) << 3)) & 0xFFu;
             uvec3 q = vertexTexel(uint(cluster.firstVertex) + i);
             precise vec3 scaled = vec3(q) * cluster.step;
             precise vec3 decoded = cluster.boxMin + scaled;
-            v[k] = decoded;
+            v = decoded;
+        } else {
+            v = decodeVertex(loadVertex(strips.vertices, uint(strips.strips.bytes[k])), cluster.boxMin, cluster.step);
         }
-    } else {
-        LeafStrips strips = openLeaf(table, geometryChunksOf(push.modelTable, table), cluster, byte - 2u);
-        for (uint k = 0u; k < 3u; ++k)
-            v[k] = decodeVertex(loadVertex(strips.vertices, uint(strips.strips.bytes[k])), cluster.boxMin, cluster.step);
+        vec4 p2 = projectVertex(v);
+        if (k >= 2u) {
+            // Sliver k - 2 of the run: the parity alternates along the strip.
+            bool flip = odd != (((k - 2u) & 1u) != 0u);
+            vec4 a = flip ? p[1] : p[0], b = flip ? p[0] : p[1];
+            SliverRect r;
+            if (sliverRect(a, b, p2, r)) {
+                run = have ? unionRect(run, r) : r;
+                have = true;
+            }
+            if (k == 2u)
+                first = vec4[3](a, b, p2);
+        }
+        p[0] = p[1];
+        p[1] = p2;
     }
-    vec4 p0 = projectVertex(v[0]), p1 = projectVertex(v[1]), p2 = projectVertex(v[2]);
-    emitIfThin(odd ? p1 : p0, odd ? p0 : p1, p2, 0, 1);
+    if (kLocalDepths != 0u || have)
+        emitIfThin(first[0], first[1], first[2], 0, 1, kLocalDepths == 0u, run);
 }
 
 // PENUMBRA_THIN_LIST: each workgroup takes PENUMBRA_THIN_TRIANGLES_GROUP_SIZE BVH nodes and lists their

@@ -2,6 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_atomic_int64 : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_EXT_control_flow_attributes : require
 // Bounds of what the camera sees in the clip space of each model-fitted
@@ -21,6 +22,9 @@
 // light's points outside the map read nothing and are left out). The shadow
 // views cull the casters whose footprint, grown by the texels the
 // classification reads, covers no set cell (culling.h: ReceiverMask).
+// With kCountCovered, the pass also adds the covered pixels to the frame's
+// PENUMBRA_STAT_COVERED counter (one atomic per subgroup of blocks; the
+// shade pass would pay one per 8 pixels).
 
 #include "config.h"
 // The light masks are specialization constants (runtime/src/passes/view_fit.cpp):
@@ -40,6 +44,7 @@ layout(local_size_x = PENUMBRA_SHADE_GROUP_SIZE, local_size_y = PENUMBRA_SHADE_G
 // PENUMBRA_VIEW_FIT_BLOCK_CPU or _GPU, chosen by the device type (view_fit.cpp).
 layout(constant_id = 4) const int kBlock = PENUMBRA_VIEW_FIT_BLOCK_GPU;
 #define VIEW_BOUNDS_BLOCK kBlock
+layout(constant_id = 5) const uint kCountCovered = 0u; // push.covered != 0
 
 // C++: runtime/src/passes/view_fit.h (ViewFitBinding).
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
@@ -49,11 +54,14 @@ layout(buffer_reference, std430) buffer Keys { uint keys[]; };
 
 layout(buffer_reference, std430) buffer Grid { uint bits[]; };
 
+layout(buffer_reference, std430, buffer_reference_align = 8) buffer Counter { uint64_t count; };
+
 layout(push_constant) uniform ViewBoundsPush {
     uint64_t keys;   // Keys, PENUMBRA_MAX_LIGHTS * 6 * 8 uints, cleared to 0xFFFFFFFF
     uint64_t grid;   // Grid, PENUMBRA_RECEIVER_GRID_WORDS uints per layer 6 l + k, cleared to 0
     uint lightMask;  // bit l: light l is fitted (directional, area)
     uint gridMask;   // bit l: light l writes its receiver grids (directional, point, spot)
+    uint64_t covered; // Counter: the frame's PENUMBRA_STAT_COVERED (kCountCovered)
 } push;
 
 
@@ -217,5 +225,15 @@ void main()
         fitPointLikeLight(uint(findLSB(lights)), origin, size);
     for (uint lights = kFitMask & kAreaMask; lights != 0u; lights &= lights - 1u)
         fitAreaLight(uint(findLSB(lights)), origin, size);
+    if (kCountCovered != 0u) {
+        uint covered = 0u;
+        for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
+            vec3 p;
+            covered += blockPoint(origin, size, i, p) ? 1u : 0u;
+        }
+        covered = subgroupAdd(covered);
+        if (subgroupElect() && covered != 0u)
+            atomicAdd(Counter(push.covered).count, uint64_t(covered));
+    }
 }
 #endif

@@ -17,7 +17,7 @@ void FrameTargets::create(vk::Device& device)
 {
     frameUniforms = vk::createBuffer(device, sizeof(gpu::FrameData), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUse::Upload);
     stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t), kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                             vk::MemoryUse::DeviceLocal);
+                             vk::MemoryUse::DeviceLocal, vk::Addressable::Yes); // view_fit counts the covered pixels into it
     readbackStats =
         vk::createBuffer(device, PENUMBRA_STAT_COUNT * sizeof(uint64_t), VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
     viewBounds = vk::createBuffer(device, kViewBoundsKeyBytes + kReceiverGridsBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
@@ -112,7 +112,7 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
         rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4, kStorageDst | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
                                    vk::MemoryUse::DeviceLocal);
         const VkBufferUsageFlags dst = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-        readbackColor = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
+        readbackColor = vk::createBuffer(device, pixels * 8, dst, vk::MemoryUse::Readback); // RGBA16F
         readbackPosition = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
         readbackNormal = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
         readbackVisibility = vk::createBuffer(device, pixels * 4, dst, vk::MemoryUse::Readback);

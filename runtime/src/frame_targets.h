@@ -15,7 +15,10 @@ namespace penumbra {
 
 constexpr VkFormat kPositionFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat kNormalFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
-constexpr VkFormat kColorFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+// The shaded colour: half floats, so that the shade pass (lavapipe writes an
+// image texel one channel and lane at a time) and the read-back move half the
+// bytes; Frame::color gets floats (half_float.h).
+constexpr VkFormat kColorFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 constexpr VkFormat kVisibilityFormat = VK_FORMAT_R32_SFLOAT;
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
 constexpr VkFormat kThinFormat = VK_FORMAT_R32_UINT; // float bits of the nearest thin depth (imageAtomicMin)

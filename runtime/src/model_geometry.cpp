@@ -88,18 +88,6 @@ namespace {
 
 constexpr VkDeviceSize kChunkBytes = 1ull << 30; // per buffer, also capped by maxMemoryAllocationSize
 
-VkBufferView createTexelView(vk::Device& device, const vk::Buffer& buffer, VkFormat format, VkDeviceSize texelBytes)
-{
-    const VkDeviceSize limit = VkDeviceSize(device.properties.limits.maxTexelBufferElements) * texelBytes;
-    VkBufferViewCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
-    info.buffer = buffer.buffer;
-    info.format = format;
-    info.range = std::min(buffer.size / texelBytes * texelBytes, limit);
-    VkBufferView view = VK_NULL_HANDLE;
-    VK_CHECK(vkCreateBufferView(device.device, &info, nullptr, &view));
-    return view;
-}
-
 // GpuGeometry::texels over the first buffer of each kind; complete when each kind has one.
 void createTexelViews(vk::Device& device, GpuGeometry& geometry)
 {
@@ -107,15 +95,15 @@ void createTexelViews(vk::Device& device, GpuGeometry& geometry)
     GpuGeometry::TexelViews& t = geometry.texels;
     // Paged: the node records live in the pool (PagedBvh), found through the node table.
     const vk::Buffer& nodes = geometry.paged() ? geometry.pool : geometry.nodeChunks[0];
-    t.nodes = createTexelView(device, nodes, VK_FORMAT_R32G32B32A32_UINT, 16);
-    t.nodeTable = createTexelView(device, geometry.paged() ? geometry.nodeTable : nodes, VK_FORMAT_R32_UINT, 4);
-    t.clusters = createTexelView(device, geometry.clusters, VK_FORMAT_R32G32B32A32_UINT, 16);
+    t.nodes = vk::createTexelView(device, nodes, VK_FORMAT_R32G32B32A32_UINT, 16);
+    t.nodeTable = vk::createTexelView(device, geometry.paged() ? geometry.nodeTable : nodes, VK_FORMAT_R32_UINT, 4);
+    t.clusters = vk::createTexelView(device, geometry.clusters, VK_FORMAT_R32G32B32A32_UINT, 16);
     VkFormatProperties vertexFormat{};
     vkGetPhysicalDeviceFormatProperties(device.physical, VK_FORMAT_R16G16B16_UINT, &vertexFormat);
     geometry.vertexTexelsSplit = !(vertexFormat.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT);
-    t.vertices = geometry.vertexTexelsSplit ? createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16_UINT, 2)
-                                            : createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16G16B16_UINT, 6);
-    t.strips = createTexelView(device, geometry.chunks[0].indices, VK_FORMAT_R32G32B32A32_UINT, 16);
+    t.vertices = geometry.vertexTexelsSplit ? vk::createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16_UINT, 2)
+                                            : vk::createTexelView(device, geometry.chunks[0].vertices, VK_FORMAT_R16G16B16_UINT, 6);
+    t.strips = vk::createTexelView(device, geometry.chunks[0].indices, VK_FORMAT_R32G32B32A32_UINT, 16);
     geometry.texelsComplete = (geometry.paged() ? geometry.nodeTable.size / 4 <= maxTexels : geometry.nodeChunks.size() == 1) &&
                               geometry.chunks.size() == 1 && nodes.size / 16 <= maxTexels && geometry.clusters.size / 16 <= maxTexels &&
                               geometry.chunks[0].vertices.size / (geometry.vertexTexelsSplit ? 2 : 6) <= maxTexels && geometry.chunks[0].indices.size / 16 <= maxTexels;

@@ -14,6 +14,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "config.h"
+#include "half_float.h"
 #include "light_space.h"
 #include "lights.h"
 #include "passes/pass.h"
@@ -176,6 +177,7 @@ struct Renderer::Impl::FrameScript {
     std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks; // layer k of light i at 6 i + k
     std::vector<VkDeviceAddress> thinClusterMask;                   // the same layers; 0: every cluster
     uint32_t viewFitMask = 0, receiverGridMask = 0;
+    bool coveredCounted = false; // view_fit counted the covered pixels (the first shade need not)
     bool rhFrame = false; // the rh pass's counters were cleared this frame
     std::vector<std::vector<uint32_t>> finalRanges; // paged geometry: the clusters of each range of a view's phase 2
     // afsm, area lights: each light's grid layers and whether they are cube faces.
@@ -622,7 +624,9 @@ struct Renderer::Impl::FrameScript {
         }
         const uint32_t used = viewFitMask | receiverGridMask;
         r.viewFit.record(cmd, r.device, r.targets.viewBounds, r.targets.receiverGrids, viewFitMask, receiverGridMask, pointMask & used,
-                         directionalMask & used, gridLayers, width(), height());
+                         directionalMask & used, gridLayers, width(), height(),
+                         vk::bufferAddress(r.device, r.targets.stats) + PENUMBRA_STAT_COVERED * sizeof(uint64_t));
+        coveredCounted = true;
         timer.mark(cmd, PassId::ViewFit);
         r.submitAndWait(cmd, timer.passesSinceLastSubmit());
 
@@ -829,12 +833,22 @@ struct Renderer::Impl::FrameScript {
             timer.mark(cmd, PassId::AfsmSamples);
             return;
         case Step::Shade: {
-            const ShadePush push{light, light + 1 == lights.size() ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u, 0u};
+            const bool firstLight = light + 1 == lights.size();
+            const ShadePush push{light, firstLight ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u,
+                                 firstLight && !coveredCounted ? 1u : 0u};
+            // kShadeLookup: the visibility from the shadow map, stored only where it is read back (no classify
+            // pass wrote the marks, which the light layers read: zero).
+            const bool lookup = step.mode == kShadeLookup && !area;
+            const bool storeVisibility = settings.readbackGBuffer || settings.readbackLightLayers;
+            if (lookup && settings.readbackLightLayers) {
+                vkCmdFillBuffer(cmd, t.marks.buffer, 0, VK_WHOLE_SIZE, 0);
+                vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute | kCopy, kStorageRW | kTransferRead);
+            }
             if (settings.measureFloors) {
-                r.shade.record(cmd, push, uint32_t(l.positionType.w), width(), height(), true);
+                r.shade.record(cmd, push, uint32_t(l.positionType.w), width(), height(), true, lookup);
                 timer.mark(cmd, PassId::ShadeFloor);
             }
-            r.shade.record(cmd, push, uint32_t(l.positionType.w), width(), height());
+            r.shade.record(cmd, push, uint32_t(l.positionType.w), width(), height(), false, lookup, storeVisibility);
             timer.mark(cmd, PassId::Shade);
             if (settings.readbackLightLayers)
                 copyLightLayers(light);
@@ -917,7 +931,8 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     frame.color.height = height();
     const size_t pixels = size_t(width()) * height();
     auto floats = [](const vk::Buffer& buffer) { return static_cast<const float*>(buffer.mapped); };
-    frame.color.rgba.assign(floats(t.readbackColor), floats(t.readbackColor) + pixels * 4);
+    frame.color.rgba.resize(pixels * 4);
+    halfToFloat(static_cast<const uint16_t*>(t.readbackColor.mapped), frame.color.rgba.data(), pixels * 4); // kColorFormat
     if (settings.readbackGBuffer) {
         frame.positions.assign(floats(t.readbackPosition), floats(t.readbackPosition) + pixels * 4);
         frame.normals.assign(floats(t.readbackNormal), floats(t.readbackNormal) + pixels * 4);
@@ -955,7 +970,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     out.height = height();
     out.lights = uint32_t(lights.size());
     out.shadows = settings.shadows;
-    out.coveredPixels = counters[PENUMBRA_STAT_COVERED]; // counted by the first light's shade pass
+    out.coveredPixels = counters[PENUMBRA_STAT_COVERED]; // counted by view_fit, or by the first light's shade pass
     out.pipPixels = counters[PENUMBRA_STAT_PIP];
     out.pipFraction = out.coveredPixels ? double(out.pipPixels) / (double(out.coveredPixels) * out.lights) : 0.0;
     out.rays = counters[PENUMBRA_STAT_RAYS];

@@ -88,7 +88,7 @@ void Renderer::Impl::bindTargets()
                            &t.penumbraThinMask});
     compact.bind(device, t.marks.buffer, t.rayList.buffer, t.stats.buffer);
     trace.bind(device, {t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.rayList.buffer, t.stats.buffer});
-    shade.bind(device, pixels, t.color.view);
+    shade.bind(device, pixels, t.color.view, t.shadowMap.view, t.nearestSampler);
 }
 
 void Renderer::Impl::ensureAfsmTargets()

@@ -83,6 +83,18 @@ Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage,
     return buffer;
 }
 
+VkBufferView createTexelView(Device& device, const Buffer& buffer, VkFormat format, VkDeviceSize texelBytes)
+{
+    const VkDeviceSize limit = VkDeviceSize(device.properties.limits.maxTexelBufferElements) * texelBytes;
+    VkBufferViewCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+    info.buffer = buffer.buffer;
+    info.format = format;
+    info.range = std::min(buffer.size / texelBytes * texelBytes, limit);
+    VkBufferView view = VK_NULL_HANDLE;
+    VK_CHECK(vkCreateBufferView(device.device, &info, nullptr, &view));
+    return view;
+}
+
 void destroyBuffer(Device& device, Buffer& buffer)
 {
     if (buffer.buffer)

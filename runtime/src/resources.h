@@ -37,6 +37,10 @@ enum class Addressable { No, Yes };
 Buffer createBuffer(Device& device, VkDeviceSize size, VkBufferUsageFlags usage, MemoryUse use, Addressable addressable = Addressable::No);
 void destroyBuffer(Device& device, Buffer& buffer);
 
+// A uniform texel view of `format` (texelBytes a texel) over the start of
+// buffer: as many whole texels as it holds, at most maxTexelBufferElements.
+VkBufferView createTexelView(Device& device, const Buffer& buffer, VkFormat format, VkDeviceSize texelBytes);
+
 // Creates a device-local buffer holding data: mapped directly when the
 // device-local heap is host-visible, else through a staging copy. capacity
 // (>= size; 0: size) sizes the buffer, the bytes after data zero.

@@ -38,7 +38,7 @@ const std::vector<ShadowMethodSpec>& shadowMethods()
         {ShadowMethod::ShadowMap,
          "sm",
          "shadow map",
-         {{Step::ShadowMap}, {Step::Classify, PENUMBRA_CLASSIFY_LOOKUP}, {Step::Shade}},
+         {{Step::ShadowMap}, {Step::Shade, kShadeLookup}}, // the lookup in the shade pass: no classify
          {},
          {{Step::ShadowMap}, {Step::Classify, PENUMBRA_SOFT_AVERAGE, PENUMBRA_SOFT_AVERAGE}},
          {{Step::Shade}},

@@ -47,6 +47,10 @@ struct MethodStep {
     uint32_t cornerMode = 0;
 };
 
+// MethodStep::mode of Step::Shade: the visibility from the light's shadow map
+// (shade.comp.lookup), for a hard light; 0: from the visibility image.
+inline constexpr uint32_t kShadeLookup = 1;
+
 // Where an area light's shadow maps are taken from (lights.cpp).
 enum class AreaMapEyes {
     Centre,       // the centre only

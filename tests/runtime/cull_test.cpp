@@ -280,6 +280,7 @@ TEST(Culling, SunMapFittedToTheViewDropsCastersBesideIt)
     settings.shadowMapSize = 256;
     settings.cull = CullMode::Frustum;
     settings.cullBesideReceivers = false; // the fit alone (SunCullsCastersBesideTheVisiblePoints: the mask)
+    uint64_t covered[2] = {};
     auto sunView = [&](bool fit) {
         settings.fitShadowMapsToView = fit;
         Frame frame = renderer.render(settings);
@@ -288,9 +289,13 @@ TEST(Culling, SunMapFittedToTheViewDropsCastersBesideIt)
         for (const PassTiming& pass : frame.stats.passes)
             timed = timed || pass.name == "view_fit";
         EXPECT_EQ(timed, fit);
+        covered[fit ? 1 : 0] = frame.stats.coveredPixels;
         return frame.stats.views.at(1);
     };
     ViewCullStats model = sunView(false), view = sunView(true);
+    // The covered pixels: counted by view_fit when it runs, else by the first shade pass; the same count.
+    EXPECT_GT(covered[0], 0u);
+    EXPECT_EQ(covered[0], covered[1]);
     EXPECT_EQ(model.name, "light0");
     EXPECT_EQ(model.clustersCulled, 0u) << "the model-fitted map holds the whole model";
     EXPECT_GT(view.clustersCulled, view.clustersDrawn) << "a street-level view needs few of the city's casters";

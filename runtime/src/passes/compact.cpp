@@ -23,8 +23,7 @@ void CompactPass::recordFloor(VkCommandBuffer cmd, uint32_t width, uint32_t heig
     const uint32_t pixelCount = width * height;
     kernel.bind(cmd, true);
     kernel.push(cmd, CompactPush{pixelCount, PENUMBRA_COMPACT_LIST, width, height});
-    const Groups2D groups = spreadGroups(groupCount(pixelCount, PENUMBRA_COMPACT_GROUP_SIZE), 65535u);
-    vkCmdDispatch(cmd, groups.x, groups.y, 1);
+    vkCmdDispatch(cmd, groupCount(width, 32), groupCount(height, 32), 1); // the real pass's quads
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
 }
 
@@ -36,10 +35,10 @@ void CompactPass::record(VkCommandBuffer cmd, uint32_t width, uint32_t height) c
     kernel.bind(cmd);
     CompactPush push{pixelCount, PENUMBRA_COMPACT_LIST, width, height};
     kernel.push(cmd, push);
-    // One invocation per pixel of the 8x8 tiles covering the image, four tiles
-    // a workgroup, a row of workgroups per row of tiles (compact.comp.glsl: tilePixel).
-    static_assert(PENUMBRA_COMPACT_GROUP_SIZE == 4 * 64);
-    vkCmdDispatch(cmd, groupCount(width, 32), groupCount(height, 8), 1);
+    // One invocation per 2x2 quad of the 8x8 tiles covering the image, 4 x 4
+    // tiles a workgroup (compact.comp.glsl: quadPixel).
+    static_assert(PENUMBRA_COMPACT_GROUP_SIZE == 16 * 16);
+    vkCmdDispatch(cmd, groupCount(width, 32), groupCount(height, 32), 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     push.phase = PENUMBRA_COMPACT_DISPATCH;
     kernel.push(cmd, push);

@@ -16,6 +16,9 @@ namespace penumbra::passes {
 
 namespace {
 
+constexpr VkBufferUsageFlags kTexelUsage = VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT; // rh_traverse.comp reads them as texels
+constexpr VkAccessFlags2 kSampledRead = VK_ACCESS_2_SHADER_SAMPLED_READ_BIT;          // ... a texel fetch's access
+
 constexpr VkBufferUsageFlags kStorageDst = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
 constexpr VkAccessFlags2 kUniformRead = VK_ACCESS_2_UNIFORM_READ_BIT;
 constexpr uint32_t kScanBlock = 2048; // rh_scan.comp's RH_SCAN_BLOCK
@@ -53,7 +56,7 @@ void recordScan(VkCommandBuffer cmd, const vk::ComputeKernel& scan, uint32_t cou
     for (uint32_t phase = 0; phase < 3; ++phase) {
         scan.push(cmd, RhScanPush{count, blocks * kScanBlock, phase, 0});
         vkCmdDispatch(cmd, phase == 1 ? 1 : blocks, 1, 1);
-        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
     }
 }
 
@@ -124,7 +127,9 @@ void RhPass::create(vk::Device& device)
     buildParallel.create(device, "rh_build.comp.parallel", buildBindings, sizeof(RhBuildPush));
     step.create(device, "rh_step.comp", {kStorage}, sizeof(RhStepPush));
     const std::vector<VkDescriptorType> traverseBindings = {kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kStorage,
-                                                            kStorage,      kStorage,      kStorage, kStorage, kUniform};
+                                                            kStorage,      kStorage,      kStorage, kStorage, kUniform, kTexels,
+                                                            kTexels,       kTexels,       kTexels,  kTexels};
+    static_assert(kRhTraverseBindingCount == 16);
     traverse.create(device, "rh_traverse.comp", traverseBindings, sizeof(RhTraversePush));
     traverseParallel.create(device, "rh_traverse.comp.parallel", traverseBindings, sizeof(RhTraversePush));
     if (!device.rayHierarchy)
@@ -152,9 +157,20 @@ void RhPass::destroy(vk::Device& device)
     castersPool = VK_NULL_HANDLE;
     castersSetLayout = VK_NULL_HANDLE;
     castersSet = VK_NULL_HANDLE;
+    destroyTexelViews(device);
     for (vk::Buffer* buffer : {&rayList, &nodes, &trianglesA, &trianglesB, &records, &state, &tileCounts, &keyCounts, &clusterFaces, &depthGrid})
         vk::destroyBuffer(device, *buffer);
     maxRays = maxNodes = mortonTiles = keyCapacity = 0;
+}
+
+void RhPass::destroyTexelViews(vk::Device& device)
+{
+    for (VkBufferView* view : {&rayTexels, &nodeTexels, &triangleTexelsA, &triangleTexelsB, &recordTexels}) {
+        if (*view)
+            vkDestroyBufferView(device.device, *view, nullptr);
+        *view = VK_NULL_HANDLE;
+    }
+    texelAccess = false;
 }
 
 bool RhPass::bound(const RhTargets& t) const
@@ -184,9 +200,9 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
     shadowedBuffer = t.shadowed->buffer;
     if (!state.buffer) {
         // Fixed sizes, made on the first rh frame. The state is host-visible: the frame script reads `done` after each wait.
-        records = vk::createBuffer(device, VkDeviceSize(kPairCapacity) * 8, kStorageDst, vk::MemoryUse::DeviceLocal);
-        trianglesA = vk::createBuffer(device, VkDeviceSize(kTriangleCapacity) * 32, kStorageDst, vk::MemoryUse::DeviceLocal);
-        trianglesB = vk::createBuffer(device, VkDeviceSize(kTriangleCapacity) * 8, kStorageDst, vk::MemoryUse::DeviceLocal);
+        records = vk::createBuffer(device, VkDeviceSize(kPairCapacity) * 8, kStorageDst | kTexelUsage, vk::MemoryUse::DeviceLocal);
+        trianglesA = vk::createBuffer(device, VkDeviceSize(kTriangleCapacity) * 32, kStorageDst | kTexelUsage, vk::MemoryUse::DeviceLocal);
+        trianglesB = vk::createBuffer(device, VkDeviceSize(kTriangleCapacity) * 8, kStorageDst | kTexelUsage, vk::MemoryUse::DeviceLocal);
         state = vk::createBuffer(device, sizeof(RhState),
                                  kStorageDst | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, vk::MemoryUse::Readback);
     }
@@ -223,11 +239,20 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
                 break;
             count = (count + 3) / 4;
         }
-        rayList = vk::createBuffer(device, VkDeviceSize(capacity) * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
-        nodes = vk::createBuffer(device, VkDeviceSize(total) * 32, kStorageDst, vk::MemoryUse::DeviceLocal);
+        rayList = vk::createBuffer(device, VkDeviceSize(capacity) * 4, kStorageDst | kTexelUsage, vk::MemoryUse::DeviceLocal);
+        nodes = vk::createBuffer(device, VkDeviceSize(total) * 32, kStorageDst | kTexelUsage, vk::MemoryUse::DeviceLocal);
         maxRays = capacity;
         maxNodes = total;
     }
+    destroyTexelViews(device);
+    rayTexels = vk::createTexelView(device, rayList, VK_FORMAT_R32G32B32A32_UINT, 16);
+    nodeTexels = vk::createTexelView(device, nodes, VK_FORMAT_R32G32B32A32_UINT, 16);
+    triangleTexelsA = vk::createTexelView(device, trianglesA, VK_FORMAT_R32G32B32A32_UINT, 16);
+    triangleTexelsB = vk::createTexelView(device, trianglesB, VK_FORMAT_R32G32_UINT, 8);
+    recordTexels = vk::createTexelView(device, records, VK_FORMAT_R32G32_UINT, 8);
+    const VkDeviceSize maxTexels = device.properties.limits.maxTexelBufferElements;
+    texelAccess = rayList.size / 16 <= maxTexels && nodes.size / 16 <= maxTexels && trianglesA.size / 16 <= maxTexels &&
+                  trianglesB.size / 8 <= maxTexels && records.size / 8 <= maxTexels;
     using namespace vk;
     rays.write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
                         storageBuffer(state.buffer), storageBuffer(tileCounts.buffer), storageBuffer(keyCounts.buffer),
@@ -243,7 +268,8 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
         kernel->write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
                                storageBuffer(nodes.buffer), storageBuffer(trianglesA.buffer), storageBuffer(trianglesB.buffer),
                                storageBuffer(records.buffer), storageBuffer(t.shadowed->buffer), storageBuffer(state.buffer),
-                               uniformBuffer(state.buffer)});
+                               uniformBuffer(state.buffer), texelBuffer(rayTexels), texelBuffer(nodeTexels), texelBuffer(triangleTexelsA),
+                               texelBuffer(triangleTexelsB), texelBuffer(recordTexels)});
 }
 
 // The receivers' depth grid: about 4 cells per pixel's ray over the faces, at most
@@ -274,7 +300,7 @@ void RhPass::beginFrame(VkCommandBuffer cmd)
         ms = 0.0;
     vk::memoryBarrier(cmd, kCompute | kIndirect | kGeometry, kStorageRW | kIndirectRead | kUniformRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, state.buffer, 0, VK_WHOLE_SIZE, 0);
-    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW | kSampledRead);
 }
 
 void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& light, float originOffset,
@@ -343,7 +369,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
         vkCmdFillBuffer(cmd, keyCounts.buffer, 0, scanBytes(keys), 0);
         vkCmdFillBuffer(cmd, rayList.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu); // RH_NO_RAY between the faces
     }
-    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW | kSampledRead);
     auto raysPass = [&](uint32_t mode, bool indirect) {
         rays.bind(cmd);
         rays.push(cmd, RhRaysPush{lightIndex, mode, originOffset, order, sortMode == PENUMBRA_RH_SORT_AUTO ? 1u : 0u, gridFaces, depthOrder, 0});
@@ -351,7 +377,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
             vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, keyDispatch));
         else
             vkCmdDispatch(cmd, tilesX, tilesY, 1);
-        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
     };
     raysPass(PENUMBRA_RH_RAYS_COUNT, false);
     builder.bind(cmd);
@@ -359,12 +385,12 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
         const uint32_t side = 1u << (depthOrder - level);
         builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_GRID, level, 0, originOffset, depthOrder, 0, 0, 0, gridFaces, 0, 0});
         vkCmdDispatch(cmd, groupCount(gridFaces * side * side, PENUMBRA_RH_GROUP_SIZE), 1, 1);
-        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
     }
     builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_DECIDE, 0, 0, originOffset, sortMode, tilesX, tilesY,
                                   groupCount(keys, kScanBlock), faces, uint32_t(std::min<uint64_t>(casterTriangles, UINT32_MAX)), 0});
     vkCmdDispatch(cmd, 1, 1, 1);
-    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kSampledRead | kIndirectRead);
     if (sortMode != PENUMBRA_RH_SORT_ON)
         recordScan(cmd, scanTiles, mortonTiles);
     if (sortMode != PENUMBRA_RH_SORT_OFF) {
@@ -374,13 +400,13 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
         for (uint32_t phase = 0; phase < 3; ++phase) {
             scanKeys.push(cmd, RhScanPush{keys, blocks * kScanBlock, phase, 0});
             vkCmdDispatchIndirect(cmd, state.buffer, phase == 1 ? offsetof(RhState, scanPhase1) : offsetof(RhState, scanDispatch));
-            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
         }
         // Each face on whole subtrees; the slots between them stay RH_NO_RAY.
         builder.bind(cmd);
         builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_FACES, 0, 0, originOffset, sortMode, 0, 0, 0, faces, 0, 0});
         vkCmdDispatch(cmd, 1, 1, 1);
-        vk::memoryBarrier(cmd, kCompute | kClear, kStorageWrite | kTransferWrite, kCompute, kStorageRW);
+        vk::memoryBarrier(cmd, kCompute | kClear, kStorageWrite | kTransferWrite, kCompute, kStorageRW | kSampledRead);
     }
     raysPass(PENUMBRA_RH_RAYS_LIST, false);
     checkpoint(0);
@@ -391,14 +417,14 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
         builder.bind(cmd);
         builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_INIT, 0, 0, originOffset, 0, 0, 0, 0, faces, 0, 0});
         vkCmdDispatch(cmd, 1, 1, 1);
-        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
         uint32_t count = maxRays / 4;
         for (uint32_t level = 0; level < levels; ++level) {
             builder.push(cmd, RhBuildPush{lightIndex, level == 0 ? PENUMBRA_RH_BUILD_LEAVES : PENUMBRA_RH_BUILD_LEVEL, level,
                                           skipShadowed ? 1u : 0u, originOffset, 0, 0, 0, 0, faces, 0, 0});
             const Groups2D groups = spreadGroups(groupCount(count, PENUMBRA_RH_GROUP_SIZE), 65535u);
             vkCmdDispatch(cmd, groups.x, groups.y, 1);
-            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kUniformRead);
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead | kUniformRead);
             count = (count + 3) / 4;
         }
     };
@@ -413,7 +439,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
         builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_RESOLVE, 0, 0, originOffset, 0, 0, 0, 0, faces, 0, 0});
         const Groups2D groups = spreadGroups(groupCount(maxRays / 4, PENUMBRA_RH_GROUP_SIZE), 65535u);
         vkCmdDispatch(cmd, groups.x, groups.y, 1);
-        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
         if (profiling) {
             submit();
             lap(4);
@@ -446,7 +472,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kGeometry, kStorageRead);
             vk::memoryBarrier(cmd, kCompute | kIndirect | kGeometry, kStorageRW | kIndirectRead | kUniformRead, kClear, kTransferWrite);
             vkCmdFillBuffer(cmd, state.buffer, offsetof(RhState, done), offsetof(RhState, sorted) - offsetof(RhState, done), 0);
-            vk::memoryBarrier(cmd, kClear, kTransferWrite, kGeometry | kCompute, kStorageRW);
+            vk::memoryBarrier(cmd, kClear, kTransferWrite, kGeometry | kCompute, kStorageRW | kSampledRead);
             VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
             rendering.renderArea = {{0, 0}, {1, 1}};
             rendering.layerCount = 1;
@@ -467,7 +493,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
             vkCmdPushConstants(cmd, casters.layout, VK_SHADER_STAGE_GEOMETRY_BIT, 0, sizeof(castersPush), &castersPush);
             drawClusters(cmd, geometry, model, clusters.data() + begin, end - begin);
             vkCmdEndRendering(cmd);
-            vk::memoryBarrier(cmd, kGeometry, kStorageWrite, kCompute, kStorageRW);
+            vk::memoryBarrier(cmd, kGeometry, kStorageWrite, kCompute, kStorageRW | kSampledRead);
             checkpoint(2);
             stats.batches++;
             // Traversal steps until the batch is done; one wait per round, each round twice the steps of the last.
@@ -476,11 +502,11 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
                     step.bind(cmd);
                     step.push(cmd, RhStepPush{kPairCapacity, kTriangleCapacity, {}});
                     vkCmdDispatch(cmd, 1, 1, 1);
-                    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead | kUniformRead);
-                    traverser.bind(cmd);
+                    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kSampledRead | kIndirectRead | kUniformRead);
+                    traverser.bind(cmd, vk::Specialization{texelAccess ? 1u : 0u});
                     traverser.push(cmd, RhTraversePush{lightIndex, options.test, originOffset, options.earlyAccept ? 1u : 0u, faces, {}});
                     vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, dispatch));
-                    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kUniformRead);
+                    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead | kUniformRead);
                 }
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
                 submit();

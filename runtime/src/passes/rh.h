@@ -39,7 +39,11 @@ enum RhCastersBinding : uint32_t {
 enum RhStepBinding : uint32_t { kRhStepState, kRhStepBindingCount };
 enum RhTraverseBinding : uint32_t {
     kRhTraversePosition, kRhTraverseNormal, kRhTraverseFrame, kRhTraverseRays, kRhTraverseNodes, kRhTraverseTrianglesA,
-    kRhTraverseTrianglesB, kRhTraverseRecords, kRhTraverseShadowed, kRhTraverseState, kRhTraverseStep, kRhTraverseBindingCount
+    kRhTraverseTrianglesB, kRhTraverseRecords, kRhTraverseShadowed, kRhTraverseState, kRhTraverseStep,
+    // The same buffers as uniform texel views (rh_traverse.comp's kTexelAccess): on lavapipe a texel fetch is a
+    // gather, any other load that is not uniform a loop over the lanes.
+    kRhTraverseRayTexels, kRhTraverseNodeTexels, kRhTraverseTriangleTexelsA, kRhTraverseTriangleTexelsB, kRhTraverseRecordTexels,
+    kRhTraverseBindingCount
 };
 
 struct RhRaysPush {
@@ -203,12 +207,18 @@ class RhPass {
     uint32_t maxLevels() const;
     uint32_t sortOrder(uint32_t faces) const; // Hilbert order of the keys per face
     uint32_t gridOrder(uint32_t faces) const; // the receivers' depth grid: 2^order cells a side
+    void destroyTexelViews(vk::Device& device);
     vk::ComputeKernel rays, scanTiles, scanKeys, build, buildParallel, step, traverse, traverseParallel;
     VkDescriptorSetLayout castersSetLayout = VK_NULL_HANDLE;
     VkDescriptorPool castersPool = VK_NULL_HANDLE;
     VkDescriptorSet castersSet = VK_NULL_HANDLE;
     vk::RasterPipelines casters;
     vk::Buffer rayList, nodes, trianglesA, trianglesB, records, state, tileCounts, keyCounts;
+    // Texel views of rayList (RGBA32UI), nodes (RGBA32UI, two a node), trianglesA (RGBA32UI, two a
+    // triangle), trianglesB (RG32UI), records (RG32UI); texelAccess: each holds its whole buffer.
+    VkBufferView rayTexels = VK_NULL_HANDLE, nodeTexels = VK_NULL_HANDLE, triangleTexelsA = VK_NULL_HANDLE,
+                 triangleTexelsB = VK_NULL_HANDLE, recordTexels = VK_NULL_HANDLE;
+    bool texelAccess = false;
     vk::Buffer clusterFaces; // per cluster: the faces whose views kept it (host-written per light)
     vk::Buffer depthGrid;    // the receivers' depth grid (rh.glsli), 6 faces
     uint32_t mortonTiles = 0;  // tiles on the Morton curve over the image's tiles (a power-of-two square)

@@ -36,7 +36,7 @@ void ViewFitPass::recordFloor(VkCommandBuffer cmd, const vk::Device& device, con
 {
     const uint32_t block = blockSize(device);
     kernel.bind(cmd, vk::Specialization{0, 0, 0, 0, block}, true);
-    kernel.push(cmd, ViewFitPush{vk::bufferAddress(device, viewBounds), 0, 0, 0});
+    kernel.push(cmd, ViewFitPush{vk::bufferAddress(device, viewBounds), 0, 0, 0, 0});
     const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * block;
     vkCmdDispatch(cmd, groupCount(width, tile), groupCount(height, tile), 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
@@ -44,7 +44,7 @@ void ViewFitPass::recordFloor(VkCommandBuffer cmd, const vk::Device& device, con
 
 void ViewFitPass::record(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, const vk::Buffer& receiverGrids,
                          uint32_t fitMask, uint32_t gridMask, uint32_t pointMask, uint32_t directionalMask, const std::vector<uint32_t>& gridLayers, uint32_t width,
-                         uint32_t height) const
+                         uint32_t height, VkDeviceAddress covered) const
 {
     auto gridRegion = [&](uint32_t light) { // the grids of light `light`: one per layer
         return std::pair<VkDeviceSize, VkDeviceSize>{6 * light * kReceiverGridBytes, gridLayers[light] * kReceiverGridBytes};
@@ -55,8 +55,8 @@ void ViewFitPass::record(VkCommandBuffer cmd, const vk::Device& device, const vk
             vkCmdFillBuffer(cmd, receiverGrids.buffer, gridRegion(i).first, gridRegion(i).second, 0u);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     const uint32_t block = blockSize(device);
-    kernel.bind(cmd, vk::Specialization{fitMask, gridMask, pointMask, directionalMask, block});
-    kernel.push(cmd, ViewFitPush{vk::bufferAddress(device, viewBounds), vk::bufferAddress(device, receiverGrids), fitMask, gridMask});
+    kernel.bind(cmd, vk::Specialization{fitMask, gridMask, pointMask, directionalMask, block, covered != 0 ? 1u : 0u});
+    kernel.push(cmd, ViewFitPush{vk::bufferAddress(device, viewBounds), vk::bufferAddress(device, receiverGrids), fitMask, gridMask, covered});
     const uint32_t tile = PENUMBRA_SHADE_GROUP_SIZE * block; // view_fit.comp.glsl: a block of pixels per invocation
     vkCmdDispatch(cmd, groupCount(width, tile), groupCount(height, tile), 1);
     if (gridMask) {

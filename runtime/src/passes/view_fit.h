@@ -23,8 +23,9 @@ struct ViewFitPush {
     VkDeviceAddress grid; // receiverGrids: PENUMBRA_RECEIVER_GRID_WORDS uints per layer 6 l + k, cleared to 0
     uint32_t lightMask;   // bit l: light l is fitted (directional, area)
     uint32_t gridMask;    // bit l: light l writes its receiver grids (directional, point, spot)
+    VkDeviceAddress covered; // 0, or the frame counter PENUMBRA_STAT_COVERED (uint64_t) that the pass adds the covered pixels to
 };
-static_assert(sizeof(ViewFitPush) == 24);
+static_assert(sizeof(ViewFitPush) == 32);
 
 struct ViewFitTargets {
     VkImageView position = VK_NULL_HANDLE; // G-buffer (GENERAL)
@@ -39,10 +40,12 @@ class ViewFitPass {
     // Clears and writes viewBounds (host-visible) for a width x height G-buffer:
     // keys of the lights in fitMask, and through receiverGrids (device-local)
     // the grids of gridLayers[l] layers of each light l in gridMask. Ends with
-    // the barrier to the host read.
+    // the barrier to the host read. covered: 0, or the address of the frame's
+    // PENUMBRA_STAT_COVERED counter, which then gets the covered pixels (the
+    // shade pass need not count them).
     void record(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, const vk::Buffer& receiverGrids,
                 uint32_t fitMask, uint32_t gridMask, uint32_t pointMask, uint32_t directionalMask, const std::vector<uint32_t>& gridLayers,
-                uint32_t width, uint32_t height) const;
+                uint32_t width, uint32_t height, VkDeviceAddress covered = 0) const;
     // The null twin (shaders/floor.glsli): every G-buffer point read, the bounds left as they are; after createFloor.
     void recordFloor(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, uint32_t width, uint32_t height) const;
     void createFloor(vk::Device& device) { kernel.createFloor(device); }
