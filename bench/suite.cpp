@@ -34,7 +34,6 @@ namespace {
 // The methods measured side by side (frt also gives the oracle its G-buffer); soft cases skip those without area lights.
 constexpr ShadowMethod kGpuMethods[] = {ShadowMethod::ShadowMap, ShadowMethod::Selective, ShadowMethod::FullRayTrace,
                                        ShadowMethod::AliasFree, ShadowMethod::RayHierarchy};
-constexpr size_t kReferenceMethod = 2; // frt
 constexpr const char* kOracleName = "oracle";
 
 double msSince(std::chrono::steady_clock::time_point start)
@@ -178,6 +177,19 @@ struct Measurement {
     std::vector<FrameStats> timed; // the timed frames, without G-buffer readback
     std::vector<FrameStats> floors; // frames with RenderSettings::measureFloors (sm and srt of the methods section)
 };
+
+// The measurement whose G-buffer the oracle traces from (every method's camera pass is the
+// same): frt's, else the first that reports its ray offset (a method that traces), else the first.
+size_t referenceIndex(const std::vector<ShadowMethod>& methods, const std::vector<Measurement>& measured)
+{
+    for (size_t i = 0; i < methods.size(); ++i)
+        if (methods[i] == ShadowMethod::FullRayTrace)
+            return i;
+    for (size_t i = 0; i < measured.size(); ++i)
+        if (measured[i].gbuffer.stats.rayOffset > 0.0f)
+            return i;
+    return 0;
+}
 
 Frame renderShadows(Renderer& renderer, const RenderSettings& settings, ShadowKind kind, const SoftShadowParams& params)
 {
@@ -389,9 +401,12 @@ class SuiteRunner {
             stepDone(label + " " + shadowMethodName(methods[i]));
         }
 
-        // The oracle on the frt frame's G-buffer (all three share the camera pass).
+        // The oracle on the frt frame's G-buffer (every method shares the camera pass).
         step(label + " oracle");
-        const Frame& reference = measured[kReferenceMethod].gbuffer;
+        if (methods.empty())
+            return;
+        const size_t referenceMethod = referenceIndex(methods, measured);
+        const Frame& reference = measured[referenceMethod].gbuffer;
         float rayOffset = reference.stats.rayOffset > 0.0f ? reference.stats.rayOffset : 1e-4f;
         if (!loaded.oracle) {
             auto buildStart = std::chrono::steady_clock::now();
@@ -456,7 +471,7 @@ class SuiteRunner {
         stepDone(label + " oracle");
 
         if (!imagePrefix.empty())
-            writeImages(imagePrefix, measured, oracleVisibility, light);
+            writeImages(imagePrefix, measured, reference, oracleVisibility, light);
     }
 
     void runMethods(const BenchScene& benchScene)
@@ -690,8 +705,8 @@ class SuiteRunner {
         return image;
     }
 
-    void writeImages(const std::string& prefix, const std::vector<Measurement>& measured, const std::vector<float>& oracle,
-                     const Light& light)
+    void writeImages(const std::string& prefix, const std::vector<Measurement>& measured, const Frame& reference,
+                     const std::vector<float>& oracle, const Light& light)
     {
         std::vector<Image> shadows, differences, colors;
         for (const Measurement& m : measured) {
@@ -699,7 +714,7 @@ class SuiteRunner {
             differences.push_back(differenceImage(m.gbuffer, oracle));
             colors.push_back(m.gbuffer.color);
         }
-        shadows.push_back(shadowImage(measured[kReferenceMethod].gbuffer, oracle, light));
+        shadows.push_back(shadowImage(reference, oracle, light));
         struct Output {
             const char* suffix;
             const std::vector<Image>& panels;
