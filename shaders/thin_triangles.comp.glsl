@@ -407,7 +407,7 @@ void decodeLeaf(ModelTable table, GeometryChunks chunks, uvec2 leaf)
             const uint last = min(end, (block + 1u) << 4);
             for (uint byteIndex = max(begin, block << 4); byteIndex < last; ++byteIndex) {
                 uint i2 = (bytes[(byteIndex >> 2) & 3u] >> ((byteIndex & 3u) << 3)) & 0xFFu;
-                uvec3 q = vertexTexel(uint(cluster.firstVertex) + min(i2, 254u));
+                uvec3 q = vertexTexel(uint(cluster.firstVertex) + (i2 == 0xFFu ? 0u : i2)); // a restart reads vertex 0, which every cluster has
                 precise vec3 scaled = vec3(q) * cluster.step;
                 precise vec3 decoded = cluster.boxMin + scaled;
                 stripByte(w, leaf.x, byteIndex - uint(cluster.firstIndex), i2, decoded);
@@ -417,7 +417,7 @@ void decodeLeaf(ModelTable table, GeometryChunks chunks, uvec2 leaf)
         LeafStrips strips = openLeaf(table, chunks, cluster, leaf.y);
         for (uint k = 0u; k < strips.count; ++k) {
             uint i2 = uint(strips.strips.bytes[k]);
-            stripByte(w, leaf.x, (leaf.y & 0xFFFFu) + k, i2, decodeVertex(loadVertex(strips.vertices, min(i2, 254u)), cluster.boxMin, cluster.step));
+            stripByte(w, leaf.x, (leaf.y & 0xFFFFu) + k, i2, decodeVertex(loadVertex(strips.vertices, i2 == 0xFFu ? 0u : i2), cluster.boxMin, cluster.step));
         }
     }
     listRun(leaf.x, w);
