@@ -20,6 +20,7 @@
 #define PENUMBRA_THIN_TRIANGLES_GROUP_SIZE 64 // thin_triangles.comp: BVH nodes per workgroup, strip bytes decoded at once
 
 #define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: rays per workgroup
+#define PENUMBRA_TRACE_SAMPLES_PER_DISPATCH 32 // trace.comp: an area light's samples traced per dispatch (lavapipe's loop limit)
 #define PENUMBRA_TRACE_STACK_SIZE 100    // BVH traversal stack entries (3 x model::kMaxBvhDepth + 4: 4-wide nodes)
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
 #define PENUMBRA_VIEW_FIT_BLOCK_CPU 16   // view_fit.comp on a CPU device: pixels a side of each invocation's block (its

@@ -89,7 +89,7 @@ layout(local_size_x = PENUMBRA_TRACE_GROUP_SIZE) in;
 
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D positionImage;
 layout(set = 0, binding = 1, rgba32f) uniform readonly image2D normalImage;
-layout(set = 0, binding = 2, r32f) uniform writeonly image2D visibilityImage;
+layout(set = 0, binding = 2, r32f) uniform image2D visibilityImage; // read back by the later sample dispatches
 layout(set = 0, binding = 3, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 4, std430) readonly buffer RayList
 {
@@ -109,6 +109,9 @@ layout(push_constant) uniform Push
     uint64_t parking;     // kGeometryBudget: Parking's device address
     vec4 boundsMin;       // the root node's box (xyz)
     vec4 boundsMax;
+    uint sampleBegin;     // area lights: the light samples [sampleBegin, sampleEnd) of this dispatch (see traceSoftVisibility)
+    uint sampleEnd;
+    uint pad0, pad1;
 } push;
 
 void markVisited(uint cluster)
@@ -141,8 +144,12 @@ bool occluded(ShadowRay ray, inout TraceCounters counters)
 
 // Soft shadows (area lights): the fraction of the pixel's light samples
 // (penumbra/light_sampling.h, seeded by the pixel) that no triangle blocks;
-// samples below the pixel's plane count as blocked and get no ray.
-// oneSample: the pixel is outside the penumbra mask, so all samples agree: sample 0 decides.
+// samples below the pixel's plane count as blocked and get no ray. This
+// dispatch traces samples [push.sampleBegin, push.sampleEnd) and returns
+// their share of the fraction (the dispatches add up: TracePass::record):
+// lavapipe stops every loop of an invocation after 65,535 iterations in all,
+// which 256 traversals of a large model can exceed.
+// oneSample: the pixel is outside the penumbra mask, so all samples agree: sample 0 decides (the first dispatch).
 float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, bool oneSample, inout uint rays, inout TraceCounters counters)
 {
     if (!inFrontOfEmitter(light, p))
@@ -151,7 +158,7 @@ float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, boo
     uint seed = sampleSeed(uint(pixel.x), uint(pixel.y), push.lightIndex);
     uint visible = 0u;
     uint traced = oneSample ? 1u : push.samples;
-    for (uint i = 0u; i < traced; ++i) {
+    for (uint i = push.sampleBegin; i < min(traced, push.sampleEnd); ++i) {
         vec3 target = areaLightPoint(shape, light.positionType.xyz, light.areaU.xyz, light.areaV.xyz, p,
                                      stratifiedSample(seed, i, push.samples));
         vec3 direction = target - p;
@@ -218,7 +225,11 @@ void main()
         uint pixelIndex = entry & ~PENUMBRA_RAY_ONE_SAMPLE;
         float visibility = traceVisibility(pixelIndex, (entry & PENUMBRA_RAY_ONE_SAMPLE) != 0u, rays, counters);
         uint width = uint(imageSize(visibilityImage).x);
-        imageStore(visibilityImage, ivec2(pixelIndex % width, pixelIndex / width), vec4(visibility));
+        ivec2 pixel = ivec2(pixelIndex % width, pixelIndex / width);
+        // A later dispatch of an area light's samples adds its share (fractions k / samples: exact).
+        if (kSoft != 0u && push.sampleBegin != 0u)
+            visibility += imageLoad(visibilityImage, pixel).r;
+        imageStore(visibilityImage, pixel, vec4(visibility));
         if (kGeometryBudget != 0u && gParked) {
             // Its visibility is written again when it is traced again (an any-hit ray that hit is exact and never parked).
             Parking parking = Parking(push.parking);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "config.h"
+#include "passes/pass.h"
 
 static_assert(PENUMBRA_TRACE_STACK_SIZE >= 3 * penumbra::model::kMaxBvhDepth + 4, "the tracer's stack holds every pending node");
 
@@ -131,8 +132,19 @@ void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightT
     TracePush push{tableAddress, lightIndex, originOffset, samples, clusterWords, parking, {}, {}};
     std::copy(boundsMin, boundsMin + 4, push.boundsMin);
     std::copy(boundsMax, boundsMax + 4, push.boundsMax);
-    kernel.push(cmd, push);
-    vkCmdDispatchIndirect(cmd, rayList, sizeof(uint32_t)); // dispatch[3] follows the count
+    // An area light's samples in dispatches of at most PENUMBRA_TRACE_SAMPLES_PER_DISPATCH, each adding
+    // its share of the visibility: lavapipe ends every loop of an invocation after 65,535 iterations in
+    // all (its loop limiter), and 256 traversals of a large model reach that. Paged geometry keeps one
+    // dispatch (a ray parked in one would be listed again by the next).
+    const uint32_t perDispatch = samples == 0 || parking ? std::max(samples, 1u) : PENUMBRA_TRACE_SAMPLES_PER_DISPATCH;
+    for (uint32_t begin = 0; begin < std::max(samples, 1u); begin += perDispatch) {
+        push.sampleBegin = begin;
+        push.sampleEnd = std::min(begin + perDispatch, std::max(samples, 1u));
+        if (begin != 0)
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+        kernel.push(cmd, push);
+        vkCmdDispatchIndirect(cmd, rayList, sizeof(uint32_t)); // dispatch[3] follows the count
+    }
 }
 
 } // namespace penumbra::passes

@@ -35,8 +35,10 @@ struct TracePush {
     VkDeviceAddress parking;    // paged geometry: GeometryPages' parking buffer (0: no budget)
     float boundsMin[4]; // the root node's box
     float boundsMax[4];
+    uint32_t sampleBegin = 0, sampleEnd = 0; // area lights: this dispatch's light samples (TracePass::record)
+    uint32_t pad0 = 0, pad1 = 0;
 };
-static_assert(sizeof(TracePush) == 64);
+static_assert(sizeof(TracePush) == 80);
 
 class TracePass {
   public:
