@@ -73,7 +73,7 @@ layout(set = 0, binding = 0, r32ui) uniform uimage2DArray thinMap;
 
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer LeafAltitudes
 {
-    float altitude[]; // per child slot (4 x node + slot): a leaf's smallest triangle altitude, model units
+    float altitude[]; // per node: its 4 slots' smallest triangle altitudes, then their longest edges (model units)
 };
 
 layout(push_constant) uniform ThinDetectPush
@@ -314,21 +314,31 @@ ClusterInfo clusterInfo(ModelTable table, uint cluster)
 
 // A leaf whose every triangle is wider than the thin threshold in model space, at the smallest texel size
 // the leaf can see, holds no sliver unless seen edge-on; edge-on faces of closed objects are covered by
-// their neighbours in the shadow map, so such a leaf is skipped without decoding.
-// record: kGeometryBudget: the node record's first texel in the pool (its altitudes follow the node).
-bool mayHoldSlivers(ModelTable table, uint slot, uint clusterIndex, uint record)
+// their neighbours in the shadow map, so such a leaf is skipped without decoding. So is, in an
+// orthographic view, a leaf whose every edge is shorter than the threshold in texels (a dense scan's small
+// triangles): a segment of length L spans at most L x size / 2 x |the view's x, y rows| texels (the map
+// fitted to the view may have oblong texels: texelSize is the longer side, so it cannot bound this).
+// node, slot: the leaf's node and child slot; record: kGeometryBudget: the node record's first texel in the
+// pool (its altitudes follow the node; no longest edges there).
+bool mayHoldSlivers(ModelTable table, uint node, uint slot, uint clusterIndex, uint record)
 {
     if (push.leafAltitudes == 0ul)
         return true;
-    float altitude = kGeometryBudget != 0u ? uintBitsToFloat(texelFetch(modelNodes, int(record + 4u))[slot & 3u])
-                                           : LeafAltitudes(push.leafAltitudes).altitude[slot];
+    float altitude = kGeometryBudget != 0u ? uintBitsToFloat(texelFetch(modelNodes, int(record + 4u))[slot])
+                                           : LeafAltitudes(push.leafAltitudes).altitude[8u * node + slot];
     float texel = push.texelSize;
+    bool longEnough = true;
     if (push.light.w != 0.0) {
         ClusterInfo cluster = clusterInfo(table, clusterIndex);
         vec3 boxMax = cluster.boxMin + 65535.0 * cluster.step;
         texel *= distance(clamp(push.light.xyz, cluster.boxMin, boxMax), push.light.xyz) * push.light.w;
+    } else if (kGeometryBudget == 0u) {
+        const vec3 row0 = vec3(push.viewProj[0][0], push.viewProj[1][0], push.viewProj[2][0]);
+        const vec3 row1 = vec3(push.viewProj[0][1], push.viewProj[1][1], push.viewProj[2][1]);
+        float longest = LeafAltitudes(push.leafAltitudes).altitude[8u * node + 4u + slot];
+        longEnough = longest * 0.5 * push.mapSize.x * sqrt(dot(row0, row0) + dot(row1, row1)) >= PENUMBRA_THIN_TEXELS;
     }
-    return altitude < PENUMBRA_THIN_TEXELS * texel;
+    return altitude < PENUMBRA_THIN_TEXELS * texel && longEnough;
 }
 
 // The strip walk of one leaf (forEachStripTriangle, as the tracer's leaf
@@ -522,7 +532,7 @@ void main()
         bool near = cluster != PENUMBRA_NO_CLUSTER &&
                     (push.clusterMask == 0ul || (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u);
         for (uint slot = 0u; slot < 4u; ++slot)
-            if (near && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF && mayHoldSlivers(table, 4u * index + slot, cluster, record))
+            if (near && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF && mayHoldSlivers(table, index, slot, cluster, record))
                 passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);
     }
     barrier();

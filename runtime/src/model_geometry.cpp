@@ -11,40 +11,47 @@
 namespace penumbra {
 
 // A node's leaf slots' smallest triangle altitudes (model_geometry.h).
-void nodeLeafAltitudes(const CompressedModel& model, uint32_t n, float out[model::kNodeChildren])
+void nodeLeafAltitudes(const CompressedModel& model, uint32_t n, float out[model::kNodeChildren], float longestEdges[model::kNodeChildren])
 {
     const model::Node& node = model.nodes[n];
     for (uint32_t slot = 0; slot < model::kNodeChildren; ++slot) {
         out[slot] = 0.0f;
+        if (longestEdges)
+            longestEdges[slot] = 0.0f;
         if (model::childKind(node, slot) != model::ChildKind::Leaf)
             continue;
         const model::ClusterRecord& cluster = model.clusters[node.cluster];
         const uint8_t* strips = model.indices.data() + cluster.firstIndex + (node.child[slot] & 0xFFFF);
         const model::QuantizedVertex* vertices = model.vertices.data() + cluster.firstVertex;
-        float smallest = std::numeric_limits<float>::max();
+        float smallest = std::numeric_limits<float>::max(), longestEdge = 0.0f;
         forEachStripTriangle(strips, strips + (node.child[slot] >> 16), [&](uint32_t a, uint32_t b, uint32_t c) {
             glm::vec3 p0 = decodePosition(cluster, vertices[a]), p1 = decodePosition(cluster, vertices[b]),
                       p2 = decodePosition(cluster, vertices[c]);
             float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
             float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
             smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
+            longestEdge = std::max(longestEdge, longest);
         });
         out[slot] = smallest;
+        if (longestEdges)
+            longestEdges[slot] = longestEdge * (1.0f + 1e-5f); // rounded up: the skip must stay conservative
     }
 }
 
 namespace {
 
 // Smallest altitude (twice the area over the longest edge) of each leaf's
-// decoded triangles, at 4 x node + slot: a triangle can be a sliver in a
-// light's view only if it is thin in model space or seen edge-on. 0 for the
-// slots that are not leaves.
+// decoded triangles, at 8 x node + slot, and the longest edge of any of
+// them at 8 x node + 4 + slot: a triangle can be a sliver in a light's view
+// only if it is thin in model space or seen edge-on, and long enough. 0 for
+// the slots that are not leaves.
 std::vector<float> leafMinimumAltitudes(const CompressedModel& model)
 {
-    std::vector<float> altitudes(model.nodes.size() * model::kNodeChildren, 0.0f);
+    std::vector<float> altitudes(model.nodes.size() * 2 * model::kNodeChildren, 0.0f);
     auto work = [&](size_t begin, size_t end) {
         for (size_t n = begin; n < end; ++n)
-            nodeLeafAltitudes(model, uint32_t(n), altitudes.data() + n * model::kNodeChildren);
+            nodeLeafAltitudes(model, uint32_t(n), altitudes.data() + n * 2 * model::kNodeChildren,
+                              altitudes.data() + n * 2 * model::kNodeChildren + model::kNodeChildren);
     };
     unsigned threads = std::max(1u, std::thread::hardware_concurrency());
     std::vector<std::thread> pool;
@@ -124,7 +131,7 @@ VkDeviceSize chunkLimit(const vk::Device& device)
 
 bool leafAltitudesFit(const vk::Device& device, const CompressedModel& model)
 {
-    return model.nodes.size() * model::kNodeChildren * sizeof(float) <= chunkLimit(device);
+    return model.nodes.size() * 2 * model::kNodeChildren * sizeof(float) <= chunkLimit(device);
 }
 
 GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, const PagedBvh* paged)

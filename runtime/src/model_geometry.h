@@ -44,10 +44,13 @@ struct PagedBvh {
 };
 
 // A node's leaf slots' smallest decoded-triangle altitudes (model units; 0
-// for slots that are not leaves): the thin-triangle pass skips leaves that
-// cannot hold a sliver.
-void nodeLeafAltitudes(const CompressedModel& model, uint32_t node, float out[model::kNodeChildren]);
-// Whether the altitudes of every node fit one buffer of this device (else the thin-triangle pass skips no leaf).
+// for slots that are not leaves), and when `longest` is given their longest
+// edges: the thin-triangle pass skips leaves that cannot hold a sliver (every
+// triangle wide, or every triangle short, at the light's texel size).
+void nodeLeafAltitudes(const CompressedModel& model, uint32_t node, float out[model::kNodeChildren],
+                       float longest[model::kNodeChildren] = nullptr);
+// Whether the altitudes and longest edges of every node fit one buffer of this device (else the thin-triangle
+// pass skips no leaf).
 bool leafAltitudesFit(const vk::Device& device, const CompressedModel& model);
 
 struct GpuGeometry {
@@ -76,7 +79,7 @@ struct GpuGeometry {
     // altitude (model units), 0 for other slots. The thin-triangle pass skips
     // leaves with no sliver. Empty when the array would not fit one buffer
     // (then no leaf is skipped).
-    vk::Buffer leafAltitudes;
+    vk::Buffer leafAltitudes; // per node: its 4 slots' smallest altitudes, then their longest edges (nodeLeafAltitudes)
     uint32_t nodeChunkShift = 0;
     uint32_t nodeCount = 0;
     // The ray tracer's view of the model through uniform texel buffers: on
