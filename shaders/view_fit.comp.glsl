@@ -227,7 +227,7 @@ void main()
     const ivec2 origin = ivec2(gl_GlobalInvocationID.xy) * VIEW_BOUNDS_BLOCK;
     // The block's points are read again for every light and map: a private
     // array of them, indexed in a loop, costs far more on lavapipe (so does
-    // unrolling these loops).
+    // unrolling the loops over the points).
     // The first light's walk over the block also counts its covered pixels (kCountCovered).
     uint covered = 0u;
     bool count = kCountCovered != 0u;

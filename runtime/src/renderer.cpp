@@ -177,7 +177,8 @@ struct Renderer::Impl::FrameScript {
     std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks; // layer k of light i at 6 i + k
     std::vector<VkDeviceAddress> thinClusterMask;                   // the same layers; 0: every cluster
     uint32_t viewFitMask = 0, receiverGridMask = 0;
-    bool coveredCounted = false; // view_fit counted the covered pixels (the first shade need not)
+    // Whether the frame runs view_fit (fitToView), which also counts the covered pixels (the first shade need not).
+    bool viewFitRuns() const { return viewFitMask || receiverGridMask; }
     bool rhFrame = false; // the rh pass's counters were cleared this frame
     std::vector<std::vector<uint32_t>> finalRanges; // paged geometry: the clusters of each range of a view's phase 2
     // afsm, area lights: each light's grid layers and whether they are cube faces.
@@ -643,7 +644,6 @@ struct Renderer::Impl::FrameScript {
         r.viewFit.record(cmd, r.device, r.targets.viewBounds, r.targets.receiverGrids, viewFitMask, receiverGridMask, pointMask & used,
                          directionalMask & used, gridLayers, width(), height(),
                          vk::bufferAddress(r.device, r.targets.stats) + PENUMBRA_STAT_COVERED * sizeof(uint64_t));
-        coveredCounted = true;
         timer.mark(cmd, PassId::ViewFit);
         r.submitAndWait(cmd, timer.passesSinceLastSubmit());
 
@@ -861,7 +861,7 @@ struct Renderer::Impl::FrameScript {
         case Step::Shade: {
             const bool firstLight = light + 1 == lights.size();
             const ShadePush push{light, firstLight ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u,
-                                 firstLight && !coveredCounted ? 1u : 0u};
+                                 firstLight && !viewFitRuns() ? 1u : 0u};
             // kShadeLookup: the visibility from the shadow map, stored only where it is read back (no classify
             // pass wrote the marks, which the light layers read: zero).
             const bool lookup = step.mode == kShadeLookup && !area;
@@ -1065,7 +1065,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     validate(settings);
     const auto cpuStart = std::chrono::steady_clock::now();
     FrameScript frame(*this, settings);
-    const bool readBack = frame.viewFitMask || frame.receiverGridMask;
+    const bool readBack = frame.viewFitRuns();
     culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, frame.view.viewProj, true, true}});
     if (!readBack)
         frame.planShadowViews();

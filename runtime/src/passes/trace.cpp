@@ -136,10 +136,11 @@ void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightT
     // its share of the visibility: lavapipe ends every loop of an invocation after 65,535 iterations in
     // all (its loop limiter), and 256 traversals of a large model reach that. Paged geometry keeps one
     // dispatch (a ray parked in one would be listed again by the next).
-    const uint32_t perDispatch = samples == 0 || parking ? std::max(samples, 1u) : PENUMBRA_TRACE_SAMPLES_PER_DISPATCH;
-    for (uint32_t begin = 0; begin < std::max(samples, 1u); begin += perDispatch) {
+    const uint32_t rays = std::max(samples, 1u); // per pixel
+    const uint32_t perDispatch = samples == 0 || parking ? rays : PENUMBRA_TRACE_SAMPLES_PER_DISPATCH;
+    for (uint32_t begin = 0; begin < rays; begin += perDispatch) {
         push.sampleBegin = begin;
-        push.sampleEnd = std::min(begin + perDispatch, std::max(samples, 1u));
+        push.sampleEnd = std::min(begin + perDispatch, rays);
         if (begin != 0)
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
         kernel.push(cmd, push);
