@@ -151,10 +151,13 @@ vec4 projectVertex(vec3 v)
 // [n0, n1]} (texels) around its longest edge A -> B, grown by the texel
 // square's half width in each direction of the edge's frame, so that it
 // holds the centre of every texel the triangle touches; zMin: its nearest
-// NDC depth; area: (d1 - d0) (n1 - n0).
+// NDC depth; area: (d1 - d0) (n1 - n0). The depths of A, B and the third
+// vertex C, |B - A| and C's t serve the per-texel depths of area lights'
+// maps (a single sliver's; a merged run keeps its first sliver's).
 struct SliverRect {
     vec2 A, d, nrm;
     float d0, d1, n0, n1, zMin;
+    float zA, zB, zC, longest, along;
 };
 
 float rectArea(SliverRect r)
@@ -171,7 +174,7 @@ float rectArea(SliverRect r)
 // silhouettes.
 bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
 {
-    r = SliverRect(vec2(0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), 0.0, 0.0, 0.0, 0.0, 1.0);
+    r = SliverRect(vec2(0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     if (v0.w == 0.0 || v1.w == 0.0 || v2.w == 0.0)
         return false; // crosses the light's near plane: the shadow map clips it too
     vec2 p[3] = vec2[3](v0.xy, v1.xy, v2.xy);
@@ -205,6 +208,12 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
     r.d1 = max(longest, along) + e_d;
     r.n0 = min(0.0, c) - e_n;
     r.n1 = max(0.0, c) + e_n;
+    const float z[3] = float[3](v0.z, v1.z, v2.z);
+    r.zA = z[a];
+    r.zB = z[(a + 1) % 3];
+    r.zC = z[(a + 2) % 3];
+    r.longest = longest;
+    r.along = along;
     return true;
 }
 
@@ -242,25 +251,8 @@ void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, Sli
         return;
     const vec2 A = r.A, d = r.d, nrm = r.nrm;
     const float d0 = r.d0, d1 = r.d1, n0 = r.n0, n1 = r.n1, zMin = r.zMin;
-    // Area lights: the edges' depths along the longest edge (recomputed: no merging there).
-    float zA = 0.0, zB = 0.0, zC = 0.0, longest = 0.0, along = 0.0, e_d = 0.5 * (abs(d.x) + abs(d.y));
-    if (kLocalDepths != 0u) {
-        vec2 p[3] = vec2[3](v0.xy, v1.xy, v2.xy);
-        float z[3] = float[3](v0.z, v1.z, v2.z);
-        int a = 0;
-        longest = -1.0;
-        for (int i = 0; i < 3; ++i) {
-            float len = distance(p[i], p[(i + 1) % 3]);
-            if (len > longest) {
-                longest = len;
-                a = i;
-            }
-        }
-        zA = z[a];
-        zB = z[(a + 1) % 3];
-        zC = z[(a + 2) % 3];
-        along = dot(p[(a + 2) % 3] - A, d);
-    }
+    // Area lights (never merged): the edges' depths along the longest edge.
+    const float zA = r.zA, zB = r.zB, zC = r.zC, longest = r.longest, along = r.along, e_d = 0.5 * (abs(d.x) + abs(d.y));
     vec2 corners[4] = vec2[4](A + d * d0 + nrm * n0, A + d * d1 + nrm * n0, A + d * d0 + nrm * n1, A + d * d1 + nrm * n1);
     vec2 lo = min(min(corners[0], corners[1]), min(corners[2], corners[3]));
     vec2 hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]));
