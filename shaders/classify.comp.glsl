@@ -13,7 +13,8 @@
 //  - the shadow map calls the pixel lit but a thin triangle, rasterized
 //    conservatively into the thin map (thin_triangles.comp.glsl), lies in front
 //    of it within its texel (a dropped thin occluder can only darken a pixel).
-// frt mode marks every light-facing pixel; sm mode marks none.
+// frt mode marks every light-facing pixel and reads no map (none is drawn);
+// sm mode marks none.
 // The mode and the light's type are specialization constants (one pipeline
 // each, runtime/src/passes/classify.cpp): on lavapipe a shader pays for every
 // instruction it holds, so the srt tests cost nothing in sm frames.
@@ -61,7 +62,9 @@ void classifyPixel()
     const uint layer = shadowLayer(light, p);
     ShadowLookup s = kLightType == PENUMBRA_LIGHT_POINT ? projectToLayer(frame.lights[push.lightIndex].viewProj[layer], layer, p, size)
                                                           : projectToShadowMap(light, p, size);
-    float visibility = !s.inside || s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
+    // frt draws no map: a light-facing pixel's visibility is its ray's, the others' 0 (as afsm and rh store it).
+    float visibility = kMode == PENUMBRA_CLASSIFY_ALL ? (lightFacing ? 1.0 : 0.0)
+                       : !s.inside || s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
     imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
 
     bool mark = lightFacing && kMode == PENUMBRA_CLASSIFY_ALL;
@@ -85,7 +88,7 @@ void main()
         return;
     ivec2 mapSize = textureSize(shadowMap, 0).xy;
     ivec2 texel = pixel * mapSize / size;
-    float depth = texelFetch(shadowMap, ivec3(texel, 0), 0).r;
+    float depth = push.mode != PENUMBRA_CLASSIFY_ALL ? texelFetch(shadowMap, ivec3(texel, 0), 0).r : 0.0; // frt reads no map
     float thin = 0.0;
     if (push.mode == PENUMBRA_CLASSIFY_PIP) {
         // The PIP test's inputs: the thin map's texel and the 3x3 texels around the pixel's, as the four

@@ -245,7 +245,7 @@ struct Renderer::Impl::FrameScript {
         // area-light grids (afsmAreaLayers). Views that cull the casters beside the points the camera sees: every
         // light but area lights.
         const bool gridsAllowed = s.cullBesideReceivers && s.cull != CullMode::None && r.geometry.encoding == GeometryEncoding::Compressed;
-        for (uint32_t i = 0; i < lights.size(); ++i) {
+        for (uint32_t i = 0; spec.lightViews && i < lights.size(); ++i) {
             const bool area = isAreaLight(lights[i]);
             const bool afsmGrid = area && s.shadows == ShadowMethod::AliasFree;
             if (s.fitShadowMapsToView && (lights[i].type == LightType::Directional || (area && spec.drawsAreaMaps()) || afsmGrid))
@@ -336,7 +336,7 @@ struct Renderer::Impl::FrameScript {
                                      1 + 6 * i + layer.index, layer.cull, false, false, nullptr});
                 continue;
             }
-            const uint32_t maps = area ? (spec.drawsAreaMaps() ? uint32_t(data.lights[i].spotCosLayers.w) : 0u) : layers(i);
+            const uint32_t maps = area ? (spec.drawsAreaMaps() ? uint32_t(data.lights[i].spotCosLayers.w) : 0u) : spec.lightViews ? layers(i) : 0u;
             for (uint32_t k = 0; k < maps; ++k)
                 views.push_back({"light" + std::to_string(i) + (maps > 1 ? (area ? ".map" : ".face") + std::to_string(k) : ""),
                                  1 + 6 * i + k, data.lights[i].viewProj[k], false, occlusion, area ? nullptr : receiverMasks[6 * i + k]});

@@ -69,6 +69,8 @@ struct ShadowMethodSpec {
     AreaMapEyes areaEyes = AreaMapEyes::Centre;
     bool widenAreaMaps = false; // area maps fitted to the view keep room for penumbra thrown from beside it
     bool shadowViewOcclusion = true; // the light's views may be culled by occlusion queries (they draw a depth map)
+    bool lightViews = true; // a directional, point or spot light is seen from its position (maps, grids, culled casters);
+                            // false: the method needs nothing from the light's side but its rays (frt)
 
     bool uses(Step step) const; // some sequence of the method has this step
     bool traces() const { return uses(Step::Trace); } // the frame's ray offset and samples apply

@@ -116,4 +116,21 @@ inline Comparison compareVisibility(const std::vector<float>& reference, const s
     return c;
 }
 
+// The reference with the pixels that face away from a directional, point or
+// spot light set to -2, as the Embree oracle marks them: compareVisibility
+// skips them. Only light-facing pixels have a visibility every method agrees
+// on (frt, afsm and rh store 0 elsewhere; sm and srt the map's depth test).
+inline std::vector<float> lightFacingOnly(std::vector<float> reference, const std::vector<float>& positions,
+                                          const std::vector<float>& normals, const Light& light)
+{
+    for (size_t i = 0; i < reference.size(); ++i) {
+        const glm::vec3 p(positions[4 * i], positions[4 * i + 1], positions[4 * i + 2]);
+        const glm::vec3 n(normals[4 * i], normals[4 * i + 1], normals[4 * i + 2]);
+        const glm::vec3 toLight = light.type == LightType::Directional ? -light.direction : light.position - p;
+        if (reference[i] >= 0.0f && glm::dot(n, toLight) <= 0.0f)
+            reference[i] = -2.0f;
+    }
+    return reference;
+}
+
 } // namespace penumbra::test
