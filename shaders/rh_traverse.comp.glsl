@@ -5,12 +5,12 @@
 #extension GL_KHR_shader_subgroup_ballot : require
 // Cone ray hierarchies, one traversal step (rh.glsli; Olsson and Assarsson
 // 2011, sections 3.1-3.3): each record (triangle, node) of the chunk
-// rh_step picked tests the node's 4 children with the test of the push
-// constant: cones (point and spot lights) or slabs (directional lights:
+// rh_step picked tests the node's 4 children with the test of the
+// pipeline (kTest): cones (point and spot lights) or slabs (directional lights:
 // this shader compiled with PENUMBRA_RH_PARALLEL). A child that passes
 // becomes a record of the next depth (one atomic per subgroup, no workgroup
 // barriers: they are expensive on CPU drivers); a child the triangle covers
-// (early accept, push.earlyAccept) is marked covered and its rays are
+// (early accept, kEarlyAccept) is marked covered and its rays are
 // shadowed later, whole (rh_build.comp's resolve mode); a record whose node
 // was covered meanwhile is dropped. Below a leaf each of its rays not yet
 // shadowed gets the tracer's exact watertight ray/triangle test on the
@@ -44,6 +44,10 @@ RH_STEP_DECLARE();
 // 1: the rays, nodes, triangles and records are read through the texel views below (RhPass::texelAccess):
 // on lavapipe a texel fetch is a gather, any other load that is not uniform a loop over the lanes.
 layout(constant_id = 0) const uint kTexelAccess = 0u;
+// The test (PENUMBRA_RH_TEST_*) and early accept (1: covered children are accepted whole, section 3.3) are
+// constants of the pipeline: llvmpipe runs every instruction a shader holds, and fewer live values spill less.
+layout(constant_id = 1) const uint kTest = PENUMBRA_RH_TEST_PRECISE;
+layout(constant_id = 2) const uint kEarlyAccept = 1u;
 layout(set = 0, binding = 11) uniform usamplerBuffer rayTexels;       // RGBA32UI: rayQuads
 layout(set = 0, binding = 12) uniform usamplerBuffer nodeTexels;      // RGBA32UI: nodes, two a node
 layout(set = 0, binding = 13) uniform usamplerBuffer triangleTexelsA; // RGBA32UI: trianglesA, two a triangle
@@ -84,11 +88,9 @@ uvec4 loadRayQuad(uint index)
 
 layout(push_constant) uniform RhTraversePush {
     uint lightIndex;
-    uint test;          // PENUMBRA_RH_TEST_*
     float originOffset; // the rays' origin offset (the cones grow by it)
-    uint earlyAccept;   // 1: covered children are accepted whole (section 3.3)
     uint faces;         // the light's faces (6: a point light's cube faces)
-    uint pad0, pad1, pad2;
+    uint pad0;
 } push;
 
 
@@ -117,7 +119,7 @@ void main()
     bool gate = push.faces > 1u;
     uint casterFaces = b.y;
     // A record whose node was covered since it was written: every ray below is in shadow.
-    PENUMBRA_SKIP_UNLESS(push.earlyAccept != 0u && depth > 0u && live)
+    PENUMBRA_SKIP_UNLESS(kEarlyAccept != 0u && depth > 0u && live)
     {
         live = unpack32(loadNode(RH_LEVEL_WORD(stepInfo.levelOffset, level) + node).w).y != floatBitsToUint(-1.0);
     }
@@ -134,23 +136,23 @@ void main()
     {
         uint childOffset = RH_LEVEL_WORD(stepInfo.levelOffset, level - 1u);
         uint childCount = RH_LEVEL_WORD(stepInfo.levelCount, level - 1u);
-        bool accept = push.earlyAccept != 0u;
+        bool accept = kEarlyAccept != 0u;
         // What the tests need of the triangle, once; then each child in turn (few values live at once:
         // llvmpipe keeps every vector of all 8 lanes in registers or on the stack).
 #ifdef PENUMBRA_RH_PARALLEL
         SlabTriangle slab;
-        PENUMBRA_SKIP_UNLESS(live && push.test == PENUMBRA_RH_TEST_PRECISE)
+        PENUMBRA_SKIP_UNLESS(live && kTest == PENUMBRA_RH_TEST_PRECISE)
         {
             slab = slabTriangle(t0, t1, t2);
         }
 #else
         ConeTriangle cone;
         SphereTriangle sphere;
-        PENUMBRA_SKIP_UNLESS(live && push.test == PENUMBRA_RH_TEST_PRECISE)
+        PENUMBRA_SKIP_UNLESS(live && kTest == PENUMBRA_RH_TEST_PRECISE)
         {
             cone = coneTriangle(v0, v1, v2, light, push.originOffset);
         }
-        PENUMBRA_SKIP_UNLESS(live && push.test == PENUMBRA_RH_TEST_SPHERES)
+        PENUMBRA_SKIP_UNLESS(live && kTest == PENUMBRA_RH_TEST_SPHERES)
         {
             sphere = sphereTriangle(v0, v1, v2, light, push.originOffset);
         }
@@ -167,20 +169,20 @@ void main()
             tested += valid ? 1u : 0u;
             uint result = RH_MISS;
 #ifdef PENUMBRA_RH_PARALLEL
-            PENUMBRA_SKIP_UNLESS(valid && push.test == PENUMBRA_RH_TEST_PRECISE)
+            PENUMBRA_SKIP_UNLESS(valid && kTest == PENUMBRA_RH_TEST_PRECISE)
             {
                 result = preciseSlabTest(slab, c, accept);
             }
-            PENUMBRA_SKIP_UNLESS(valid && push.test == PENUMBRA_RH_TEST_SPHERES)
+            PENUMBRA_SKIP_UNLESS(valid && kTest == PENUMBRA_RH_TEST_SPHERES)
             {
                 result = sphereMayMeetSlab(c, t0, t1, t2) ? RH_MAY : RH_MISS;
             }
 #else
-            PENUMBRA_SKIP_UNLESS(valid && push.test == PENUMBRA_RH_TEST_PRECISE)
+            PENUMBRA_SKIP_UNLESS(valid && kTest == PENUMBRA_RH_TEST_PRECISE)
             {
                 result = preciseConeTest(cone, c, push.originOffset, accept);
             }
-            PENUMBRA_SKIP_UNLESS(valid && push.test == PENUMBRA_RH_TEST_SPHERES)
+            PENUMBRA_SKIP_UNLESS(valid && kTest == PENUMBRA_RH_TEST_SPHERES)
             {
                 result = sphereMayMeetCone(sphere, c, push.originOffset) ? RH_MAY : RH_MISS;
             }

@@ -503,8 +503,8 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
                     step.push(cmd, RhStepPush{kPairCapacity, kTriangleCapacity, {}});
                     vkCmdDispatch(cmd, 1, 1, 1);
                     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kSampledRead | kIndirectRead | kUniformRead);
-                    traverser.bind(cmd, vk::Specialization{texelAccess ? 1u : 0u});
-                    traverser.push(cmd, RhTraversePush{lightIndex, options.test, originOffset, options.earlyAccept ? 1u : 0u, faces, {}});
+                    traverser.bind(cmd, vk::Specialization{texelAccess ? 1u : 0u, options.test, options.earlyAccept ? 1u : 0u});
+                    traverser.push(cmd, RhTraversePush{lightIndex, originOffset, faces, 0});
                     vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, dispatch));
                     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead | kUniformRead);
                 }

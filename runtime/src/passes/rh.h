@@ -75,11 +75,11 @@ struct RhStepPush {
     uint32_t pairCapacity, triangleCapacity, pad[2];
 };
 struct RhTraversePush {
-    uint32_t lightIndex, test;
+    uint32_t lightIndex;
     float originOffset;
-    uint32_t earlyAccept, faces, pad[3];
+    uint32_t faces, pad;
 };
-static_assert(sizeof(RhTraversePush) == 32);
+static_assert(sizeof(RhTraversePush) == 16);
 
 // shaders/rh.glsli, RH_STATE_WORDS: the same words (std430 and std140 alike).
 struct RhState {
