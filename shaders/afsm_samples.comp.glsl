@@ -54,13 +54,17 @@ layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  /
 layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared here)
 layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (counted here)
 
+// The mode (PENUMBRA_AFSM_*) is a specialization constant, push.mode its copy: one pipeline per mode (on
+// lavapipe a workgroup pays for all the code its shader holds).
+layout(constant_id = 0) const uint kMode = PENUMBRA_AFSM_COUNT;
+
 layout(push_constant) uniform AfsmSamplesPush {
     mat4 viewProj;      // the layer's grid projection
     uint64_t slots;     // AfsmRaySlot (soft: AfsmSlot) per slot
     uint64_t masks;     // soft: afsmWords(samples) uints per pixel
     uint64_t table;     // soft: the lookup table (afsm_table.comp.glsl)
     uint lightIndex;
-    uint mode;          // PENUMBRA_AFSM_COUNT, _LIST, _RESOLVE
+    uint mode;          // PENUMBRA_AFSM_COUNT, _LIST, _RESOLVE: kMode's value
     uint layer;         // layer of the light binned (COUNT, LIST)
     uint gridSize;      // cells per side
     float originOffset;
@@ -117,7 +121,7 @@ uvec2 samplePixel()
     uint index = uint(pixel.y * size.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
     LightData light = frame.lights[push.lightIndex];
-    if (push.mode == PENUMBRA_AFSM_RESOLVE) {
+    if (kMode == PENUMBRA_AFSM_RESOLVE) {
         if (position.w == 0.0) {
             imageStore(visibilityImage, pixel, vec4(-1.0));
             marks[index] = 0u;
@@ -166,7 +170,7 @@ uvec2 samplePixel()
             return uvec2(0u);
     }
 #endif
-    if (push.mode == PENUMBRA_AFSM_COUNT) {
+    if (kMode == PENUMBRA_AFSM_COUNT) {
         uint before = atomicAdd(cellCount[cell], 1u);
         if (before == push.sliceSamples) { // the cell's first sample past one slice: once per crowded cell
             atomicMin(crowded[0], cell % push.gridSize);
@@ -200,7 +204,7 @@ void main()
 {
     uvec2 counts = samplePixel(); // covered pixels are counted by shade
     // The layer's farthest sample (clip.w) and its most samples in a cell: one atomic each per subgroup.
-    if (push.mode == PENUMBRA_AFSM_COUNT) {
+    if (kMode == PENUMBRA_AFSM_COUNT) {
         uint farthest = subgroupMax(counts.y);
         uint most = subgroupMax(counts.x);
         if (subgroupElect() && farthest != 0u)

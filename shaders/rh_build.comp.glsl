@@ -51,9 +51,14 @@ RH_STATE_DECLARE();
 layout(set = 0, binding = 6, std430) buffer Shadowed { uint shadowed[]; };
 layout(set = 0, binding = 7, std430) buffer DepthGrid { uint depthGrid[]; }; // the receivers' depth grid (rh.glsli)
 
+// The mode is a specialization constant (one pipeline per mode; push.mode holds the same value): on lavapipe a
+// workgroup pays for all the code its shader holds, and with every mode in one shader an empty workgroup cost
+// 8.5 us (6144 of them 52 ms, the depth grid's first level as much).
+layout(constant_id = 0) const uint kMode = PENUMBRA_RH_BUILD_LEVEL; // PENUMBRA_RH_BUILD_*
+
 layout(push_constant) uniform RhBuildPush {
     uint lightIndex;
-    uint mode;          // PENUMBRA_RH_BUILD_*
+    uint mode;          // PENUMBRA_RH_BUILD_*: kMode's value
     uint level;         // PENUMBRA_RH_BUILD_LEVEL: the level built (>= 1)
     uint skipShadowed;  // PENUMBRA_RH_BUILD_LEAVES: 1 leaves out the rays already shadowed
     float originOffset; // the rays' origin offset (directional lights: the origins are bounded)
@@ -89,7 +94,7 @@ const float kEmpty = 3.0e38; // a slab node with no ray: an empty rectangle
 
 void main()
 {
-    if (push.mode == PENUMBRA_RH_BUILD_DECIDE) {
+    if (kMode == PENUMBRA_RH_BUILD_DECIDE) {
         if (gl_GlobalInvocationID.x != 0u)
             return;
         bool sorted = push.sort == PENUMBRA_RH_SORT_ON;
@@ -114,7 +119,7 @@ void main()
         state.scanPhase1Z = 1u;
         return;
     }
-    if (push.mode == PENUMBRA_RH_BUILD_FACES) {
+    if (kMode == PENUMBRA_RH_BUILD_FACES) {
         if (gl_GlobalInvocationID.x != 0u || state.sorted == 0u)
             return;
         uint total = 0u;
@@ -136,7 +141,7 @@ void main()
         state.rayCount = start;
         return;
     }
-    if (push.mode == PENUMBRA_RH_BUILD_INIT) {
+    if (kMode == PENUMBRA_RH_BUILD_INIT) {
         if (gl_GlobalInvocationID.x != 0u)
             return;
         // The list's last leaf padded (a sorted list has no padding of its own).
@@ -161,7 +166,7 @@ void main()
         return;
     }
     uint node = gl_GlobalInvocationID.y * (gl_NumWorkGroups.x * PENUMBRA_RH_GROUP_SIZE) + gl_GlobalInvocationID.x;
-    if (push.mode == PENUMBRA_RH_BUILD_GRID) {
+    if (kMode == PENUMBRA_RH_BUILD_GRID) {
         // Here `node` is a cell of level push.level (faces x side x side).
         uint order = push.sort; // here: the grid's order
         uint side = 1u << (order - push.level);
@@ -175,7 +180,7 @@ void main()
     }
     uint levels = state.tree.x; // built
     int width = imageSize(gPosition).x;
-    if (push.mode == PENUMBRA_RH_BUILD_RESOLVE) {
+    if (kMode == PENUMBRA_RH_BUILD_RESOLVE) {
         // Here `node` is a leaf: its rays are in shadow when it or an ancestor below the traversal's root was covered.
         if (state.levels < 2u || node >= RH_LEVEL_WORD(state.levelCount, 0))
             return;
@@ -194,7 +199,7 @@ void main()
         return;
     }
     vec3 light = frame.lights[push.lightIndex].positionType.xyz;
-    if (push.mode == PENUMBRA_RH_BUILD_LEAVES) {
+    if (kMode == PENUMBRA_RH_BUILD_LEAVES) {
         if (levels == 0u || node >= RH_LEVEL_WORD(state.levelCount, 0))
             return;
         uvec4 pixels = rayQuads[node];

@@ -7,7 +7,8 @@
 // Cone ray hierarchies, the rays of one light (rh.glsli): every light-facing
 // pixel the light reaches (a spot light: inside its frustum) is a ray. One
 // workgroup per 8x8 tile, its pixels in Morton order (4 consecutive
-// invocations are a 2x2 block). Modes (push.mode):
+// invocations are a 2x2 block). Modes (kMode, a specialization constant: one
+// pipeline each, as rh_build.comp's):
 //  PENUMBRA_RH_RAYS_COUNT: each tile's ray count, padded to a multiple of 4,
 //    at the tile's Morton index (rh_scan.comp turns the counts into offsets);
 //    the receivers' depth grid (rh.glsli);
@@ -58,9 +59,11 @@ layout(set = 0, binding = 5, std430) buffer TileOffsets { uint tileOffsets[]; };
 layout(set = 0, binding = 6, std430) buffer KeySlots { uint keySlots[]; };       // per key: rays, then (scan) next slot
 layout(set = 0, binding = 7, std430) buffer DepthGrid { uint depthGrid[]; };     // the receivers' depth grid (rh.glsli)
 
+layout(constant_id = 0) const uint kMode = PENUMBRA_RH_RAYS_COUNT; // PENUMBRA_RH_RAYS_*
+
 layout(push_constant) uniform RhRaysPush {
     uint lightIndex;
-    uint mode;      // PENUMBRA_RH_RAYS_*
+    uint mode;      // PENUMBRA_RH_RAYS_*: kMode's value
     float originOffset;
     uint order;     // keys: 2^order x 2^order cells per face
     uint measure;   // PENUMBRA_RH_RAYS_COUNT: 1 measures the incoherence
@@ -140,7 +143,7 @@ void main()
     bool sorted = state.sorted != 0u; // rh_build.comp's decide mode
     // The key: the face and the Hilbert index of the ray's cell on it.
     uint key = 0u;
-    PENUMBRA_SKIP_UNLESS(push.mode == PENUMBRA_RH_RAYS_KEYS || (push.mode == PENUMBRA_RH_RAYS_LIST && sorted))
+    PENUMBRA_SKIP_UNLESS(kMode == PENUMBRA_RH_RAYS_KEYS || (kMode == PENUMBRA_RH_RAYS_LIST && sorted))
     {
         uint face = 0u;
         vec2 ndc;
@@ -158,14 +161,14 @@ void main()
         key = (face << (2u * push.order)) + hilbertIndex(cell, push.order);
     }
     uint face = key >> (2u * push.order);
-    if (push.mode == PENUMBRA_RH_RAYS_KEYS) {
+    if (kMode == PENUMBRA_RH_RAYS_KEYS) {
         if (listed) {
             atomicAdd(keySlots[key], 1u);
             atomicAdd(state.faceCount[face >> 2u][face & 3u], 1u);
         }
         return;
     }
-    if (push.mode == PENUMBRA_RH_RAYS_LIST && sorted) {
+    if (kMode == PENUMBRA_RH_RAYS_LIST && sorted) {
         // The subgroup's rays of one key take consecutive slots, in pixel order (one atomic per key):
         // a key's cell holds several rays where they are dense, and neighbouring pixels among them
         // then stay together, so the leaves over them are tight.
@@ -207,7 +210,7 @@ void main()
     }
     uint padded = (total + 3u) & ~3u;
     uint tile = mortonIndex(gl_WorkGroupID.xy);
-    if (push.mode == PENUMBRA_RH_RAYS_COUNT) {
+    if (kMode == PENUMBRA_RH_RAYS_COUNT) {
         // The receivers' depth grid: the deepest ray per cell (rh.glsli).
         PENUMBRA_SKIP_UNLESS(listed && push.gridFaces != 0u)
         {

@@ -415,7 +415,7 @@ AfsmSamplesPush AfsmPass::samplesPush(uint32_t lightIndex, uint32_t mode, uint32
 void AfsmPass::dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft) const
 {
     const vk::ComputeKernel& kernel = soft ? samplesSoft : samples;
-    kernel.bind(cmd);
+    kernel.bind(cmd, vk::Specialization{push.mode}); // afsm_samples' mode is a specialization constant
     kernel.push(cmd, push);
     vkCmdDispatch(cmd, groupCount(targets.width, PENUMBRA_SHADE_GROUP_SIZE), groupCount(targets.height, PENUMBRA_SHADE_GROUP_SIZE), 1);
 }

@@ -348,6 +348,10 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     };
     const bool parallel = type == PENUMBRA_LIGHT_DIRECTIONAL;
     const vk::ComputeKernel& builder = parallel ? buildParallel : build;
+    auto buildStep = [&](const RhBuildPush& push) { // rh_build's mode is a specialization constant
+        builder.bind(cmd, vk::Specialization{push.mode});
+        builder.push(cmd, push);
+    };
     const vk::ComputeKernel& traverser = parallel ? traverseParallel : traverse;
     const uint32_t faces = type == PENUMBRA_LIGHT_POINT ? 6 : 1;
     const uint32_t order = sortOrder(faces);
@@ -371,7 +375,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     }
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW | kSampledRead);
     auto raysPass = [&](uint32_t mode, bool indirect) {
-        rays.bind(cmd);
+        rays.bind(cmd, vk::Specialization{mode}); // the mode is a specialization constant
         rays.push(cmd, RhRaysPush{lightIndex, mode, originOffset, order, sortMode == PENUMBRA_RH_SORT_AUTO ? 1u : 0u, gridFaces, depthOrder, 0});
         if (indirect)
             vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, keyDispatch));
@@ -380,14 +384,13 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
     };
     raysPass(PENUMBRA_RH_RAYS_COUNT, false);
-    builder.bind(cmd);
     for (uint32_t level = 1; gridFaces && level <= depthOrder; ++level) {
         const uint32_t side = 1u << (depthOrder - level);
-        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_GRID, level, 0, originOffset, depthOrder, 0, 0, 0, gridFaces, 0, 0});
+        buildStep(RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_GRID, level, 0, originOffset, depthOrder, 0, 0, 0, gridFaces, 0, 0});
         vkCmdDispatch(cmd, groupCount(gridFaces * side * side, PENUMBRA_RH_GROUP_SIZE), 1, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
     }
-    builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_DECIDE, 0, 0, originOffset, sortMode, tilesX, tilesY,
+    buildStep(RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_DECIDE, 0, 0, originOffset, sortMode, tilesX, tilesY,
                                   groupCount(keys, kScanBlock), faces, uint32_t(std::min<uint64_t>(casterTriangles, UINT32_MAX)), 0});
     vkCmdDispatch(cmd, 1, 1, 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kSampledRead | kIndirectRead);
@@ -403,8 +406,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
         }
         // Each face on whole subtrees; the slots between them stay RH_NO_RAY.
-        builder.bind(cmd);
-        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_FACES, 0, 0, originOffset, sortMode, 0, 0, 0, faces, 0, 0});
+        buildStep(RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_FACES, 0, 0, originOffset, sortMode, 0, 0, 0, faces, 0, 0});
         vkCmdDispatch(cmd, 1, 1, 1);
         vk::memoryBarrier(cmd, kCompute | kClear, kStorageWrite | kTransferWrite, kCompute, kStorageRW | kSampledRead);
     }
@@ -414,13 +416,12 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     // The hierarchy, bottom-up: every level dispatched for its largest size, idle beyond the light's.
     const uint32_t levels = maxLevels();
     auto buildHierarchy = [&](bool skipShadowed) {
-        builder.bind(cmd);
-        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_INIT, 0, 0, originOffset, 0, 0, 0, 0, faces, 0, 0});
+        buildStep(RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_INIT, 0, 0, originOffset, 0, 0, 0, 0, faces, 0, 0});
         vkCmdDispatch(cmd, 1, 1, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
         uint32_t count = maxRays / 4;
         for (uint32_t level = 0; level < levels; ++level) {
-            builder.push(cmd, RhBuildPush{lightIndex, level == 0 ? PENUMBRA_RH_BUILD_LEAVES : PENUMBRA_RH_BUILD_LEVEL, level,
+            buildStep(RhBuildPush{lightIndex, level == 0 ? PENUMBRA_RH_BUILD_LEAVES : PENUMBRA_RH_BUILD_LEVEL, level,
                                           skipShadowed ? 1u : 0u, originOffset, 0, 0, 0, 0, faces, 0, 0});
             const Groups2D groups = spreadGroups(groupCount(count, PENUMBRA_RH_GROUP_SIZE), 65535u);
             vkCmdDispatch(cmd, groups.x, groups.y, 1);
@@ -435,8 +436,7 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
         if (!options.earlyAccept || hostState->lightAccepted == acceptedResolved)
             return;
         acceptedResolved = hostState->lightAccepted;
-        builder.bind(cmd);
-        builder.push(cmd, RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_RESOLVE, 0, 0, originOffset, 0, 0, 0, 0, faces, 0, 0});
+        buildStep(RhBuildPush{lightIndex, PENUMBRA_RH_BUILD_RESOLVE, 0, 0, originOffset, 0, 0, 0, 0, faces, 0, 0});
         const Groups2D groups = spreadGroups(groupCount(maxRays / 4, PENUMBRA_RH_GROUP_SIZE), 65535u);
         vkCmdDispatch(cmd, groups.x, groups.y, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead);
