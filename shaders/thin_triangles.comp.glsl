@@ -31,6 +31,7 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 
 #include "config.h"
 // 1: the model is read through texel buffers (GpuGeometry::texelsComplete), 0: by device address.
@@ -242,8 +243,8 @@ SliverRect unionRect(SliverRect into, SliverRect r)
 
 // Fills the conservative rectangle of triangle (v0, v1, v2) (projectVertex)
 // when it is thin, or rectangle `run` (merged slivers, hard shadows: pass
-// merged = true): the texels x = first, first + step, ... of each row (the
-// lanes of a subgroup share one sliver's rows).
+// merged = true): rows first, first + step, ... of it (fillListedShared: the
+// lanes of a subgroup share one rectangle's rows).
 void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, SliverRect run)
 {
     SliverRect r = run;
@@ -265,7 +266,7 @@ void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, Sli
     EdgeDepth edges[3];
     if (local)
         edges = EdgeDepth[3](edgeDepth(0.0, zA, longest, zB), edgeDepth(longest, zB, along, zC), edgeDepth(along, zC, 0.0, zA));
-    for (int y = yBegin; y <= yEnd; ++y) {
+    for (int y = yBegin + first; y <= yEnd; y += step) {
         float cy = float(y) + 0.5 - A.y;
         float xLo = lo.x - A.x - 1.0, xHi = hi.x - A.x + 1.0; // X = x + 0.5 - A.x
         clipLinear(d.x, d0 - d.y * cy, d1 - d.y * cy, xLo, xHi);     // t = d.x X + d.y cy
@@ -273,7 +274,7 @@ void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, Sli
         int xBegin = max(int(ceil(xLo + A.x - 0.5)), 0), xEnd = min(int(floor(xHi + A.x - 0.5)), size.x - 1);
         // Two loops, so that the hard-shadow maps' fill stays as lean as it was.
         if (!local) {
-            for (int x = xBegin + first; x <= xEnd; x += step) {
+            for (int x = xBegin; x <= xEnd; ++x) {
                 ivec3 texel = ivec3(x, y, int(push.layer));
                 if (imageLoad(thinMap, texel).r > floatBitsToUint(zMin))
                     imageAtomicMin(thinMap, texel, floatBitsToUint(zMin));
@@ -282,7 +283,7 @@ void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, Sli
         }
         // Area lights' slivers overlap (a grating's bars, a strip's neighbours): here skipping the
         // atomics that would change nothing pays (interior 512^2: about 350 -> 320 ms on lavapipe).
-        for (int x = xBegin + first; x <= xEnd; x += step) {
+        for (int x = xBegin; x <= xEnd; ++x) {
             ivec3 texel = ivec3(x, y, int(push.layer));
             if (imageLoad(thinMap, texel).r > floatBitsToUint(zMin))
                 imageAtomicMin(thinMap, texel, floatBitsToUint(zMin));
@@ -425,10 +426,11 @@ void decodeLeaf(ModelTable table, GeometryChunks chunks, uvec2 leaf)
     listRun(leaf.x, w);
 }
 
-// The fill of listed run `index`: its slivers' vertices decoded again (the
-// run's first sliver's bytes, then one byte per sliver), their rectangles
-// joined in the first one's frame.
-void fillListed(ModelTable table, uint index)
+// Listed run `index`: its slivers' vertices decoded again (the run's first
+// sliver's bytes, then one byte per sliver), their rectangles joined in the
+// first one's frame (`run`; false when none passed sliverRect); `first`: the
+// first sliver's projected vertices.
+bool listedRun(ModelTable table, uint index, out SliverRect run, out vec4 first[3])
 {
     uvec2 entry = thinTriangles[index];
     ClusterInfo cluster = clusterInfo(table, entry.x);
@@ -439,9 +441,8 @@ void fillListed(ModelTable table, uint index)
     if (kTexelAccess == 0u)
         strips = openLeaf(table, geometryChunksOf(push.modelTable, table), cluster, byte - 2u);
     vec4 p[2] = vec4[2](vec4(0.0), vec4(0.0));
-    SliverRect run;
     bool have = false; // a rectangle in `run` (each of the run's slivers passed sliverRect when listed)
-    vec4 first[3] = vec4[3](vec4(0.0), vec4(0.0), vec4(0.0));
+    first = vec4[3](vec4(0.0), vec4(0.0), vec4(0.0));
     for (uint k = 0u; k < slivers + 2u; ++k) {
         vec3 v;
         if (kTexelAccess != 0u) {
@@ -471,8 +472,44 @@ void fillListed(ModelTable table, uint index)
         p[0] = p[1];
         p[1] = p2;
     }
-    if (kLocalDepths != 0u || have)
-        emitIfThin(first[0], first[1], first[2], 0, 1, kLocalDepths == 0u, run);
+    return have;
+}
+
+// PENUMBRA_THIN_FILL of a hard-shadow map: the subgroup's runs one after
+// another, the lanes sharing each rectangle's rows (every 8th row each), so
+// that the loops stay uniform: one invocation per run looping over its own
+// rectangle kept most lanes idle behind the longest (llvmpipe runs a
+// subgroup's loop as long as any lane is in it).
+void fillListedShared(ModelTable table, uint index, bool valid)
+{
+    SliverRect run;
+    vec4 first[3];
+    bool have = valid && listedRun(table, index, run, first);
+    uvec4 pending = subgroupBallot(have);
+    const int lane = int(gl_SubgroupInvocationID), lanes = int(gl_SubgroupSize);
+    while (subgroupBallotBitCount(pending) != 0u) {
+        uint s = subgroupBallotFindLSB(pending);
+        pending[s >> 5u] &= ~(1u << (s & 31u));
+        SliverRect r = run;
+        r.A = subgroupShuffle(run.A, s);
+        r.d = subgroupShuffle(run.d, s);
+        r.nrm = subgroupShuffle(run.nrm, s);
+        r.d0 = subgroupShuffle(run.d0, s);
+        r.d1 = subgroupShuffle(run.d1, s);
+        r.n0 = subgroupShuffle(run.n0, s);
+        r.n1 = subgroupShuffle(run.n1, s);
+        r.zMin = subgroupShuffle(run.zMin, s);
+        emitIfThin(first[0], first[1], first[2], lane, lanes, true, r);
+    }
+}
+
+// The fill of listed run `index` for an area light's map (its per-texel depths: the first sliver's edges).
+void fillListed(ModelTable table, uint index)
+{
+    SliverRect run;
+    vec4 first[3];
+    listedRun(table, index, run, first);
+    emitIfThin(first[0], first[1], first[2], 0, 1, false, run);
 }
 
 // PENUMBRA_THIN_LIST: each workgroup takes PENUMBRA_THIN_TRIANGLES_GROUP_SIZE BVH nodes and lists their
@@ -495,7 +532,10 @@ void main()
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     if (kPhase == PENUMBRA_THIN_FILL) {
         uint index = group * PENUMBRA_THIN_TRIANGLES_GROUP_SIZE + gl_LocalInvocationIndex;
-        if (index < min(thinCount, thinCapacity))
+        bool valid = index < min(thinCount, thinCapacity);
+        if (kLocalDepths == 0u)
+            fillListedShared(table, index, valid);
+        else if (valid)
             fillListed(table, index);
         return;
     }
