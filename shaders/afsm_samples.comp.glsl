@@ -54,8 +54,8 @@ layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  /
 layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared here)
 layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (counted here)
 
-// The mode (PENUMBRA_AFSM_*) is a specialization constant, push.mode its copy: one pipeline per mode (on
-// lavapipe a workgroup pays for all the code its shader holds).
+// The mode (PENUMBRA_AFSM_*) is a specialization constant, push.mode its copy: one pipeline per mode
+// (llvmpipe runs both sides of an if, masked: every mode's code at each subgroup; rh_build.comp measures it).
 layout(constant_id = 0) const uint kMode = PENUMBRA_AFSM_COUNT;
 
 layout(push_constant) uniform AfsmSamplesPush {

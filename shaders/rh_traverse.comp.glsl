@@ -45,7 +45,7 @@ RH_STEP_DECLARE();
 // on lavapipe a texel fetch is a gather, any other load that is not uniform a loop over the lanes.
 layout(constant_id = 0) const uint kTexelAccess = 0u;
 // The test (PENUMBRA_RH_TEST_*) and early accept (1: covered children are accepted whole, section 3.3) are
-// constants of the pipeline: llvmpipe runs every instruction a shader holds, and fewer live values spill less.
+// constants of the pipeline: llvmpipe runs both sides of an if (masked), and fewer live values spill less.
 layout(constant_id = 1) const uint kTest = PENUMBRA_RH_TEST_PRECISE;
 layout(constant_id = 2) const uint kEarlyAccept = 1u;
 layout(set = 0, binding = 11) uniform usamplerBuffer rayTexels;       // RGBA32UI: rayQuads
