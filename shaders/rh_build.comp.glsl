@@ -52,8 +52,8 @@ layout(set = 0, binding = 6, std430) buffer Shadowed { uint shadowed[]; };
 layout(set = 0, binding = 7, std430) buffer DepthGrid { uint depthGrid[]; }; // the receivers' depth grid (rh.glsli)
 
 // The mode is a specialization constant (one pipeline per mode; push.mode holds the same value): llvmpipe runs
-// both sides of an if, masked (only a loop no lane enters is skipped), so with every mode in one shader each
-// subgroup ran all of them: an empty workgroup cost 8.5 us (6144 of them 52 ms, the depth grid's first level as much).
+// both sides of every if, masked (runtime/README.md), so with every mode in one shader each subgroup ran all
+// of them: an empty workgroup cost 8.5 us (6144 of them 52 ms, the depth grid's first level as much).
 layout(constant_id = 0) const uint kMode = PENUMBRA_RH_BUILD_LEVEL; // PENUMBRA_RH_BUILD_*
 
 layout(push_constant) uniform RhBuildPush {
