@@ -17,6 +17,8 @@
 #define AFSM_SOFT 1
 #include "afsm.glsli"
 
+// The depth test (the cells' farthest samples) before the shader: it stores, so without this the test would run after it.
+layout(early_fragment_tests) in;
 layout(location = 0) flat in vec3 vertex0;
 layout(location = 1) flat in vec3 vertex1;
 layout(location = 2) flat in vec3 vertex2;
