@@ -5,8 +5,9 @@
 // conservative rasterization of each triangle over the sample grid. lavapipe
 // has no conservative-rasterization extension, so the triangle is drawn
 // grown: each edge moved out by half a cell's extent along its normal plus
-// half a cell (afsm_casters.glsli: afsmOffsetAndClip), within its bounding
-// rectangle grown by one cell. Every cell whose area the triangle's
+// half a cell (afsm_casters.glsli: afsmMovedCorner), or as its bounding
+// rectangle grown by one cell where that is smaller (a sharp corner's moved
+// edges meet far away). Every cell whose area the triangle's
 // projection touches has its centre inside, so the fragment shader sees every
 // cell whose samples the triangle can shadow (afsm_casters.frag.glsl tests
 // them exactly). A triangle reaching behind a perspective projection's eye
@@ -38,7 +39,7 @@ layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBit
 #include "afsm_casters.glsli"
 
 layout(triangles) in;
-layout(triangle_strip, max_vertices = 8) out;
+layout(triangle_strip, max_vertices = 4) out;
 
 layout(location = 0) in vec3 worldPosition[];
 layout(location = 1) flat in uint cluster[];
@@ -79,23 +80,23 @@ void main()
         if (any(greaterThan(lo, hi)))
             return;
     }
+    // Of the grown triangle (its edges moved out, afsm_casters.glsli: afsmMovedCorner) and the rectangle, the one
+    // with the smaller area, as a strip of four vertices (the triangle's last one repeated). Not their intersection:
+    // clipping the one by the other (afsmOffsetAndClip) loops over arrays of vertices, which llvmpipe keeps in
+    // memory, and cost more than the extra cells it saves (the fragment shader tests each cell exactly).
     float area = afsmCross(cells[1] - cells[0], cells[2] - cells[0]);
-    if (behind || area == 0.0) {
-        afsmRectPolygon(lo, hi);
-    } else {
-        afsmPolygon[0] = cells[0];
-        afsmPolygon[1] = area > 0.0 ? cells[1] : cells[2];
-        afsmPolygon[2] = area > 0.0 ? cells[2] : cells[1];
-        afsmPolygonCount = 3;
-        afsmOffsetAndClip(0.5, lo, hi);
-    }
+    vec2 a = cells[0], b = area > 0.0 ? cells[1] : cells[2], c = area > 0.0 ? cells[2] : cells[1];
+    vec2 m0 = afsmMovedCorner(c, a, b, 0.5), m1 = afsmMovedCorner(a, b, c, 0.5), m2 = afsmMovedCorner(b, c, a, 0.5);
+    vec2 size = hi - lo;
+    bool triangle = !behind && area != 0.0 && abs(afsmCross(m1 - m0, m2 - m0)) < size.x * size.y;
+    vec2 strip[4] = vec2[](triangle ? m0 : lo, triangle ? m1 : vec2(hi.x, lo.y), triangle ? m2 : vec2(lo.x, hi.y), triangle ? m2 : hi);
     // Depth: at each cell's centre, the caster's nearest depth over the cell grown by the margin (afsmNearestOver's
     // plane, affine across the polygon); the depth test (LESS against the cells' farthest samples, 0 for empty cells;
     // clamped, not clipped) drops the cells every sample of which lies nearer the light than the caster.
     AfsmDepthBound plane = AfsmDepthBound(depth.plane, -3.0e38);
-    for (int i = 0; i < afsmPolygonCount; ++i) {
-        float z = depth.plane.w == 0.0 ? depth.nearest : afsmNearestOver(plane, afsmPolygon[afsmStripIndex(i)] - 0.5, 0.5);
-        gl_Position = afsmStripVertex(i, push.gridSize, z);
+    for (int i = 0; i < 4; ++i) {
+        float z = depth.plane.w == 0.0 ? depth.nearest : afsmNearestOver(plane, strip[i] - 0.5, 0.5);
+        gl_Position = vec4(strip[i] / float(push.gridSize) * 2.0 - 1.0, z, 1.0);
         vertex0 = worldPosition[0];
         vertex1 = worldPosition[1];
         vertex2 = worldPosition[2];
