@@ -61,6 +61,7 @@ layout(set = 0, binding = 8, std430) readonly buffer Params {
     uint softSamples, softTableSize;
 };
 layout(set = 0, binding = 9, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
+layout(set = 0, binding = 10) uniform usamplerBuffer slotTexels;                      // RGBA32UI over the slots (afsm_casters.glsli: afsmRaySlotAt)
 
 #include "afsm_casters.glsli"
 
@@ -131,7 +132,7 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
             afsmTestCellSoft(cell, 0u, count, light, table, v0, v1, v2); // at most PENUMBRA_AFSM_COMPUTE_BUDGET iterations
 #else
             if (afsmCellMayMeetTriangle(corner + 0.5, projected, !behind))
-                afsmTestCellHard(cell, 0u, count, slots, v0, v1, v2);
+                afsmTestCellHard(cell, 0u, count, v0, v1, v2);
 #endif
         }
 }

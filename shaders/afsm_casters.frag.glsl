@@ -40,6 +40,7 @@ layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed
 layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
+layout(set = 0, binding = 9) uniform usamplerBuffer slotTexels;                      // RGBA32UI over the slots (afsm_casters.glsli: afsmRaySlotAt)
 
 #include "afsm_casters.glsli"
 
@@ -62,5 +63,5 @@ void main()
     // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_casters.geom.glsl).
     if (cellAlive[cell] == 0u || cellCount[cell] <= push.sliceBegin || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0))
         return;
-    afsmTestCellHard(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(0u), push.slots, vertex0, vertex1, vertex2);
+    afsmTestCellHard(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(0u), vertex0, vertex1, vertex2);
 }

@@ -32,6 +32,7 @@ layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed
 layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
+layout(set = 0, binding = 9) uniform usamplerBuffer slotTexels;                      // RGBA32UI over the slots (afsm_casters.glsli: afsmRaySlotAt)
 
 #include "afsm_casters.glsli"
 

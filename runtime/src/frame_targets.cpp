@@ -47,8 +47,16 @@ std::vector<vk::Buffer*> FrameTargets::afsmBuffers()
     return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSlots, &afsmShadowed, &afsmFar, &afsmCellDepth, &afsmSlotShadowed, &afsmCellAlive};
 }
 
+void FrameTargets::destroyAfsmSlotTexels(vk::Device& device)
+{
+    if (afsmSlotTexels)
+        vkDestroyBufferView(device.device, afsmSlotTexels, nullptr);
+    afsmSlotTexels = VK_NULL_HANDLE;
+}
+
 void FrameTargets::destroyImageSized(vk::Device& device)
 {
+    destroyAfsmSlotTexels(device);
     for (vk::Buffer* buffer : afsmBuffers()) // afsmSlots and afsmShadowed are per pixel
         vk::destroyBuffer(device, *buffer);
     vk::destroyImage(device, afsmDepth);
@@ -161,6 +169,7 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     if (afsmGrid == gridSize && afsmShadowed.buffer)
         return false;
     vkDeviceWaitIdle(device.device);
+    destroyAfsmSlotTexels(device);
     for (vk::Buffer* buffer : afsmBuffers())
         vk::destroyBuffer(device, *buffer);
     vk::destroyImage(device, afsmDepth);
@@ -174,7 +183,9 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     afsmDepth = vk::createImage(device, gridSize, gridSize, 1, kDepthFormat,
                                 VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);
     afsmBlockSums = vk::createBuffer(device, PENUMBRA_AFSM_MAX_GRID * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
-    afsmSlots = vk::createBuffer(device, pixels * 48, kStorageDst, vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
+    afsmSlots = vk::createBuffer(device, pixels * 48, kStorageDst | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, vk::MemoryUse::DeviceLocal,
+                                 vk::Addressable::Yes);
+    afsmSlotTexels = vk::createTexelView(device, afsmSlots, VK_FORMAT_R32G32B32A32_UINT, 16);
     afsmSlotShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmFar = vk::createBuffer(device, 32, kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal); // passes::AfsmFar

@@ -121,6 +121,11 @@ void Renderer::Impl::validate(const RenderSettings& settings) const
                                (largest > passes::afsmLargestBuffer(settings.width, settings.height, 0, false) ? "sample masks" : "the sample list") +
                                "), more than one allocation of this device (" + std::to_string(device.maxAllocationSize >> 20) +
                                " MiB): use " + (areaLights ? "fewer samples or " : "") + "a smaller image");
+        // The casters read the slots through one texel view, 16-byte texels: 2 a sample (soft: 3).
+        const uint64_t texels = uint64_t(settings.width) * settings.height * (areaLights ? 3 : 2);
+        if (texels > limits.maxTexelBufferElements)
+            fail("render", "afsm at " + size + " needs a texel view of " + std::to_string(texels) + " elements for its sample list, more than this device's " +
+                               std::to_string(limits.maxTexelBufferElements) + ": use a smaller image");
     } else if (settings.lightSamples < 4 || settings.lightSamples > PENUMBRA_MAX_SAMPLES) {
         fail("render", "light samples must be 4.." + std::to_string(PENUMBRA_MAX_SAMPLES) + " for " + spec.name + " (afsm: " +
                            std::to_string(PENUMBRA_AFSM_MIN_SAMPLES) + ".." + std::to_string(PENUMBRA_AFSM_MAX_SAMPLES) + ")");

@@ -24,13 +24,13 @@ constexpr VkBufferUsageFlags kStorageDst = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | 
 std::vector<VkDescriptorType> castersBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kTexels};
 }
 
 std::vector<VkDescriptorType> binBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage};
+    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kTexels};
 }
 
 // A perspective frustum from eye along forward with a square field of view
@@ -289,10 +289,12 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
     std::vector<vk::Binding> binBindings = common;
     binBindings.push_back(vk::storageBuffer(params.buffer));
     binBindings.push_back(vk::storageBuffer(closedBits.buffer));
+    binBindings.push_back(vk::texelBuffer(t.slotTexels));
     bin.write(device, binBindings);
     binSoft.write(device, binBindings);
     std::vector<vk::Binding> casterBindings = common;
     casterBindings.push_back(vk::storageBuffer(closedBits.buffer));
+    casterBindings.push_back(vk::texelBuffer(t.slotTexels));
     if (castersSet)
         vk::writeSet(device, castersSet, casterBindings);
     writeParams();
@@ -446,7 +448,8 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     }
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_LIST, layer, viewProj, cube, originOffset, soft), soft);
-    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry | kCompute | kCopy, kStorageRW | kTransferRead);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry | kCompute | kCopy,
+                      kStorageRW | kTransferRead | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT); // the slots: texel fetches
 
     // The cells' farthest sample depths into the depth image the casters are tested against.
     const vk::Image& depth = *targets.depth;

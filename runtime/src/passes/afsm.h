@@ -45,11 +45,11 @@ enum AfsmScanBinding : uint32_t { kAfsmScanCounts, kAfsmScanBlockSums, kAfsmScan
 // The raster path's set (hard and soft pipelines).
 enum AfsmCastersBinding : uint32_t {
     kAfsmCastersFrame, kAfsmCastersCellFirst, kAfsmCastersCellCount, kAfsmCastersShadowed, kAfsmCastersFar, kAfsmCastersCellDepth,
-    kAfsmCastersSlotShadowed, kAfsmCastersCellAlive, kAfsmCastersClosedBits, kAfsmCastersBindingCount
+    kAfsmCastersSlotShadowed, kAfsmCastersCellAlive, kAfsmCastersClosedBits, kAfsmCastersSlotTexels, kAfsmCastersBindingCount
 };
 enum AfsmBinBinding : uint32_t {
     kAfsmBinFrame, kAfsmBinCellFirst, kAfsmBinCellCount, kAfsmBinShadowed, kAfsmBinFar, kAfsmBinCellDepth, kAfsmBinSlotShadowed, kAfsmBinCellAlive, kAfsmBinParams,
-    kAfsmBinClosedBits, kAfsmBinBindingCount
+    kAfsmBinClosedBits, kAfsmBinSlotTexels, kAfsmBinBindingCount
 };
 
 struct AfsmSamplesPush {
@@ -155,6 +155,7 @@ struct AfsmTargets {
     const vk::Buffer* cellAlive = nullptr;
     const vk::Image* depth = nullptr; // D32, grid x grid: each cell's farthest sample depth, for the casters' depth test
     uint32_t width = 0, height = 0, gridSize = 0;
+    VkBufferView slotTexels = VK_NULL_HANDLE; // RGBA32UI over slots: the casters' and the binning's reads (afsm_casters.glsli)
 };
 
 // The most samples of one cell a fragment of the raster path tests (one
