@@ -104,6 +104,7 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, projected, behind, depth);
     float nearest = depth.nearest;
     uint perSample = 1u;
+    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
 #endif
     // The cells one by one, counting the work as afsmComputeWork does (the
     // raster path's mirror of this choice); past the budget the raster path
@@ -121,7 +122,7 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
             bool beyond = afsmCellBehind(cell, nearest);
 #else
             vec2 corner = vec2(x, y);
-            bool beyond = afsmCellBehind(cell, afsmNearestOver(depth, corner, 0.5));
+            bool beyond = afsmCellBehind(cell, afsmNearestOver(depth, corner, margin));
 #endif
             work += 1u + (beyond ? 0u : perSample * count);
             if (work > PENUMBRA_AFSM_COMPUTE_BUDGET)
@@ -131,7 +132,7 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
 #ifdef PENUMBRA_AFSM_SOFT
             afsmTestCellSoft(cell, 0u, count, light, table, v0, v1, v2); // at most PENUMBRA_AFSM_COMPUTE_BUDGET iterations
 #else
-            if (afsmCellMayMeetTriangle(corner + 0.5, projected, !behind))
+            if (afsmCellMayMeetTriangle(corner + 0.5, projected, !behind, margin))
                 afsmTestCellHard(cell, 0u, count, v0, v1, v2);
 #endif
         }

@@ -61,7 +61,7 @@ void main()
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     vec2 v[3] = vec2[](projected01.xy, projected01.zw, projected2.xy);
     // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_casters.geom.glsl).
-    if (cellAlive[cell] == 0u || cellCount[cell] <= push.sliceBegin || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0))
+    if (cellAlive[cell] == 0u || cellCount[cell] <= push.sliceBegin || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0, projected2.z))
         return;
     afsmTestCellHard(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(0u), vertex0, vertex1, vertex2);
 }

@@ -49,7 +49,7 @@ layout(location = 2) flat out vec3 vertex2;
 // The triangle's projection in grid cells, for the fragment shader's exact
 // cell test; projected2.w = 0: no test (a vertex behind the eye).
 layout(location = 3) flat out vec4 projected01; // xy vertex 0, zw vertex 1
-layout(location = 4) flat out vec4 projected2;  // xy vertex 2, w = 1 when valid
+layout(location = 4) flat out vec4 projected2;  // xy vertex 2, z the margin (afsmCellMargin), w = 1 when valid
 
 layout(push_constant) uniform AfsmCastersPush {
     mat4 viewProj;     // the layer's projection (the grid's)
@@ -73,6 +73,7 @@ void main()
     if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
         return;
     // The triangle grown by half a cell and the margin of afsmCellMayMeetTriangle, within the rectangle.
+    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
     vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);
     if (push.sliceBegin > 0u) { // the crowded cells' rectangle only
         lo = max(lo, vec2(crowded[0], crowded[1]));
@@ -80,28 +81,31 @@ void main()
         if (any(greaterThan(lo, hi)))
             return;
     }
-    // Of the grown triangle (its edges moved out, afsm_casters.glsli: afsmMovedCorner) and the rectangle, the one
-    // with the smaller area, as a strip of four vertices (the triangle's last one repeated). Not their intersection:
-    // clipping the one by the other (afsmOffsetAndClip) loops over arrays of vertices, which llvmpipe keeps in
-    // memory, and cost more than the extra cells it saves (the fragment shader tests each cell exactly).
+    // The grown triangle (its edges moved out, afsm_casters.glsli: afsmMovedCorner) where its area is under half the
+    // rectangle's, else the rectangle, as a strip of four vertices (the triangle's last one repeated). llvmpipe
+    // rasterizes an axis-aligned rectangle on a fast path, so a thin diagonal triangle pays more per cell than the
+    // rectangle around it (plant at 640^2: afsm_casters 790 ms with the smaller of the two, 640-657 with half).
+    // Not their intersection: clipping the one by the other (afsmOffsetAndClip) loops over arrays of vertices,
+    // which llvmpipe keeps in memory, and cost more than the extra cells it saves (the fragment shader tests each
+    // cell exactly).
     float area = afsmCross(cells[1] - cells[0], cells[2] - cells[0]);
     vec2 a = cells[0], b = area > 0.0 ? cells[1] : cells[2], c = area > 0.0 ? cells[2] : cells[1];
-    vec2 m0 = afsmMovedCorner(c, a, b, 0.5), m1 = afsmMovedCorner(a, b, c, 0.5), m2 = afsmMovedCorner(b, c, a, 0.5);
+    vec2 m0 = afsmMovedCorner(c, a, b, margin), m1 = afsmMovedCorner(a, b, c, margin), m2 = afsmMovedCorner(b, c, a, margin);
     vec2 size = hi - lo;
-    bool triangle = !behind && area != 0.0 && abs(afsmCross(m1 - m0, m2 - m0)) < size.x * size.y;
+    bool triangle = !behind && area != 0.0 && abs(afsmCross(m1 - m0, m2 - m0)) < 0.5 * size.x * size.y;
     vec2 strip[4] = vec2[](triangle ? m0 : lo, triangle ? m1 : vec2(hi.x, lo.y), triangle ? m2 : vec2(lo.x, hi.y), triangle ? m2 : hi);
     // Depth: at each cell's centre, the caster's nearest depth over the cell grown by the margin (afsmNearestOver's
     // plane, affine across the polygon); the depth test (LESS against the cells' farthest samples, 0 for empty cells;
     // clamped, not clipped) drops the cells every sample of which lies nearer the light than the caster.
     AfsmDepthBound plane = AfsmDepthBound(depth.plane, -3.0e38);
     for (int i = 0; i < 4; ++i) {
-        float z = depth.plane.w == 0.0 ? depth.nearest : afsmNearestOver(plane, strip[i] - 0.5, 0.5);
+        float z = depth.plane.w == 0.0 ? depth.nearest : afsmNearestOver(plane, strip[i] - 0.5, margin);
         gl_Position = vec4(strip[i] / float(push.gridSize) * 2.0 - 1.0, z, 1.0);
         vertex0 = worldPosition[0];
         vertex1 = worldPosition[1];
         vertex2 = worldPosition[2];
         projected01 = behind ? vec4(0.0) : vec4(cells[0], cells[1]);
-        projected2 = behind ? vec4(0.0) : vec4(cells[2], 0.0, 1.0);
+        projected2 = behind ? vec4(0.0) : vec4(cells[2], margin, 1.0);
         EmitVertex();
     }
     EndPrimitive();
