@@ -1020,6 +1020,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         out.afsmClosedClusters = afsmClosedClusters;
         out.afsmCellMost = uint32_t(counters[PENUMBRA_STAT_AFSM_CELL_MOST]);
         out.afsmSliceDraws = r.afsm.takeSliceDraws();
+        out.afsmComputePath = r.afsm.computePathUsed();
         out.afsmClosedCasting = !afsmClosedClusters ? "none closed"
                                 : afsmBackFaces     ? "back faces"
                                 : !afsmOffsetClear  ? "both sides (ray offset above the default)"

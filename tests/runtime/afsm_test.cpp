@@ -153,6 +153,34 @@ TEST(AliasFreeShadowMaps, ClosedPartsCastBackFacesAndMatchTheOracle)
     }
 }
 
+// The compute path (afsm_bin.comp) decodes up to 4 leaves per invocation and
+// bins each triangle with a bounded amount of work; lavapipe silently ends an
+// invocation's loops after 65535 iterations, so a model built with large
+// leaves would lose casters there. The frame keeps the compute path only when
+// the bound (passes::afsmBinIterations) fits: on with the default leaves, off
+// with 64-triangle leaves, whose frame (every caster rasterized) still matches
+// the oracle.
+TEST(AliasFreeShadowMaps, LargeLeavesTurnTheComputePathOff)
+{
+    EXPECT_LE(passes::afsmBinIterations(PreprocessOptions{}.maxLeafTriangles, 4 * PreprocessOptions{}.maxLeafTriangles),
+              uint64_t(PENUMBRA_AFSM_FRAGMENT_ITERATIONS));
+    EXPECT_GT(passes::afsmBinIterations(64, 128), 65535u);
+    GenerateOptions options;
+    options.triangles = 60'000;
+    Scene scene = generateScene("scan", options);
+    for (uint32_t leaf : {PreprocessOptions{}.maxLeafTriangles, 64u}) {
+        PreprocessOptions build;
+        build.maxLeafTriangles = leaf;
+        const CompressedModel model = buildCompressedModel(scene.mesh, build);
+        Frame frame;
+        Result r = compareWithOracle(scene.mesh, scene.cameras[0], scene.lights[0], 256, {}, &model, &frame);
+        EXPECT_EQ(frame.stats.afsmComputePath, leaf != 64u) << leaf << "-triangle leaves";
+        EXPECT_GT(r.afsm.compared, 5000u);
+        EXPECT_LE(r.afsm.fraction(), 1e-4) << leaf << "-triangle leaves: afsm differs from the oracle on " << r.afsm.differing << " of "
+                                           << r.afsm.compared;
+    }
+}
+
 // A ray offset above the default voids the preprocessor's clearance (a ray could
 // start inside a flagged solid): the frame casts both sides of closed clusters.
 TEST(AliasFreeShadowMaps, LargerRayOffsetCastsBothSides)

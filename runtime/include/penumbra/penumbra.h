@@ -247,6 +247,11 @@ struct FrameStats {
     // invocation's loops after 65535 iterations).
     uint32_t afsmCellMost = 0;
     uint32_t afsmSliceDraws = 0;
+    // afsm: whether the small casters were binned in compute (afsm_bin.comp):
+    // not when the model's largest leaf could take one invocation past that
+    // loop limit (passes::afsmBinIterations), nor for the uncompressed model;
+    // then the raster path takes every caster.
+    bool afsmComputePath = false;
     uint32_t rhLights = 0, rhSortedLights = 0; // hierarchies built (one per light), and those over rays sorted by direction
     uint64_t rhAcceptedNodes = 0;              // nodes found covered by a triangle and accepted whole (early accept, section 3.3)
     double rhIncoherence = 0;                  // --rh-sort auto: the last light's measured screen-space incoherence (README, rh)

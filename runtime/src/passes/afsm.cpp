@@ -59,6 +59,17 @@ glm::mat4 pulledBackFrustum(glm::vec3 centre, glm::vec3 forward, float halfTan, 
 
 } // namespace
 
+uint64_t afsmBinIterations(uint32_t leafTriangles, uint32_t leafBytes)
+{
+    // Per caster (afsm_bin.comp.glsl, binCaster): the cells' samples within the budget, which counts 1 + n (soft:
+    // 1 + n (1 + quads)) for a cell of n samples while the loops take 1 + n (soft: 1 + n (2 + quads)): at most 3/2
+    // of it, at one quad; the rows and columns of a rectangle of at most 16 cells (17 + 32); a loop of 4 per cell's
+    // edge test (afsmCellMayMeetTriangle); 16 for the rectangle's own loops over the vertices.
+    const uint64_t perCaster = uint64_t(PENUMBRA_AFSM_COMPUTE_BUDGET) * 3 / 2 + 49 + 16 * 4 + 16;
+    const uint64_t leaves = 4;
+    return 16 + leaves * (uint64_t(leafBytes) + 1 + uint64_t(leafTriangles) * perCaster);
+}
+
 uint32_t afsmGridSize(uint32_t width, uint32_t height)
 {
     // One cell per pixel of the longer side, rounded up to a multiple of 16: a power of two above it (512 cells for
@@ -375,9 +386,26 @@ uint64_t AfsmPass::prepareModel(vk::Device& device, const CompressedModel* model
             bits[c >> 5] |= 1u << (c & 31);
             ++closedCount;
         }
+    maxLeafTriangles = maxLeafBytes = 0;
+    if (model)
+        for (const model::Node& node : model->nodes)
+            for (uint32_t c = 0; c < 4; ++c) {
+                if (model::childKind(node, c) != model::ChildKind::Leaf)
+                    continue;
+                const uint8_t* strips = model->indices.data() + model->clusters[node.cluster].firstIndex + (node.child[c] & 0xFFFF);
+                uint32_t triangles = 0;
+                forEachStripTriangle(strips, strips + (node.child[c] >> 16), [&](uint32_t, uint32_t, uint32_t) { ++triangles; });
+                maxLeafTriangles = std::max(maxLeafTriangles, triangles);
+                maxLeafBytes = std::max(maxLeafBytes, node.child[c] >> 16);
+            }
     closedModel = key;
     insideModel = nullptr;
     return closedCount;
+}
+
+bool AfsmPass::computePathFits() const
+{
+    return afsmBinIterations(maxLeafTriangles, maxLeafBytes) <= PENUMBRA_AFSM_FRAGMENT_ITERATIONS;
 }
 
 bool AfsmPass::closedBackFaces(const CompressedModel& model, const CullModel& cull, glm::vec3 eye, const glm::mat4& cameraViewProj)
@@ -473,7 +501,8 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
         fail("afsm", "this device lacks geometry shaders or fragment-shader stores (needed to rasterize the casters)");
     const uint32_t grid = targets.gridSize;
     // The compute path: the small casters of the view's clusters (compressed model only).
-    const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount;
+    const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits();
+    computeUsed = compute;
     if (compute) {
         const uint32_t clusters = uint32_t(culling.model->clusterMin.size());
         const uint32_t words = (clusters + 31) / 32;

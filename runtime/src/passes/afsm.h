@@ -166,6 +166,17 @@ struct AfsmTargets {
 // shadows; else the light samples of soft shadows.
 uint32_t afsmSliceSamples(uint32_t samples);
 
+// The most loop iterations one invocation of afsm_bin.comp can take (hard or
+// soft) with leaves of at most leafTriangles triangles in leafBytes strip
+// bytes: lavapipe silently ends an invocation's loops after 65535 in all
+// (afsm.glsli). An invocation decodes up to 4 leaves (PENUMBRA_AFSM_BIN_GROUP
+// nodes of 4 children each per workgroup), one iteration per strip byte, and
+// bins each triangle with at most PENUMBRA_AFSM_COMPUTE_BUDGET counted work
+// (a cell, or a sample times its loop over the soft masks' quads) plus the
+// loops the count leaves out (the cell rows and columns, each cell's edge
+// tests, the rectangle's construction).
+uint64_t afsmBinIterations(uint32_t leafTriangles, uint32_t leafBytes);
+
 // Cells per side of the grid for a width x height view: one cell per pixel of
 // the longer side, rounded up to a multiple of 16 (the paper fits one sample
 // per texel).
@@ -239,7 +250,12 @@ class AfsmPass {
     void prepareSoft(vk::Device& device, VkCommandBuffer cmd, uint32_t samples, bool rectangle);
     // The model's closed clusters (kClusterClosed) for the casters, when the
     // model changed (none for the uncompressed reference); returns how many.
+    // Also measures its largest leaf for computePathFits.
     uint64_t prepareModel(vk::Device& device, const CompressedModel* model);
+    // Whether the compute path (afsm_bin.comp) stays under lavapipe's loop
+    // limit with the prepared model's largest leaf (afsmBinIterations); when
+    // not, the raster path takes every caster.
+    bool computePathFits() const;
     // Whether closed clusters may cast only their light-back-facing triangles
     // in a frame seen through cameraViewProj: not when what the camera sees
     // may lie inside a closed mesh (afsmSeesInsideClosed); cached per camera.
@@ -291,6 +307,8 @@ class AfsmPass {
     uint32_t cellMost() const;
     // Draws of the casters over crowded cells since the last call (one per slice past the first).
     uint32_t takeSliceDraws();
+    // Whether the last recordCasters binned casters in compute.
+    bool computePathUsed() const { return computeUsed; }
     // The light's visibility (and cleared marks, counted pixels; soft: cleared masks).
     void recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const;
 
@@ -322,6 +340,8 @@ class AfsmPass {
     vk::Buffer closedBits;   // bit per cluster: kClusterClosed (host-visible)
     const void* closedModel = nullptr; // the model closedBits describe (its cluster array)
     uint64_t closedCount = 0;
+    uint32_t maxLeafTriangles = 0, maxLeafBytes = 0; // the prepared model's largest leaf
+    bool computeUsed = false;
     glm::mat4 insideCamera{0.0f};       // the last camera (view-projection, eye) closedBackFaces answered for, and its answer
     glm::vec3 insideEye{0.0f};
     const void* insideModel = nullptr;
