@@ -48,11 +48,11 @@ layout(constant_id = 0) const uint kGeometryBudget = 0u;
 
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
-layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };
-layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };
+layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;  // R32UI: first slot per cell (afsm_casters.glsli: afsmCellFirst)
+layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;  // R32UI: samples per cell (afsmCellCount)
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
 layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
-layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };
+layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
 // Where the slots (and, soft, the masks and the table) are (AfsmPass: AfsmParams).
@@ -117,7 +117,7 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     for (int y = first.y; y <= last.y; ++y)
         for (int x = first.x; x <= last.x; ++x) {
             uint cell = uint(y) * push.gridSize + uint(x);
-            uint count = cellCount[cell];
+            uint count = afsmCellCount(cell);
 #ifdef PENUMBRA_AFSM_SOFT
             bool beyond = afsmCellBehind(cell, nearest);
 #else

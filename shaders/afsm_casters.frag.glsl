@@ -33,10 +33,10 @@ layout(location = 3) flat in vec4 projected01;
 layout(location = 4) flat in vec4 projected2;
 
 // C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
-layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };  // first slot per cell
-layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
+layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;  // R32UI: first slot per cell (afsm_casters.glsli: afsmCellFirst)
+layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;  // R32UI: samples per cell (afsmCellCount)
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
-layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };   // per cell: its farthest sample depth
+layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed
 layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
@@ -61,7 +61,7 @@ void main()
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     vec2 v[3] = vec2[](projected01.xy, projected01.zw, projected2.xy);
     // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_casters.geom.glsl).
-    if (cellAlive[cell] == 0u || cellCount[cell] <= push.sliceBegin || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0, projected2.z))
+    if (cellAlive[cell] == 0u || afsmCellCount(cell) <= push.sliceBegin || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0, projected2.z))
         return;
     afsmTestCellHard(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(0u), vertex0, vertex1, vertex2);
 }

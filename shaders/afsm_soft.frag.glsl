@@ -25,10 +25,10 @@ layout(location = 2) flat in vec3 vertex2;
 
 // C++: runtime/src/passes/afsm.h (AfsmSoftBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
-layout(set = 0, binding = 1, std430) readonly buffer CellFirst { uint cellFirst[]; };  // first slot per cell
-layout(set = 0, binding = 2, std430) readonly buffer CellCount { uint cellCount[]; };  // samples per cell
+layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;  // R32UI: first slot per cell (afsm_casters.glsli: afsmCellFirst)
+layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;  // R32UI: samples per cell (afsmCellCount)
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };            // per pixel: every light sample hidden
-layout(set = 0, binding = 5, std430) readonly buffer CellDepth { uint cellDepth[]; };   // per cell: its farthest sample depth
+layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed
 layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
@@ -56,7 +56,7 @@ void main()
     uvec2 cellXY = uvec2(gl_FragCoord.xy);
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_soft.geom.glsl).
-    if (cellAlive[cell] == 0u || cellCount[cell] <= push.sliceBegin)
+    if (cellAlive[cell] == 0u || afsmCellCount(cell) <= push.sliceBegin)
         return;
     afsmTestCellSoft(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(push.samples), frame.lights[push.lightIndex], AfsmSoftTable(push.slots, push.masks, push.table, push.samples, push.tableSize),
                      vertex0, vertex1, vertex2);

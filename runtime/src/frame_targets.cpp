@@ -47,16 +47,18 @@ std::vector<vk::Buffer*> FrameTargets::afsmBuffers()
     return {&afsmCellFirst, &afsmCellCount, &afsmBlockSums, &afsmSlots, &afsmShadowed, &afsmFar, &afsmCellDepth, &afsmSlotShadowed, &afsmCellAlive};
 }
 
-void FrameTargets::destroyAfsmSlotTexels(vk::Device& device)
+void FrameTargets::destroyAfsmTexelViews(vk::Device& device)
 {
-    if (afsmSlotTexels)
-        vkDestroyBufferView(device.device, afsmSlotTexels, nullptr);
-    afsmSlotTexels = VK_NULL_HANDLE;
+    for (VkBufferView* view : {&afsmSlotTexels, &afsmCellFirstTexels, &afsmCellCountTexels, &afsmCellDepthTexels}) {
+        if (*view)
+            vkDestroyBufferView(device.device, *view, nullptr);
+        *view = VK_NULL_HANDLE;
+    }
 }
 
 void FrameTargets::destroyImageSized(vk::Device& device)
 {
-    destroyAfsmSlotTexels(device);
+    destroyAfsmTexelViews(device);
     for (vk::Buffer* buffer : afsmBuffers()) // afsmSlots and afsmShadowed are per pixel
         vk::destroyBuffer(device, *buffer);
     vk::destroyImage(device, afsmDepth);
@@ -169,16 +171,21 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     if (afsmGrid == gridSize && afsmShadowed.buffer)
         return false;
     vkDeviceWaitIdle(device.device);
-    destroyAfsmSlotTexels(device);
+    destroyAfsmTexelViews(device);
     for (vk::Buffer* buffer : afsmBuffers())
         vk::destroyBuffer(device, *buffer);
     vk::destroyImage(device, afsmDepth);
     afsmGrid = 0; // stays 0 if a creation below throws
     const VkDeviceSize cells = VkDeviceSize(gridSize) * gridSize, pixels = VkDeviceSize(width) * height;
-    afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
-    afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
+    // The casters read these three through texel views (afsm_casters.glsli).
+    const VkBufferUsageFlags texels = VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
+    afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst | texels, vk::MemoryUse::DeviceLocal);
+    afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst | texels, vk::MemoryUse::DeviceLocal);
     // Also the source of the per-cell depth grid (afsmDepth), copied after the count pass.
-    afsmCellDepth = vk::createBuffer(device, cells * 4, kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
+    afsmCellDepth = vk::createBuffer(device, cells * 4, kStorageDst | texels | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
+    afsmCellFirstTexels = vk::createTexelView(device, afsmCellFirst, VK_FORMAT_R32_UINT, 4);
+    afsmCellCountTexels = vk::createTexelView(device, afsmCellCount, VK_FORMAT_R32_UINT, 4);
+    afsmCellDepthTexels = vk::createTexelView(device, afsmCellDepth, VK_FORMAT_R32_UINT, 4);
     afsmCellAlive = vk::createBuffer(device, cells * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmDepth = vk::createImage(device, gridSize, gridSize, 1, kDepthFormat,
                                 VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);

@@ -52,6 +52,7 @@ struct FrameTargets {
     vk::Buffer afsmCellFirst, afsmCellCount, afsmBlockSums; // per grid cell
     vk::Buffer afsmSlots, afsmShadowed;                     // per pixel: a slot of the sample list (48 bytes, addressable), a flag
     VkBufferView afsmSlotTexels = VK_NULL_HANDLE;           // RGBA32UI over afsmSlots (the casters read the slots by texel fetches)
+    VkBufferView afsmCellFirstTexels = VK_NULL_HANDLE, afsmCellCountTexels = VK_NULL_HANDLE, afsmCellDepthTexels = VK_NULL_HANDLE; // R32UI, the same
     vk::Buffer afsmSlotShadowed;                            // per slot: its pixel's flag
     vk::Buffer afsmFar;                                     // the layer's farthest sample depth, most samples in a cell, crowded cells (passes::AfsmFar)
     vk::Buffer afsmCellDepth, afsmCellAlive;                // per grid cell: its farthest sample depth, its samples not yet shadowed
@@ -97,7 +98,7 @@ struct FrameTargets {
     std::vector<vk::Buffer*> imageSizedBuffers();
     std::vector<vk::Buffer*> mapSizedBuffers();
     std::vector<vk::Buffer*> afsmBuffers();
-    void destroyAfsmSlotTexels(vk::Device& device);
+    void destroyAfsmTexelViews(vk::Device& device);
     void destroyImageSized(vk::Device& device);
     void destroyMapSized(vk::Device& device);
 };

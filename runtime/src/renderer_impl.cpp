@@ -98,7 +98,7 @@ void Renderer::Impl::ensureAfsmTargets()
         return;
     const PixelTargets pixels = pixelTargets();
     afsm.bind(device, {pixels, &t.afsmCellFirst, &t.afsmCellCount, &t.afsmBlockSums, &t.afsmSlots, &t.afsmShadowed, &t.afsmFar, &t.afsmCellDepth, &t.afsmSlotShadowed, &t.afsmCellAlive, &t.afsmDepth, t.width,
-                       t.height, t.afsmGrid, t.afsmSlotTexels});
+                       t.height, t.afsmGrid, t.afsmSlotTexels, t.afsmCellFirstTexels, t.afsmCellCountTexels, t.afsmCellDepthTexels});
 }
 
 void Renderer::Impl::ensureRhTargets()

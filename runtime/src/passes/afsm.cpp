@@ -24,13 +24,13 @@ constexpr VkBufferUsageFlags kStorageDst = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | 
 std::vector<VkDescriptorType> castersBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kTexels};
+    return {kUniform, kTexels, kTexels, kStorage, kStorage, kTexels, kStorage, kStorage, kStorage, kTexels};
 }
 
 std::vector<VkDescriptorType> binBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kStorage, kTexels};
+    return {kUniform, kTexels, kTexels, kStorage, kStorage, kTexels, kStorage, kStorage, kStorage, kStorage, kTexels};
 }
 
 // A perspective frustum from eye along forward with a square field of view
@@ -293,9 +293,9 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
     samples.write(device, bindings);
     samplesSoft.write(device, bindings);
     scan.write(device, {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.blockSums->buffer)});
-    const std::vector<vk::Binding> common = {vk::uniformBuffer(t.pixels.frame), vk::storageBuffer(t.cellFirst->buffer),
-                                             vk::storageBuffer(t.cellCount->buffer), vk::storageBuffer(t.shadowed->buffer),
-                                             vk::storageBuffer(t.far->buffer), vk::storageBuffer(t.cellDepth->buffer),
+    const std::vector<vk::Binding> common = {vk::uniformBuffer(t.pixels.frame), vk::texelBuffer(t.cellFirstTexels),
+                                             vk::texelBuffer(t.cellCountTexels), vk::storageBuffer(t.shadowed->buffer),
+                                             vk::storageBuffer(t.far->buffer), vk::texelBuffer(t.cellDepthTexels),
                                              vk::storageBuffer(t.slotShadowed->buffer), vk::storageBuffer(t.cellAlive->buffer)};
     std::vector<vk::Binding> binBindings = common;
     binBindings.push_back(vk::storageBuffer(params.buffer));

@@ -156,6 +156,7 @@ struct AfsmTargets {
     const vk::Image* depth = nullptr; // D32, grid x grid: each cell's farthest sample depth, for the casters' depth test
     uint32_t width = 0, height = 0, gridSize = 0;
     VkBufferView slotTexels = VK_NULL_HANDLE; // RGBA32UI over slots: the casters' and the binning's reads (afsm_casters.glsli)
+    VkBufferView cellFirstTexels = VK_NULL_HANDLE, cellCountTexels = VK_NULL_HANDLE, cellDepthTexels = VK_NULL_HANDLE; // R32UI, the same
 };
 
 // The most samples of one cell a fragment of the raster path tests (one
