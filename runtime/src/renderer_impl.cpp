@@ -94,7 +94,7 @@ void Renderer::Impl::bindTargets()
 void Renderer::Impl::ensureAfsmTargets()
 {
     FrameTargets& t = targets;
-    if (!t.ensureAfsm(device, afsmGridSize(t.width, t.height)))
+    if (!t.ensureAfsm(device, afsmGridSize(t.width, t.height, true))) // the larger grid; hard layers use part of it
         return;
     const PixelTargets pixels = pixelTargets();
     afsm.bind(device, {pixels, &t.afsmCellFirst, &t.afsmCellCount, &t.afsmBlockSums, &t.afsmSlots, &t.afsmShadowed, &t.afsmFar, &t.afsmCellDepth, &t.afsmSlotShadowed, &t.afsmCellAlive, &t.afsmDepth, t.width,

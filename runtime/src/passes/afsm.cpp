@@ -70,15 +70,20 @@ uint64_t afsmBinIterations(uint32_t leafTriangles, uint32_t leafBytes)
     return 16 + leaves * (uint64_t(leafBytes) + 1 + uint64_t(leafTriangles) * perCaster);
 }
 
-uint32_t afsmGridSize(uint32_t width, uint32_t height)
+uint32_t afsmGridSize(uint32_t width, uint32_t height, bool soft)
 {
-    // Three cells per four pixels of the longer side, rounded up to a multiple of 16: a power of two above it (512
-    // cells for 320 pixels) spent 2.6 cells per pixel, most of them empty, and the casters' raster cost grows with
-    // their area; fewer, fuller cells cost fewer fragments and more samples per fragment. Hard afsm at 640^2 (250 k
-    // suite scenes, process CPU ms per frame, medians of 3 interleaved runs), one cell per pixel / 3 per 4 / 5 per 8
-    // (half: the compute path's cells fill past its budget, afsm_bin doubled on the interior): city 208 / 200 / 183,
-    // interior 666 / 617 / 632, plant 923 / 791 / 763, scan 363 / 333 / 359.
-    return std::clamp((std::max(width, height) * 3 / 4 + 15) / 16 * 16, 16u, uint32_t(PENUMBRA_AFSM_MAX_GRID));
+    // A multiple of 16 cells per side: a power of two above the image (512 cells for 320 pixels) spent 2.6 cells
+    // per pixel, most of them empty, and the casters' raster cost grows with their area. Fewer, fuller cells cost
+    // fewer fragments and more samples per fragment, which suits hard shadows (a sample's test is one ray/triangle
+    // test); a soft sample's test is four table lookups, so soft shadows want finer cells. 250 k suite scenes at
+    // 640^2, process CPU ms per frame: hard afsm (medians of 3 interleaved runs) with one cell per pixel / 3 per 4 /
+    // 5 per 8 (half: the compute path's cells fill past its budget, afsm_bin doubled on the interior): city 208 /
+    // 200 / 183, interior 666 / 617 / 632, plant 923 / 791 / 763, scan 363 / 333 / 359; soft (a sphere light, 128
+    // samples) with one cell per pixel / 3 per 4 / 5 per 4: city 2823-2891 / 3024-3057 / 2802, scan 7018-7127 /
+    // 8057-8085 / 6380.
+    const uint32_t side = std::max(width, height);
+    const uint32_t cells = soft ? side * 5 / 4 : side * 3 / 4;
+    return std::clamp((cells + 15) / 16 * 16, 16u, uint32_t(PENUMBRA_AFSM_MAX_GRID));
 }
 
 AfsmTableSize afsmTableSize(uint32_t samples)
@@ -435,7 +440,7 @@ void AfsmPass::clear(VkCommandBuffer cmd) const
 AfsmSamplesPush AfsmPass::samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube,
                                       float originOffset, bool soft) const
 {
-    AfsmSamplesPush push{viewProj, slotsAddress, 0, 0, lightIndex, mode, layer, targets.gridSize, originOffset, cube ? 1u : 0u, 0, 0,
+    AfsmSamplesPush push{viewProj, slotsAddress, 0, 0, lightIndex, mode, layer, layerGrid(soft), originOffset, cube ? 1u : 0u, 0, 0,
                          afsmSliceSamples(soft ? softSamples : 0), 0};
     if (soft) {
         push.masks = masksAddress;
@@ -457,7 +462,7 @@ void AfsmPass::dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, 
 void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
                              bool soft) const
 {
-    const uint32_t grid = targets.gridSize, cells = grid * grid;
+    const uint32_t grid = layerGrid(soft), cells = grid * grid;
     // The previous layer's casters read the lists, and its copy read the cells' depths.
     vk::memoryBarrier(cmd, kFragment | kGeometry | kCompute | kCopy, kStorageRead | kTransferRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, targets.cellFirst->buffer, 0, VkDeviceSize(cells) * 4, 0);
@@ -503,7 +508,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
         fail("afsm", "paged geometry needs the casters' ranges");
     if (!castersSet)
         fail("afsm", "this device lacks geometry shaders or fragment-shader stores (needed to rasterize the casters)");
-    const uint32_t grid = targets.gridSize;
+    const uint32_t grid = layerGrid(layer.soft);
     // The compute path: the small casters of the view's clusters (compressed model only).
     const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits();
     computeUsed = compute;

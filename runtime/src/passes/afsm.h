@@ -178,10 +178,12 @@ uint32_t afsmSliceSamples(uint32_t samples);
 // tests, the rectangle's construction).
 uint64_t afsmBinIterations(uint32_t leafTriangles, uint32_t leafBytes);
 
-// Cells per side of the grid for a width x height view: three cells per four
-// pixels of the longer side, rounded up to a multiple of 16 (the paper fits
-// about one sample per texel; fuller cells measured faster on lavapipe).
-uint32_t afsmGridSize(uint32_t width, uint32_t height);
+// Cells per side of the grid for a width x height view: hard shadows three
+// cells per four pixels of the longer side, soft shadows five per four,
+// rounded up to a multiple of 16 (the paper fits about one sample per texel;
+// on lavapipe fuller cells measured faster for hard shadows, finer ones for
+// soft shadows, whose per-sample test costs more).
+uint32_t afsmGridSize(uint32_t width, uint32_t height, bool soft);
 
 // The soft-shadow lookup table for n light samples: angles x distances
 // entries (powers of two, at most PENUMBRA_AFSM_TABLE_WORDS words in all) of
@@ -310,6 +312,8 @@ class AfsmPass {
     uint32_t takeSliceDraws();
     // Whether the last recordCasters binned casters in compute.
     bool computePathUsed() const { return computeUsed; }
+    // The grid of a layer: afsmGridSize for the bound image (the targets hold the larger, soft one).
+    uint32_t layerGrid(bool soft) const { return std::min(afsmGridSize(targets.width, targets.height, soft), targets.gridSize); }
     // The light's visibility (and cleared marks, counted pixels; soft: cleared masks).
     void recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const;
 
