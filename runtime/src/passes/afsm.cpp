@@ -486,7 +486,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     }
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_LIST, layer, viewProj, cube, originOffset, soft), soft);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry | kCompute | kCopy,
-                      kStorageRW | kTransferRead | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT); // the slots: texel fetches
+                      kStorageRW | kTransferRead | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT); // the slots and the cells: texel fetches too
 
     // The cells' farthest sample depths into the depth image the casters are tested against.
     const vk::Image& depth = *targets.depth;
