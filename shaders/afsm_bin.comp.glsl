@@ -55,9 +55,9 @@ layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
 layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
-// Where the slots (and, soft, the masks and the table) are (AfsmPass: AfsmParams).
+// Soft shadows: where the masks and the table are (AfsmPass: AfsmParams).
 layout(set = 0, binding = 8, std430) readonly buffer Params {
-    uint64_t slots, softMasks, softTable;
+    uint64_t softMasks, softTable;
     uint softSamples, softTableSize;
 };
 layout(set = 0, binding = 9, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
@@ -96,7 +96,7 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     float nearest;
     AfsmRect r = afsmSoftRect(push.viewProj, light, uintBitsToFloat(farBits), v0, v1, v2, push.gridSize, nearest);
     uint perSample = 1u + afsmQuads(softSamples);
-    AfsmSoftTable table = AfsmSoftTable(slots, softMasks, softTable, softSamples, softTableSize);
+    AfsmSoftTable table = AfsmSoftTable(softMasks, softTable, softSamples, softTableSize);
 #else
     vec2 projected[3];
     bool behind;

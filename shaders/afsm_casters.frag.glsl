@@ -46,7 +46,6 @@ layout(set = 0, binding = 9) uniform usamplerBuffer slotTexels;                 
 
 layout(push_constant) uniform AfsmCastersPush {
     mat4 viewProj;
-    uint64_t slots;     // AfsmRaySlot per slot
     uint lightIndex;
     uint gridSize;
     float originOffset;

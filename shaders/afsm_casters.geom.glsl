@@ -53,7 +53,6 @@ layout(location = 4) flat out vec4 projected2;  // xy vertex 2, z the margin (af
 
 layout(push_constant) uniform AfsmCastersPush {
     mat4 viewProj;     // the layer's projection (the grid's)
-    uint64_t slots;    // AfsmRaySlot per slot (afsm_casters.frag.glsl)
     uint lightIndex;
     uint gridSize;     // cells per side
     float originOffset;

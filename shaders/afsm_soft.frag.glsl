@@ -38,7 +38,6 @@ layout(set = 0, binding = 9) uniform usamplerBuffer slotTexels;                 
 
 layout(push_constant) uniform AfsmSoftPush {
     mat4 viewProj;
-    uint64_t slots;     // AfsmSlot per slot
     uint64_t masks;     // afsmQuads(samples) uvec4 per pixel
     uint64_t table;     // afsm_table.comp.glsl
     uint lightIndex;
@@ -58,6 +57,6 @@ void main()
     // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_soft.geom.glsl).
     if (cellAlive[cell] == 0u || afsmCellCount(cell) <= push.sliceBegin)
         return;
-    afsmTestCellSoft(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(push.samples), frame.lights[push.lightIndex], AfsmSoftTable(push.slots, push.masks, push.table, push.samples, push.tableSize),
+    afsmTestCellSoft(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(push.samples), frame.lights[push.lightIndex], AfsmSoftTable(push.masks, push.table, push.samples, push.tableSize),
                      vertex0, vertex1, vertex2);
 }

@@ -48,7 +48,6 @@ layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBit
 
 layout(push_constant) uniform AfsmSoftPush {
     mat4 viewProj;     // the layer's grid projection (perspective from the light's centre)
-    uint64_t slots;
     uint64_t masks;
     uint64_t table;
     uint lightIndex;

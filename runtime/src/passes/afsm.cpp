@@ -322,7 +322,7 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
 
 void AfsmPass::writeParams() const
 {
-    const AfsmParams values{slotsAddress, masksAddress, tableAddress, softSamples, softTable.packed()};
+    const AfsmParams values{masksAddress, tableAddress, softSamples, softTable.packed()};
     std::memcpy(params.mapped, &values, sizeof(values));
 }
 
@@ -577,8 +577,8 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     rendering.pDepthAttachment = &depthAttachment;
     const float computeCells = compute ? float(PENUMBRA_AFSM_COMPUTE_CELLS) : 0.0f;
     const uint32_t closed = layer.closedBackFaces ? 1u : 0u;
-    AfsmCastersPush hardPush{layer.viewProj, slotsAddress, layer.lightIndex, grid, layer.originOffset, computeCells, closed, 0};
-    AfsmSoftPush softPush{layer.viewProj, slotsAddress, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,
+    AfsmCastersPush hardPush{layer.viewProj, layer.lightIndex, grid, layer.originOffset, computeCells, closed, 0};
+    AfsmSoftPush softPush{layer.viewProj, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,
                           softSamples,   softTable.packed(), computeCells, closed, 0};
     const vk::RasterPipelines& pipelines = layer.soft ? softCasters : casters;
     const VkPipeline pipeline = pipelines[geometry.encoding];

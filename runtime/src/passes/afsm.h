@@ -86,7 +86,6 @@ static_assert(sizeof(AfsmScanPush) == 8);
 
 struct AfsmCastersPush {
     glm::mat4 viewProj;
-    uint64_t slots;     // AfsmRaySlot per slot
     uint32_t lightIndex;
     uint32_t gridSize;
     float originOffset;
@@ -94,11 +93,11 @@ struct AfsmCastersPush {
     uint32_t closedBackFaces; // closed clusters cast only light-back-facing triangles
     uint32_t sliceBegin;      // the first sample of each cell's list the draw tests (> 0: a later slice of the crowded cells)
 };
-static_assert(sizeof(AfsmCastersPush) == 96);
+static_assert(sizeof(AfsmCastersPush) == 88);
 
 struct AfsmSoftPush {
     glm::mat4 viewProj;
-    uint64_t slots, masks, table;
+    uint64_t masks, table;
     uint32_t lightIndex;
     uint32_t gridSize;
     float originOffset;
@@ -108,7 +107,7 @@ struct AfsmSoftPush {
     uint32_t closedBackFaces;
     uint32_t sliceBegin; // as AfsmCastersPush
 };
-static_assert(sizeof(AfsmSoftPush) == 120);
+static_assert(sizeof(AfsmSoftPush) == 112);
 
 struct AfsmBinPush {
     glm::mat4 viewProj;
@@ -128,10 +127,10 @@ static_assert(sizeof(AfsmBinPush) == 128);
 
 // afsm_bin.comp's buffers and table (binding kAfsmBinParams).
 struct AfsmParams {
-    uint64_t slots, masks, table;
+    uint64_t masks, table;
     uint32_t samples, tableSize;
 };
-static_assert(sizeof(AfsmParams) == 32);
+static_assert(sizeof(AfsmParams) == 24);
 
 struct AfsmTablePush {
     uint64_t table;
