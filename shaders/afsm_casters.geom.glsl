@@ -71,7 +71,7 @@ void main()
     AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, cells, behind, depth);
     if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
         return;
-    // The triangle grown by half a cell and the margin of afsmCellMayMeetTriangle, within the rectangle.
+    // The triangle grown by half a cell and the margin of afsmCellMayMeetTriangle (below), or the rectangle.
     const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
     vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);
     if (push.sliceBegin > 0u) { // the crowded cells' rectangle only

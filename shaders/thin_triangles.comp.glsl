@@ -483,8 +483,8 @@ bool listedRun(ModelTable table, uint index, out SliverRect run, out vec4 first[
 void fillListedShared(ModelTable table, uint index, bool valid)
 {
     SliverRect run;
-    vec4 first[3];
-    bool have = valid && listedRun(table, index, run, first);
+    vec4 unused[3]; // the first sliver's vertices: a merged rectangle is filled without them
+    bool have = valid && listedRun(table, index, run, unused);
     uvec4 pending = subgroupBallot(have);
     const int lane = int(gl_SubgroupInvocationID), lanes = int(gl_SubgroupSize);
     while (subgroupBallotBitCount(pending) != 0u) {
@@ -499,7 +499,7 @@ void fillListedShared(ModelTable table, uint index, bool valid)
         r.n0 = subgroupShuffle(run.n0, s);
         r.n1 = subgroupShuffle(run.n1, s);
         r.zMin = subgroupShuffle(run.zMin, s);
-        emitIfThin(first[0], first[1], first[2], lane, lanes, true, r);
+        emitIfThin(vec4(0.0), vec4(0.0), vec4(0.0), lane, lanes, true, r);
     }
 }
 
