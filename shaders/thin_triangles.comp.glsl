@@ -56,9 +56,15 @@ layout(set = 0, binding = 5, std430) buffer ThinList
     uint thinCount;
     uint thinDispatch[3];
     uint thinCapacity;
-    uint thinPad[3];
+    uint thinRectCapacity; // entries below it of a hard map also keep their rectangle in ThinRects
+    uint thinPad[2];
     uvec2 thinTriangles[];
 };
+// A hard map's listed runs' rectangles (the first thinRectCapacity entries), two texels each: corner
+// (d0, n0) and d, then the lengths d1 - d0, n1 - n0 and zMin. The fill reads them instead of decoding
+// the run's vertices again.
+layout(set = 0, binding = 7, std430) writeonly buffer ThinRects { vec4 thinRects[]; };
+layout(set = 0, binding = 8) uniform samplerBuffer thinRectTexels; // RGBA32F view of ThinRects
 layout(set = 0, binding = 1) uniform usamplerBuffer modelNodes;
 layout(set = 0, binding = 2) uniform usamplerBuffer modelClusters;
 layout(set = 0, binding = 3) uniform usamplerBuffer modelVertices;
@@ -359,6 +365,11 @@ void listRun(uint cluster, inout StripWalk w)
     uint slot = atomicAdd(thinCount, 1u);
     if (slot < thinCapacity)
         thinTriangles[slot] = uvec2(cluster, w.runEntry | (w.runLength - 1u) << 17);
+    if (kLocalDepths == 0u && slot < thinRectCapacity) {
+        const SliverRect r = w.run;
+        thinRects[2u * slot] = vec4(r.A + r.d * r.d0 + r.nrm * r.n0, r.d);
+        thinRects[2u * slot + 1u] = vec4(r.d1 - r.d0, r.n1 - r.n0, r.zMin, 0.0);
+    }
     w.runLength = 0u;
 }
 
@@ -484,7 +495,14 @@ void fillListedShared(ModelTable table, uint index, bool valid)
 {
     SliverRect run;
     vec4 unused[3]; // the first sliver's vertices: a merged rectangle is filled without them
-    bool have = valid && listedRun(table, index, run, unused);
+    bool have;
+    if (index < thinRectCapacity) {
+        // Kept by the list phase: no decoding.
+        const vec4 a = texelFetch(thinRectTexels, int(2u * index)), b = texelFetch(thinRectTexels, int(2u * index + 1u));
+        run = SliverRect(a.xy, a.zw, vec2(-a.w, a.z), 0.0, b.x, 0.0, b.y, b.z, 0.0, 0.0, 0.0, 0.0, 0.0);
+        have = valid;
+    } else
+        have = valid && listedRun(table, index, run, unused);
     uvec4 pending = subgroupBallot(have);
     const int lane = int(gl_SubgroupInvocationID), lanes = int(gl_SubgroupSize);
     while (subgroupBallotBitCount(pending) != 0u) {

@@ -8,10 +8,13 @@
 
 namespace penumbra::passes {
 
+// The fill reads the list phase's rectangles through a texel view (and every phase's pipeline declares it).
+constexpr VkAccessFlags2 kRectRead = VK_ACCESS_2_SHADER_SAMPLED_READ_BIT;
+
 void ThinTrianglesPass::create(vk::Device& device)
 {
     kernel.create(device, "thin_triangles.comp",
-                  {vk::kStorageImage, vk::kTexels, vk::kTexels, vk::kTexels, vk::kTexels, vk::kStorage, vk::kTexels},
+                  {vk::kStorageImage, vk::kTexels, vk::kTexels, vk::kTexels, vk::kTexels, vk::kStorage, vk::kTexels, vk::kStorage, vk::kTexels},
                   sizeof(ThinTrianglesPush));
 }
 
@@ -19,6 +22,7 @@ void ThinTrianglesPass::destroy(vk::Device& device)
 {
     kernel.destroy(device);
     vk::destroyBuffer(device, list);
+    destroyRects(device);
     thinMapView = VK_NULL_HANDLE;
     texels = {};
     texelsComplete = false;
@@ -38,12 +42,27 @@ void ThinTrianglesPass::bindModel(vk::Device& device, const GpuGeometry& geometr
     // Every triangle of the model could be a sliver of one view: the list holds them all, up to PENUMBRA_THIN_LIST_MAX.
     const uint32_t capacity = uint32_t(std::min<uint64_t>(std::max<uint64_t>(geometry.triangles, 1), PENUMBRA_THIN_LIST_MAX));
     vk::destroyBuffer(device, list);
+    destroyRects(device);
+    // The first entries' rectangles, kept for the fill of hard maps (32 bytes each).
+    const uint32_t rectCapacity = std::min(capacity, PENUMBRA_THIN_RECTS_MAX);
+    rects = vk::createBuffer(device, VkDeviceSize(rectCapacity) * 32,
+                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
+    rectTexels = vk::createTexelView(device, rects, VK_FORMAT_R32G32B32A32_SFLOAT, 16);
     std::vector<uint32_t> header(PENUMBRA_THIN_LIST_HEADER_UINTS, 0);
     header[4] = capacity;
+    header[5] = rectCapacity;
     list = vk::createBufferWithData(device, header.data(), header.size() * sizeof(uint32_t),
                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                     vk::Addressable::No, header.size() * sizeof(uint32_t) + VkDeviceSize(capacity) * 8);
     writeSet(device);
+}
+
+void ThinTrianglesPass::destroyRects(vk::Device& device)
+{
+    if (rectTexels)
+        vkDestroyBufferView(device.device, rectTexels, nullptr);
+    rectTexels = VK_NULL_HANDLE;
+    vk::destroyBuffer(device, rects);
 }
 
 void ThinTrianglesPass::writeSet(vk::Device& device) const
@@ -52,7 +71,7 @@ void ThinTrianglesPass::writeSet(vk::Device& device) const
         return;
     kernel.write(device, {vk::storageImage(thinMapView), vk::texelBuffer(texels.nodes), vk::texelBuffer(texels.clusters),
                           vk::texelBuffer(texels.vertices), vk::texelBuffer(texels.strips), vk::storageBuffer(list.buffer),
-                          vk::texelBuffer(texels.nodeTable)});
+                          vk::texelBuffer(texels.nodeTable), vk::storageBuffer(rects.buffer), vk::texelBuffer(rectTexels)});
 }
 
 void clearThinMap(VkCommandBuffer cmd, const vk::Image& thinMap)
@@ -77,7 +96,7 @@ void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, co
     // The list's count, cleared for this view.
     vk::memoryBarrier(cmd, kCompute | kIndirect, kStorageRW | kIndirectRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, list.buffer, 0, sizeof(uint32_t), 0);
-    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW | kRectRead);
     kernel.bind(cmd, geometry.paged() ? vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split, 1u}
                                       : vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split});
     // One invocation per node, then per leaf of the workgroup's nodes.
@@ -96,10 +115,10 @@ void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, co
                            view.clusterMask};
     kernel.push(cmd, push);
     vkCmdDispatch(cmd, dispatch.x, dispatch.y, 1);
-    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kRectRead);
     kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_DISPATCH, split});
     vkCmdDispatch(cmd, 1, 1, 1);
-    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead | kRectRead);
     kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_FILL, split});
     vkCmdDispatchIndirect(cmd, list.buffer, sizeof(uint32_t));
 }

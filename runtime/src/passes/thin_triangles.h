@@ -63,10 +63,13 @@ class ThinTrianglesPass {
   private:
     // Writes the descriptor set once both the thin map and the model are known.
     void writeSet(vk::Device& device) const;
+    void destroyRects(vk::Device& device);
 
     vk::ComputeKernel kernel;
     VkImageView thinMapView = VK_NULL_HANDLE;
     vk::Buffer list;                 // PENUMBRA_THIN_LIST_HEADER_UINTS header, then the slivers of a view (sized by the model)
+    vk::Buffer rects;                // the first entries' rectangles (hard maps), up to PENUMBRA_THIN_RECTS_MAX
+    VkBufferView rectTexels = VK_NULL_HANDLE; // RGBA32F view of rects, read by the fill
     GpuGeometry::TexelViews texels;
     bool texelsComplete = false;
     bool vertexTexelsSplit = false;
