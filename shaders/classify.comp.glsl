@@ -73,7 +73,8 @@ void classifyPixel()
         float d = linearLightDepth(light, s.depth);
         float dHat = receiverNearestDepth(light, d, size, n, L);
         mark = depthDiscontinuityNear(shadowMap, frame.pip.x, light, s, size, d, dHat) ||
-               (visibility == 1.0 && thinOccluderNearer(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, s.layer)).r), light, s, d, dHat));
+               (visibility == 1.0 && thinOccluderNearer(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel / int(PENUMBRA_THIN_HARD_SCALE), s.layer)).r),
+                                                         light, s, d, dHat));
     }
     marks[index] = mark ? 1u : 0u;
 }
@@ -93,7 +94,7 @@ void main()
     if (push.mode == PENUMBRA_CLASSIFY_PIP) {
         // The PIP test's inputs: the thin map's texel and the 3x3 texels around the pixel's, as the four
         // gathers depthDiscontinuityNear reads (shadow_common.glsli).
-        thin = uintBitsToFloat(imageLoad(thinMap, ivec3(texel, 0)).r);
+        thin = uintBitsToFloat(imageLoad(thinMap, ivec3(texel / int(PENUMBRA_THIN_HARD_SCALE), 0)).r);
         vec2 corner = vec2(texel) / vec2(mapSize), texelSize = 1.0 / vec2(mapSize);
         vec4 q = textureGather(shadowMap, vec3(corner, 0.0)) + textureGather(shadowMap, vec3(corner + vec2(texelSize.x, 0.0), 0.0)) +
                  textureGather(shadowMap, vec3(corner + vec2(0.0, texelSize.y), 0.0)) + textureGather(shadowMap, vec3(corner + texelSize, 0.0));

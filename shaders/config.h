@@ -121,6 +121,7 @@
 #define PENUMBRA_THIN_LIST_HEADER_UINTS 8 // thin list: count, dispatch[3], capacity, padding; then uvec2 entries
 #define PENUMBRA_THIN_LIST_MAX (1u << 24) // most slivers listed per light layer (the list is sized min(triangles, this))
 #define PENUMBRA_THIN_RECTS_MAX (1u << 20) // thin list: most hard-map entries whose rectangle is kept (32 bytes each) for the fill
+#define PENUMBRA_THIN_HARD_SCALE 2       // hard-shadow thin maps: shadow-map texels per thin-map texel side (thin_triangles.comp, classify.comp)
 #define PENUMBRA_THIN_RUN_MAX 128u       // most consecutive slivers of a strip merged into one list entry (7 bits of it)
 // compact.comp.glsl phases.
 #define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list

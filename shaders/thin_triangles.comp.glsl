@@ -256,6 +256,21 @@ void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, Sli
     SliverRect r = run;
     if (!merged && !sliverRect(v0, v1, v2, r))
         return;
+    const bool local = kLocalDepths != 0u;
+    // A hard map's thin texels are PENUMBRA_THIN_HARD_SCALE shadow-map texels a side (classify reads
+    // texel / scale): the rectangle in thin texels, grown by the half width of a square as wide as the
+    // distance from a thin texel's centre to its shadow-map texels' centres, so that a thin texel is
+    // written whenever one of those centres lies in the rectangle.
+    const float scale = local ? 1.0 : float(PENUMBRA_THIN_HARD_SCALE);
+    if (!local) {
+        const float grow = 0.5 - 0.5 / scale; // a shadow-map texel centre's farthest offset from its thin texel's
+        const float e_d = grow * (abs(r.d.x) + abs(r.d.y)), e_n = grow * (abs(r.nrm.x) + abs(r.nrm.y));
+        r.A /= scale;
+        r.d0 = r.d0 / scale - e_d;
+        r.d1 = r.d1 / scale + e_d;
+        r.n0 = r.n0 / scale - e_n;
+        r.n1 = r.n1 / scale + e_n;
+    }
     const vec2 A = r.A, d = r.d, nrm = r.nrm;
     const float d0 = r.d0, d1 = r.d1, n0 = r.n0, n1 = r.n1, zMin = r.zMin;
     // Area lights (never merged): the edges' depths along the longest edge.
@@ -265,9 +280,8 @@ void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, Sli
     vec2 hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]));
     // Scanline fill of the texel centres inside the rectangle
     // {A + d t + nrm u : t in [d0, d1], u in [n0, n1]}.
-    ivec2 size = ivec2(push.mapSize);
+    const ivec2 size = (ivec2(push.mapSize) + int(scale) - 1) / int(scale);
     int yBegin = max(int(ceil(lo.y - 0.5)), 0), yEnd = min(int(floor(hi.y - 0.5)), size.y - 1);
-    const bool local = kLocalDepths != 0u;
     // The edges' depths along the longest edge: A at t = 0, B at longest, C at along.
     EdgeDepth edges[3];
     if (local)
