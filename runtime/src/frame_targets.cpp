@@ -150,7 +150,7 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
         // Layers: per shadow-map layer the slivers' nearest depths, then one of per-texel depths for
         // the penumbra mask of an area light (thin_triangles.comp.glsl).
         thinMap = vk::createImage(device, mapSize, mapSize, mapLayers + 1, kThinFormat,
-                                  VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, true);
+                                  VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT, true);
         vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
             vk::transition(cmd, shadowMap, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, 0,
                            VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);

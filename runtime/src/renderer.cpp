@@ -723,7 +723,7 @@ struct Renderer::Impl::FrameScript {
             timer.mark(cmd, PassId::ShadowMap);
             return;
         case Step::ThinTriangles: {
-            r.thinTriangles.clear(cmd, t.thinMap);
+            r.thinTriangles.clear(cmd, t.thinMap, t.shadowSize, area ? 0 : layers(light), area);
             auto thinView = [&](uint32_t layer) {
                 if (area) {
                     const float halfTan = 0.5f * l.mapRange[slot].y;

@@ -82,11 +82,33 @@ void clearThinMap(VkCommandBuffer cmd, const vk::Image& thinMap)
     vkCmdClearColorImage(cmd, thinMap.image, VK_IMAGE_LAYOUT_GENERAL, &far, 1, &range);
 }
 
-void ThinTrianglesPass::clear(VkCommandBuffer cmd, const vk::Image& thinMap) const
+void ThinTrianglesPass::clear(VkCommandBuffer cmd, const vk::Image& thinMap, uint32_t mapSize, uint32_t hardLayers, bool areaLight) const
 {
-    vk::memoryBarrier(cmd, kCompute, kStorageRead, kClear, kTransferWrite);
-    clearThinMap(cmd, thinMap);
-    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+    if (areaLight) {
+        vk::memoryBarrier(cmd, kCompute, kStorageRead, kClear, kTransferWrite);
+        clearThinMap(cmd, thinMap);
+        vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+        return;
+    }
+    constexpr VkAccessFlags2 kColorWrite = VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
+    vk::memoryBarrier(cmd, kCompute, kStorageRead, kColorOut, kColorWrite);
+    const uint32_t size = (mapSize + PENUMBRA_THIN_HARD_SCALE - 1) / PENUMBRA_THIN_HARD_SCALE;
+    for (uint32_t layer = 0; layer < hardLayers && layer < 6; ++layer) {
+        VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+        color.imageView = thinMap.layerViews[layer];
+        color.imageLayout = VK_IMAGE_LAYOUT_GENERAL;
+        color.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+        color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+        color.clearValue.color.uint32[0] = 0x3F800000u; // 1.0f: nothing thin
+        VkRenderingInfo rendering{VK_STRUCTURE_TYPE_RENDERING_INFO};
+        rendering.renderArea = {{0, 0}, {size, size}};
+        rendering.layerCount = 1;
+        rendering.colorAttachmentCount = 1;
+        rendering.pColorAttachments = &color;
+        vkCmdBeginRendering(cmd, &rendering);
+        vkCmdEndRendering(cmd);
+    }
+    vk::memoryBarrier(cmd, kColorOut, kColorWrite, kCompute, kStorageRW);
 }
 
 void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, const GpuGeometry& geometry, VkDeviceAddress modelTable,
