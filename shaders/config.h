@@ -118,7 +118,7 @@
 #define PENUMBRA_THIN_LIST 0u            // decode the leaves near receivers, list the slivers
 #define PENUMBRA_THIN_DISPATCH 1u        // the fill's indirect dispatch from the list's length
 #define PENUMBRA_THIN_FILL 2u            // fill each listed sliver's conservative rectangle
-#define PENUMBRA_THIN_LIST_HEADER_UINTS 8 // thin list: count, dispatch[3], capacity, padding; then uvec2 entries
+#define PENUMBRA_THIN_LIST_HEADER_UINTS 8 // thin list: count, dispatch[3], capacity, rectangles' capacity, padding; then uvec2 entries
 #define PENUMBRA_THIN_LIST_MAX (1u << 24) // most slivers listed per light layer (the list is sized min(triangles, this))
 #define PENUMBRA_THIN_RECTS_MAX (1u << 20) // thin list: most hard-map entries whose rectangle is kept (32 bytes each) for the fill
 #define PENUMBRA_THIN_HARD_SCALE 2       // hard-shadow thin maps: shadow-map texels per thin-map texel side (thin_triangles.comp, classify.comp)

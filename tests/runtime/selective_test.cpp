@@ -92,6 +92,38 @@ TEST(HardShadows, SelectiveMatchesFullRayTracingOnProceduralScenes)
     }
 }
 
+// The thin-triangle pass keeps the rectangles of its first listed runs for the fill, up to a capacity
+// (PENUMBRA_THIN_RECTS_MAX, within RendererOptions::maxModelBufferBytes); the later runs are decoded
+// again from the model. With model buffers of 32 KiB (1,024 rectangles, against about 5,300 runs of
+// this city's sun view: counted when the test was written) the fill takes both paths, and the frame
+// must equal the one whose every run kept its rectangle.
+TEST(HardShadows, ThinRunsBeyondTheKeptRectanglesAreDecodedAgain)
+{
+    GenerateOptions generate;
+    generate.triangles = 60'000;
+    Scene scene = generateScene("city", generate);
+    RenderSettings settings;
+    settings.width = settings.height = 256;
+    settings.shadows = ShadowMethod::Selective;
+    Frame frames[2];
+    for (int small = 0; small < 2; ++small) {
+        RendererOptions options;
+        options.maxModelBufferBytes = small ? 32 * 1024 : 0;
+        Renderer renderer(options);
+        renderer.loadModel(scene.mesh);
+        renderer.setCamera(scene.cameras.at(0));
+        renderer.setLights({scene.lights.at(0)});
+        frames[small] = renderer.render(settings);
+    }
+    EXPECT_GT(frames[0].stats.rays, 500u);
+    EXPECT_EQ(frames[0].stats.rays, frames[1].stats.rays);
+    ASSERT_EQ(frames[0].visibility.size(), frames[1].visibility.size());
+    size_t differing = 0;
+    for (size_t i = 0; i < frames[0].visibility.size(); ++i)
+        differing += frames[0].visibility[i] != frames[1].visibility[i] ? 1 : 0;
+    EXPECT_EQ(differing, 0u);
+}
+
 TEST(HardShadows, DebugImageMarksTracedPixelsRed)
 {
     Mesh mesh = test::wiresOverGround();

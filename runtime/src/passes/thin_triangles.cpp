@@ -43,8 +43,13 @@ void ThinTrianglesPass::bindModel(vk::Device& device, const GpuGeometry& geometr
     const uint32_t capacity = uint32_t(std::min<uint64_t>(std::max<uint64_t>(geometry.triangles, 1), PENUMBRA_THIN_LIST_MAX));
     vk::destroyBuffer(device, list);
     destroyRects(device);
-    // The first entries' rectangles, kept for the fill of hard maps (32 bytes each).
-    const uint32_t rectCapacity = std::min(capacity, PENUMBRA_THIN_RECTS_MAX);
+    // The first entries' rectangles, kept for the fill of hard maps (32 bytes each: two texels of the view;
+    // a buffer of the model's, so within RendererOptions::maxModelBufferBytes, which tests set small to
+    // have the fill decode the later entries again).
+    uint32_t rectCapacity = std::min({capacity, PENUMBRA_THIN_RECTS_MAX, device.properties.limits.maxTexelBufferElements / 2});
+    if (device.maxModelBufferBytes)
+        rectCapacity = uint32_t(std::min<VkDeviceSize>(rectCapacity, device.maxModelBufferBytes / 32));
+    rectCapacity = std::max(rectCapacity, 1u);
     rects = vk::createBuffer(device, VkDeviceSize(rectCapacity) * 32,
                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
     rectTexels = vk::createTexelView(device, rects, VK_FORMAT_R32G32B32A32_SFLOAT, 16);
