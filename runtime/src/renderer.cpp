@@ -682,11 +682,8 @@ struct Renderer::Impl::FrameScript {
             const VkDeviceAddress base = vk::bufferAddress(r.device, r.targets.thinClusterMasks);
             for (size_t l = 0; l < receiverMasks.size(); ++l)
                 if (receiverMasks[l]) {
-                    // A sliver's rectangle holds texel centres up to 1 texel (in x or y) beyond its footprint, and
-                    // a hard thin texel (PENUMBRA_THIN_HARD_SCALE map texels a side) is read by points up to
-                    // scale - 0.5 texels from such a centre: the masks' 2 texels grow to scale + 1.
                     ReceiverMask thinReach = *receiverMasks[l];
-                    thinReach.margin *= 0.5 * double(PENUMBRA_THIN_HARD_SCALE + 1);
+                    thinReach.margin *= passes::kThinMaskMarginScale;
                     r.shadowCulling.markClustersNearReceivers(thinReach, bits + l * words);
                     thinClusterMask[l] = base + l * words * sizeof(uint32_t);
                 }

@@ -9,6 +9,7 @@
 
 #include <glm/mat4x4.hpp>
 
+#include "config.h"
 #include "model_geometry.h"
 #include "pipelines.h"
 
@@ -42,6 +43,13 @@ struct ThinView {
     VkDeviceAddress clusterMask = 0; // 0: every cluster
     bool areaLight = false;          // also the per-texel depths, into the map's last layer (penumbra mask)
 };
+
+// How much wider than the receiver masks' margin (2 texels: the classification's 3x3 texels) the
+// clusters the pass decodes must reach (Culling::markClustersNearReceivers): a sliver's rectangle
+// holds texel centres up to 1 texel (in x or y) beyond its footprint, and a hard thin texel
+// (PENUMBRA_THIN_HARD_SCALE map texels a side) is read by points up to scale - 0.5 texels from such
+// a centre, so the margin grows to scale + 1 texels.
+constexpr double kThinMaskMarginScale = 0.5 * double(PENUMBRA_THIN_HARD_SCALE + 1);
 
 // Every layer of the thin map (GENERAL) to "nothing thin": the bits of 1.0f (the far plane).
 void clearThinMap(VkCommandBuffer cmd, const vk::Image& thinMap);
