@@ -181,6 +181,7 @@ struct Renderer::Impl::FrameScript {
     std::vector<uint32_t> lightFirstView;                          // first shadow view of each light
     std::vector<std::shared_ptr<const ReceiverMask>> receiverMasks; // layer k of light i at 6 i + k
     std::vector<VkDeviceAddress> thinClusterMask;                   // the same layers; 0: every cluster
+    std::vector<uint32_t> thinClusterBits; // their bits, built here and copied whole into the mapped buffer
     uint32_t viewFitMask = 0, receiverGridMask = 0;
     // Whether the frame runs view_fit (fitToView), which also counts the covered pixels (the first shade need not).
     bool viewFitRuns() const { return viewFitMask || receiverGridMask; }
@@ -399,7 +400,7 @@ struct Renderer::Impl::FrameScript {
         for (uint32_t k = 0; k < views; ++k) {
             const uint32_t* mask = nullptr;
             if (!area && thinClusterMask[6 * light + k])
-                mask = static_cast<const uint32_t*>(r.targets.thinClusterMasks.mapped) + (6 * light + k) * words;
+                mask = thinClusterBits.data() + (6 * light + k) * words;
             const glm::mat4& viewProj = l.viewProj[area ? slot : k];
             for (uint32_t c = 0; c < clusterCount; ++c)
                 if ((!mask || (mask[c >> 5] >> (c & 31)) & 1u) &&
@@ -426,11 +427,11 @@ struct Renderer::Impl::FrameScript {
             beginCommands();
         }
         r.pages.ensureThinMasks(r.device, std::max<uint64_t>(ranges.size() * views * regionBytes, 4));
-        auto* bits = static_cast<uint32_t*>(r.pages.thinMasks.mapped);
-        std::memset(bits, 0, ranges.size() * views * regionBytes);
+        std::vector<uint32_t> bits(ranges.size() * views * words, 0u);
         for (uint32_t k = 0; k < views; ++k)
             for (uint32_t c : sets[k])
                 bits[(rangeOf[c] * views + k) * words + (c >> 5)] |= 1u << (c & 31);
+        vk::writeMapped(r.pages.thinMasks, bits.data(), bits.size() * sizeof(uint32_t));
         const VkDeviceAddress base = vk::bufferAddress(r.device, r.pages.thinMasks);
         for (uint32_t j = 0; j < ranges.size(); ++j) {
             ensureResident(ranges[j], "light " + std::to_string(light) + "'s thin-triangle views", true);
@@ -677,16 +678,16 @@ struct Renderer::Impl::FrameScript {
             const size_t words = (r.shadowCulling.model->clusterMin.size() + 31) / 32;
             const VkDeviceSize bytes = 6 * lights.size() * words * sizeof(uint32_t);
             r.targets.ensureThinClusterMasks(r.device, bytes);
-            auto* bits = static_cast<uint32_t*>(r.targets.thinClusterMasks.mapped);
-            std::memset(bits, 0, bytes);
+            thinClusterBits.assign(6 * lights.size() * words, 0u);
             const VkDeviceAddress base = vk::bufferAddress(r.device, r.targets.thinClusterMasks);
             for (size_t l = 0; l < receiverMasks.size(); ++l)
                 if (receiverMasks[l]) {
                     ReceiverMask thinReach = *receiverMasks[l];
                     thinReach.margin *= passes::kThinMaskMarginScale;
-                    r.shadowCulling.markClustersNearReceivers(thinReach, bits + l * words);
+                    r.shadowCulling.markClustersNearReceivers(thinReach, thinClusterBits.data() + l * words);
                     thinClusterMask[l] = base + l * words * sizeof(uint32_t);
                 }
+            vk::writeMapped(r.targets.thinClusterMasks, thinClusterBits.data(), bytes);
         }
         std::memcpy(r.targets.frameUniforms.mapped, &data, sizeof(data));
         planShadowViews();

@@ -104,6 +104,14 @@ void destroyBuffer(Device& device, Buffer& buffer)
     buffer = {};
 }
 
+void writeMapped(Buffer& buffer, const void* data, size_t bytes, size_t offset)
+{
+    if (!buffer.mapped || offset + bytes > buffer.size)
+        fail("vulkan", "a write of " + std::to_string(bytes) + " bytes at " + std::to_string(offset) + " does not fit a mapped buffer of " +
+                           std::to_string(buffer.size));
+    std::memcpy(static_cast<char*>(buffer.mapped) + offset, data, bytes);
+}
+
 Buffer createBufferWithData(Device& device, const void* data, VkDeviceSize size, VkBufferUsageFlags usage, Addressable addressable,
                             VkDeviceSize capacity)
 {

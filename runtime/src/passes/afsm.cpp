@@ -387,14 +387,14 @@ uint64_t AfsmPass::prepareModel(vk::Device& device, const CompressedModel* model
         if (targets.cellFirst)
             bind(device, targets);
     }
-    auto* bits = static_cast<uint32_t*>(closedBits.mapped);
-    std::fill(bits, bits + closedBits.size / 4, 0u);
+    std::vector<uint32_t> bits(closedBits.size / 4, 0u);
     closedCount = 0;
     for (size_t c = 0; c < clusters; ++c)
         if (model->clusters[c].flags & model::kClusterClosed) {
             bits[c >> 5] |= 1u << (c & 31);
             ++closedCount;
         }
+    vk::writeMapped(closedBits, bits.data(), bits.size() * sizeof(uint32_t));
     maxLeafTriangles = maxLeafBytes = 0;
     if (model)
         for (const model::Node& node : model->nodes)
@@ -523,10 +523,10 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                                             vk::MemoryUse::Upload, vk::Addressable::Yes);
             clusterMaskWords = words;
         }
-        uint32_t* bits = static_cast<uint32_t*>(clusterMasks.mapped) + size_t(layer.maskSlot) * clusterMaskWords;
-        std::fill(bits, bits + clusterMaskWords, 0u);
+        std::vector<uint32_t> bits(clusterMaskWords, 0u);
         for (uint32_t c : culling.viewClusters(layer.view))
             bits[c >> 5] |= 1u << (c & 31);
+        vk::writeMapped(clusterMasks, bits.data(), bits.size() * sizeof(uint32_t), size_t(layer.maskSlot) * clusterMaskWords * 4);
         AfsmBinPush push{layer.viewProj,
                          modelTable,
                          vk::bufferAddress(device, clusterMasks) + VkDeviceSize(layer.maskSlot) * clusterMaskWords * 4,

@@ -326,13 +326,17 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
     uint64_t casterTriangles = 0;
     for (uint32_t cluster : clusters)
         casterTriangles += model.clusterTriangles[cluster];
-    auto* faceBits = static_cast<uint32_t*>(clusterFaces.mapped);
+    faceBits.resize(targets.clusters);
     for (uint32_t cluster : clusters)
         faceBits[cluster] = options.closedCulling && closed(cluster) ? kClosedBit : 0u;
     stats.closedCulled += options.closedCulling ? 1 : 0;
     for (size_t view = 0; view < viewClusters.size(); ++view)
         for (uint32_t cluster : viewClusters[view])
             faceBits[cluster] |= type == PENUMBRA_LIGHT_POINT ? 1u << kLayerFace[std::min<size_t>(view, 5)] : 0x3Fu;
+    // Only the listed clusters' words are read: the touched span goes over whole.
+    if (!clusters.empty())
+        vk::writeMapped(clusterFaces, faceBits.data() + clusters.front(), (clusters.back() - clusters.front() + 1) * sizeof(uint32_t),
+                        size_t(clusters.front()) * sizeof(uint32_t));
     static const bool profiling = std::getenv("PENUMBRA_RH_PROFILE") != nullptr;
     auto last = std::chrono::steady_clock::now();
     auto lap = [&](int stage) {

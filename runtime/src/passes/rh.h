@@ -220,6 +220,7 @@ class RhPass {
                  triangleTexelsB = VK_NULL_HANDLE, recordTexels = VK_NULL_HANDLE;
     bool texelAccess = false;
     vk::Buffer clusterFaces; // per cluster: the faces whose views kept it (host-written per light)
+    std::vector<uint32_t> faceBits; // clusterFaces built on the host (vk::writeMapped)
     vk::Buffer depthGrid;    // the receivers' depth grid (rh.glsli), 6 faces
     uint32_t mortonTiles = 0;  // tiles on the Morton curve over the image's tiles (a power-of-two square)
     uint32_t keyCapacity = 0;  // keys the key counts hold (before their block totals)
