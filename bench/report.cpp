@@ -576,11 +576,18 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
     md << "- device: " << results.device.name << " (" << results.device.type << "), driver " << results.device.driver
        << ", Vulkan " << results.device.apiVersion << "\n";
     md << "- image " << o.size << "x" << o.size << ", " << o.frames
-       << " timed frame(s) per case after one warm-up frame; GPU times from timestamp queries, the Embree oracle's on "
+       << " timed frame(s) per case after one warm-up frame (on a GPU, warm-up frames for half a second); GPU times from timestamp queries, the Embree oracle's on "
           "the CPU\n";
     md << "- command: `penumbra bench " << o.suite << " --out " << o.outDir << " --size " << o.size << " --frames "
        << o.frames << " --scan-triangles " << o.scanTriangles << " --light-samples " << o.lightSamples
-       << " --penumbra-maps " << o.penumbraMaps << " --soft-shadow-maps " << o.softShadowMaps << "`\n";
+       << " --penumbra-maps " << o.penumbraMaps << " --soft-shadow-maps " << o.softShadowMaps << " --afsm-samples " << o.afsmSamples;
+    auto list = [&](const char* option, const std::vector<std::string>& names) {
+        for (size_t i = 0; i < names.size(); ++i)
+            md << (i ? "," : std::string(" ") + option + " ") << names[i];
+    };
+    list("--methods", o.methods);
+    list("--sections", o.sections);
+    md << "`\n";
     for (const std::string& note : results.notes)
         md << "- " << note << "\n";
     md << "- " << plotNote << "\n\n";

@@ -43,7 +43,7 @@ struct Record {
     bool available = true; // false: not run; note says why
     std::string note;
     uint32_t width = 0, height = 0;
-    uint32_t frames = 0;           // timed frames (after one warm-up)
+    uint32_t frames = 0;           // timed frames (after one warm-up; on a GPU, half a second of them)
     double medianMs = kNoValue;    // GPU ms per frame (oracle: CPU ms), median of the timed frames
     double bestMs = kNoValue;      // best of the timed frames
     double cpuMedianMs = kNoValue; // wall clock per frame: record + submit + wait + readback

@@ -24,7 +24,7 @@ struct SuiteOptions {
     std::string outDir;                 // results folder; created, files in it replaced
     std::string device;                 // Vulkan device: index or part of its name; empty: default
     uint32_t size = 512;                // image width and height
-    uint32_t frames = 3;                // timed frames per case after one warm-up frame
+    uint32_t frames = 3;                // timed frames per case after one warm-up frame (a GPU: half a second of them)
     std::vector<BenchScene> scenes;     // method comparison and per-stage breakdown
     uint64_t scanTriangles = 1'000'000; // scalability: the full-resolution scan model
     std::vector<double> levels;         // scalability: triangle ratios in (0, 1], any order
