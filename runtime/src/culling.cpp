@@ -400,17 +400,26 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
                 // than it tests boxes: a query rasterizes its box's footprint
                 // (on lavapipe, a sun's 2048^2 map of a 2,000-triangle model
                 // took 21 ms of CPU with one query, 13 ms without).
+                // The plan with queries lists every cluster in the frustum
+                // (in one of its two phases), so it counts them: a view
+                // plans once unless it is that small.
                 ViewPlan frustumOnly = plan;
                 frustumOnly.view.occlusion = false;
-                planView(frustumOnly);
+                const size_t boxes = queryBoxes.size();
+                const uint32_t frame = state.frame;
+                planView(plan);
+                planned = true;
                 uint64_t triangles = 0;
-                for (const Entry& entry : frustumOnly.finalPhase)
+                for (uint32_t cluster : plan.firstPhase)
+                    triangles += model->clusterTriangles[cluster];
+                for (const Entry& entry : plan.finalPhase)
                     triangles += model->clusterTriangles[entry.cluster];
                 if (triangles < PENUMBRA_CULL_MIN_TRIANGLES) {
+                    queryBoxes.resize(boxes); // the plan's own, undone with its frame count
+                    state.frame = frame;
+                    frustumOnly.cpuMs = plan.cpuMs;
+                    planView(frustumOnly);
                     plan = std::move(frustumOnly);
-                    planned = true;
-                } else {
-                    plan.cpuMs = frustumOnly.cpuMs;
                 }
             }
             if (!planned)
