@@ -225,13 +225,15 @@ Agreement compare(const std::vector<float>& oracle, const TraceResult& gpu)
 
 // Of the rays where the tracer and the oracle on the original mesh differ,
 // counts those on which the oracle agrees with the tracer once the ray is
-// shifted sideways by shift in one of four directions: rays passing within
-// about shift of an occluder's silhouette.
+// moved by shift: sideways in one of eight directions (rays passing within
+// about shift of an occluder's silhouette or corner), or its origin along the
+// surface normal (the receiver's own surface, quantized too, lies up to shift
+// from the original one).
 size_t grazingDisagreements(const EmbreeOracle& oracle, const GBuffer& gbuffer, const Light& light, const OracleOptions& options,
                             const std::vector<float>& reference, const std::vector<float>& traced, float shift)
 {
     std::vector<bool> explained(reference.size(), false);
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < 10; ++k) {
         std::vector<float> positions(gbuffer.positions.size(), 0.0f); // w = 0: not traced
         for (size_t i = 0; i < reference.size(); ++i) {
             if (reference[i] < 0.0f || reference[i] == traced[i])
@@ -240,7 +242,11 @@ size_t grazingDisagreements(const EmbreeOracle& oracle, const GBuffer& gbuffer, 
             glm::vec3 d = light.type == LightType::Directional ? -glm::normalize(light.direction) : glm::normalize(light.position - p);
             glm::vec3 u = glm::normalize(glm::cross(d, std::abs(d.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0)));
             glm::vec3 v = glm::cross(d, u);
-            p += (k == 0 ? u : k == 1 ? -u : k == 2 ? v : -v) * shift;
+            glm::vec3 n(gbuffer.normals[i * 4], gbuffer.normals[i * 4 + 1], gbuffer.normals[i * 4 + 2]);
+            n = glm::dot(n, n) > 0.0f ? glm::normalize(n) : d;
+            const glm::vec3 moves[10] = {u, -u, v, -v, (u + v) * 0.70710678f, (u - v) * 0.70710678f, (v - u) * 0.70710678f,
+                                         -(u + v) * 0.70710678f, n, -n};
+            p += moves[k] * shift;
             positions[i * 4] = p.x;
             positions[i * 4 + 1] = p.y;
             positions[i * 4 + 2] = p.z;

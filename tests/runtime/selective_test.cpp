@@ -2,12 +2,14 @@
 // (Lauterbach et al. 2009, 3.1): frt agrees with the oracle, srt with frt, and
 // a scene of thin wires shows what plain shadow mapping misses.
 #include <cmath>
+#include <cstdio>
 
 #include <gtest/gtest.h>
 
 #include "penumbra/generate.h"
 #include "penumbra/oracle.h"
 #include "penumbra/penumbra.h"
+#include "penumbra/preprocess.h"
 #include "test_scenes.h"
 
 namespace penumbra {
@@ -41,9 +43,16 @@ TEST(HardShadows, FullRayTracingAgreesWithTheOracle)
         OracleOptions oracleOptions;
         oracleOptions.originOffset = frt.stats.rayOffset;
         std::vector<float> oracle = EmbreeOracle(scene.mesh).hardShadowVisibility(frt.positions, frt.normals, scene.lights[0], oracleOptions);
-        Comparison cmp = compare(oracle, frt.visibility);
+        // renderMethod loads the mesh with the default preprocessing.
+        const Mesh decodedMesh = decodeMesh(buildCompressedModel(scene.mesh, PreprocessOptions{}));
+        std::vector<float> decoded = EmbreeOracle(decodedMesh).hardShadowVisibility(frt.positions, frt.normals, scene.lights[0], oracleOptions);
+        Comparison cmp = compare(oracle, frt.visibility), exact = compare(decoded, frt.visibility);
+        std::printf("%s: frt differs from the oracle on %zu of %zu pixels, on the decoded mesh on %zu\n", c.scene, cmp.differing, cmp.compared,
+                    exact.differing);
         EXPECT_GT(cmp.compared, 10000u) << c.scene;
-        EXPECT_LE(cmp.fraction(), 1e-4) << c.scene << ": frt differs from the oracle on " << cmp.differing << " of " << cmp.compared;
+        EXPECT_LE(cmp.fraction(), test::sourceMeshBound(c.scene)) << c.scene << ": frt differs from the oracle on " << cmp.differing << " of " << cmp.compared;
+        EXPECT_LE(exact.fraction(), test::kDecodedMeshBound)
+            << c.scene << ": frt differs from the decoded-mesh oracle on " << exact.differing << " of " << exact.compared;
         EXPECT_GT(frt.stats.rays, 0u);
         EXPECT_GT(frt.stats.nodesVisited, frt.stats.rays);
     }
