@@ -72,6 +72,9 @@ penumbra_pkg_config(penumbra-formats penumbra_formats "Penumbra model importers/
 penumbra_pkg_config(penumbra-preprocess penumbra_preprocess "Penumbra preprocessor and procedural scenes (no Vulkan)"
                     "penumbra-formats" "-lmeshoptimizer -pthread")
 if(PENUMBRA_BUILD_RUNTIME)
-  penumbra_pkg_config(penumbra penumbra_runtime "Penumbra headless Vulkan shadow renderer"
-                      "penumbra-preprocess vulkan OpenImageIO" "-pthread")
+  set(runtime_requires "penumbra-preprocess vulkan")
+  if(PENUMBRA_WITH_OPENIMAGEIO)
+    string(APPEND runtime_requires " OpenImageIO")
+  endif()
+  penumbra_pkg_config(penumbra penumbra_runtime "Penumbra headless Vulkan shadow renderer" "${runtime_requires}" "-pthread")
 endif()

@@ -5,12 +5,15 @@
 #include <limits>
 #include <unistd.h>
 
+#if PENUMBRA_WITH_OPENIMAGEIO
 #include <OpenImageIO/imageio.h>
+#endif
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
 #include "penumbra/penumbra.h"
+#include "png_writer.h"
 
 namespace penumbra {
 
@@ -312,8 +315,16 @@ void checkImagePath(const std::string& path)
     size_t dot = path.find_last_of('.');
     if (dot == std::string::npos || path.find('/', dot) != std::string::npos)
         fail(path, "no file extension (use .png or .exr)");
+#if PENUMBRA_WITH_OPENIMAGEIO
     if (!OIIO::ImageOutput::create(path))
         fail(path, "unsupported image format '" + path.substr(dot) + "'");
+#else
+    std::string extension = path.substr(dot);
+    for (char& c : extension)
+        c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (extension != ".png")
+        fail(path, "unsupported image format '" + path.substr(dot) + "' (this build has no OpenImageIO: .png only)");
+#endif
 }
 
 void writeImage(const Image& image, const std::string& path)
@@ -337,15 +348,30 @@ void writeImage(const Image& image, const std::string& path, const ImageOptions&
     std::string base = slash == std::string::npos ? path : path.substr(slash + 1);
     std::string temporary = directory + ".tmp-" + std::to_string(::getpid()) + "-" + base;
 
-    auto out = OIIO::ImageOutput::create(path);
-    if (!out)
-        fail(path, "unsupported image format '" + extension + "'");
     size_t pixels = size_t(image.width) * image.height;
     if (!options.layers.empty() && extension != ".exr")
         fail(path, "extra channels (layers) need an .exr output");
     for (const ImageLayer& layer : options.layers)
         if (layer.values.size() != pixels || layer.name.empty())
             fail(path, "layer '" + layer.name + "' is unnamed or differs in size from the image");
+    // Exposure 1 and no curve: exactly the plain sRGB encoding of the linear values.
+    auto encode8 = [&] {
+        const bool plain = options.exposure == 1.0f && options.tonemap == ToneMap::None;
+        std::vector<uint8_t> bytes(image.rgba.size());
+        for (size_t i = 0; i < image.rgba.size(); ++i) {
+            float v = image.rgba[i];
+            if (i % 4 == 3)
+                v = std::fmin(std::fmax(v, 0.0f), 1.0f);
+            else
+                v = linearToSrgb(plain ? v : applyToneMap(v * options.exposure, options.tonemap));
+            bytes[i] = uint8_t(std::lround(v * 255.0f));
+        }
+        return bytes;
+    };
+#if PENUMBRA_WITH_OPENIMAGEIO
+    auto out = OIIO::ImageOutput::create(path);
+    if (!out)
+        fail(path, "unsupported image format '" + extension + "'");
     OIIO::ImageSpec spec(int(image.width), int(image.height), 4, floating ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::UINT8);
     if (!options.layers.empty()) {
         // R, G, B, A stay half; the layers are full float.
@@ -374,17 +400,7 @@ void writeImage(const Image& image, const std::string& path, const ImageOptions&
         } else if (floating) {
             ok = out->write_image(OIIO::TypeDesc::FLOAT, image.rgba.data());
         } else {
-            // Exposure 1 and no curve: exactly the plain sRGB encoding of the linear values.
-            bool plain = options.exposure == 1.0f && options.tonemap == ToneMap::None;
-            std::vector<uint8_t> bytes(image.rgba.size());
-            for (size_t i = 0; i < image.rgba.size(); ++i) {
-                float v = image.rgba[i];
-                if (i % 4 == 3)
-                    v = std::fmin(std::fmax(v, 0.0f), 1.0f);
-                else
-                    v = linearToSrgb(plain ? v : applyToneMap(v * options.exposure, options.tonemap));
-                bytes[i] = uint8_t(std::lround(v * 255.0f));
-            }
+            const std::vector<uint8_t> bytes = encode8();
             ok = out->write_image(OIIO::TypeDesc::UINT8, bytes.data());
         }
         ok = out->close() && ok;
@@ -394,6 +410,14 @@ void writeImage(const Image& image, const std::string& path, const ImageOptions&
         std::remove(temporary.c_str());
         fail(path, "cannot write image: " + (message.empty() ? std::string("unknown error") : message.substr(0, message.find('\n'))));
     }
+#else
+    (void)floating; // checkImagePath: .png, 8 bits
+    const std::vector<uint8_t> bytes = encode8();
+    if (!writePngRgba8(temporary, image.width, image.height, bytes.data())) {
+        std::remove(temporary.c_str());
+        fail(path, "cannot write image: cannot create or fill the file");
+    }
+#endif
     if (std::rename(temporary.c_str(), path.c_str()) != 0) {
         std::remove(temporary.c_str());
         fail(path, "cannot rename the finished image into place");

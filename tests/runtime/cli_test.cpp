@@ -74,7 +74,7 @@ TEST(Cli, GenerateThenRenderWithValidation)
 // --geometry-budget: the stats line and JSON report the pages (images: geometry_budget_test.cpp); bad budgets fail with one line.
 TEST(Cli, RenderUnderAGeometryBudget)
 {
-    const std::string model = tmp("budget_city.glb"), unlimited = tmp("budget_unlimited.exr"), budgeted = tmp("budget_budgeted.exr"),
+    const std::string model = tmp("budget_city.glb"), unlimited = tmp("budget_unlimited.png"), budgeted = tmp("budget_budgeted.png"),
                       stats = tmp("budget.json");
     ASSERT_EQ(run("generate city --triangles 20000 --seed 3 -o " + model).status, 0);
     Result plain = run("render " + model + " -o " + unlimited + " --size 128x128 --shadows srt --validation");
@@ -95,7 +95,7 @@ TEST(Cli, RenderUnderAGeometryBudget)
 
 TEST(Cli, RenderWithSceneFileAndLightsOnTheCommandLine)
 {
-    std::string model = tmp("plant.ply"), scene = tmp("scene.json"), image = tmp("scene.exr");
+    std::string model = tmp("plant.ply"), scene = tmp("scene.json"), image = tmp("scene.png");
     ASSERT_EQ(run("generate plant --triangles 20000 -o " + model).status, 0);
     std::ofstream(scene) << R"({"model": "cli_plant.ply", "camera": {"position": [30, 25, 30], "target": [0, 0, 0], "fov": 50},
         "lights": [{"type": "spot", "position": [5, 30, 5], "direction": [0, -1, 0], "outer_cone": 50, "intensity": 900}]})";

@@ -16,6 +16,7 @@
 
 #include "cli_run.h"
 #include "penumbra/penumbra.h"
+#include "png_writer.h"
 #include "test_scenes.h"
 
 namespace penumbra {
@@ -71,6 +72,34 @@ std::vector<uint8_t> legacyPngBytes(const Image& image)
         bytes[i] = uint8_t(std::lround(v * 255.0f));
     }
     return bytes;
+}
+
+// The built-in writer of builds without OpenImageIO (PENUMBRA_WITH_OPENIMAGEIO=OFF):
+// OpenImageIO reads its files back byte for byte, with rows longer than one
+// stored deflate block (65,535 bytes) and odd sizes; a path it cannot create
+// is reported. OpenImageIO premultiplies a PNG's colours by its alpha when it
+// reads them, so the colours are compared where the alpha is opaque (every
+// pixel of the first pass) and the alpha everywhere.
+TEST(ImageOutput, BuiltInPngWriterRoundTrips)
+{
+    for (bool opaque : {true, false})
+        for (const auto& [width, height] : {std::pair<uint32_t, uint32_t>{1, 1}, {3, 2}, {16411, 3}, {257, 129}}) {
+            std::vector<uint8_t> rgba(size_t(width) * height * 4);
+            for (size_t i = 0; i < rgba.size(); ++i)
+                rgba[i] = opaque && i % 4 == 3 ? 255 : uint8_t((i * 2654435761u) >> 13);
+            const std::string path = tmp("builtin_" + std::to_string(width) + "x" + std::to_string(height) + ".png");
+            ASSERT_TRUE(writePngRgba8(path, width, height, rgba.data())) << path;
+            ReadImage read = readImage(path);
+            EXPECT_EQ(read.width, int(width));
+            EXPECT_EQ(read.height, int(height));
+            ASSERT_EQ(read.bytes.size(), rgba.size()) << path;
+            size_t differing = 0;
+            for (size_t i = 0; i < rgba.size(); ++i)
+                differing += (opaque || i % 4 == 3) && read.bytes[i] != rgba[i] ? 1 : 0;
+            EXPECT_EQ(differing, 0u) << path << (opaque ? " (opaque)" : " (alpha)");
+        }
+    const uint8_t pixel[4] = {1, 2, 3, 4};
+    EXPECT_FALSE(writePngRgba8(tmp("no_such_folder/x.png"), 1, 1, pixel));
 }
 
 TEST(ImageOutput, FilmicCurveAndAutomaticExposure)
