@@ -178,8 +178,11 @@ class Preprocess(unittest.TestCase):
         penumbra.write_image(image, filmic, exposure="auto", tonemap="filmic")
         self.assertNotEqual(pathlib.Path(plain).read_bytes(), pathlib.Path(filmic).read_bytes())
         exr = os.path.join(TMP, "layers.exr")
-        penumbra.write_image(image, exr, layers={"visibility.light0": gbuffer["visibility"]})
-        self.assertGreater(os.path.getsize(exr), 0)
+        try:
+            penumbra.write_image(image, exr, layers={"visibility.light0": gbuffer["visibility"]})
+            self.assertGreater(os.path.getsize(exr), 0)
+        except penumbra.Error as error:  # a build without OpenImageIO writes .png only, and says so
+            self.assertIn("no OpenImageIO", str(error))
         with self.assertRaisesRegex(penumbra.Error, "--tonemap reinhard"):
             penumbra.write_image(image, plain, tonemap="reinhard")
         with self.assertRaisesRegex(penumbra.Error, "need an .exr output"):
