@@ -310,6 +310,19 @@ Mesh decodeMesh(const CompressedModel& model)
     return mesh;
 }
 
+namespace {
+
+// The extension of a path that has one (checkImagePath), in lower case: ".png".
+std::string lowerExtension(const std::string& path)
+{
+    std::string extension = path.substr(path.find_last_of('.'));
+    for (char& c : extension)
+        c = char(std::tolower(static_cast<unsigned char>(c)));
+    return extension;
+}
+
+} // namespace
+
 void checkImagePath(const std::string& path)
 {
     size_t dot = path.find_last_of('.');
@@ -319,10 +332,7 @@ void checkImagePath(const std::string& path)
     if (!OIIO::ImageOutput::create(path))
         fail(path, "unsupported image format '" + path.substr(dot) + "'");
 #else
-    std::string extension = path.substr(dot);
-    for (char& c : extension)
-        c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (extension != ".png")
+    if (lowerExtension(path) != ".png")
         fail(path, "unsupported image format '" + path.substr(dot) + "' (this build has no OpenImageIO: .png only)");
 #endif
 }
@@ -337,9 +347,7 @@ void writeImage(const Image& image, const std::string& path, const ImageOptions&
     checkImagePath(path);
     if (image.width == 0 || image.height == 0 || image.rgba.size() != size_t(image.width) * image.height * 4)
         fail(path, "image is empty or inconsistent");
-    std::string extension = path.substr(path.find_last_of('.')); // checkImagePath: there is one
-    for (char& c : extension)
-        c = char(std::tolower(static_cast<unsigned char>(c)));
+    const std::string extension = lowerExtension(path); // checkImagePath: there is one
     bool floating = extension == ".exr" || extension == ".hdr" || extension == ".tif" || extension == ".tiff";
 
     // OpenImageIO picks the format from the extension, so the temporary name keeps it.

@@ -35,11 +35,11 @@ Result compareWithOracle(const Mesh& mesh, const Camera& camera, const Light& li
                          const std::function<bool(glm::vec3)>& compared = {}, const CompressedModel* model = nullptr,
                          Frame* afsmFrame = nullptr)
 {
+    // The model the renderer draws, and whose decoded triangles the second oracle takes (loadModel(mesh) builds the same).
+    const CompressedModel built = model ? CompressedModel{} : buildCompressedModel(mesh, PreprocessOptions{});
+    const CompressedModel& drawn = model ? *model : built;
     Renderer renderer;
-    if (model)
-        renderer.loadModel(*model);
-    else
-        renderer.loadModel(mesh);
+    renderer.loadModel(drawn);
     renderer.setCamera(camera);
     renderer.setLights({light});
     RenderSettings settings;
@@ -58,7 +58,7 @@ Result compareWithOracle(const Mesh& mesh, const Camera& camera, const Light& li
         for (size_t i = 0; i < oracle.size(); ++i)
             if (!compared(glm::vec3(afsm.positions[4 * i], afsm.positions[4 * i + 1], afsm.positions[4 * i + 2])))
                 oracle[i] = -1.0f; // not compared
-    const Mesh decodedMesh = decodeMesh(model ? *model : buildCompressedModel(mesh, PreprocessOptions{}));
+    const Mesh decodedMesh = decodeMesh(drawn);
     std::vector<float> decoded = EmbreeOracle(decodedMesh).hardShadowVisibility(afsm.positions, afsm.normals, light, options);
     for (size_t i = 0; i < oracle.size(); ++i)
         if (oracle[i] < 0.0f)

@@ -9,7 +9,6 @@
 #include "penumbra/generate.h"
 #include "penumbra/oracle.h"
 #include "penumbra/penumbra.h"
-#include "penumbra/preprocess.h"
 #include "test_scenes.h"
 
 namespace penumbra {
@@ -39,13 +38,12 @@ TEST(HardShadows, FullRayTracingAgreesWithTheOracle)
         GenerateOptions options;
         options.triangles = c.triangles;
         Scene scene = generateScene(c.scene, options);
-        Frame frt = renderMethod(scene.mesh, scene.cameras[0], scene.lights[0], ShadowMethod::FullRayTrace, 256);
+        const CompressedModel model = buildCompressedModel(scene.mesh, PreprocessOptions{});
+        Frame frt = test::renderWithGBuffer(model, scene.cameras[0], scene.lights[0], ShadowMethod::FullRayTrace, 256);
         OracleOptions oracleOptions;
         oracleOptions.originOffset = frt.stats.rayOffset;
         std::vector<float> oracle = EmbreeOracle(scene.mesh).hardShadowVisibility(frt.positions, frt.normals, scene.lights[0], oracleOptions);
-        // renderMethod loads the mesh with the default preprocessing.
-        const Mesh decodedMesh = decodeMesh(buildCompressedModel(scene.mesh, PreprocessOptions{}));
-        std::vector<float> decoded = EmbreeOracle(decodedMesh).hardShadowVisibility(frt.positions, frt.normals, scene.lights[0], oracleOptions);
+        std::vector<float> decoded = EmbreeOracle(decodeMesh(model)).hardShadowVisibility(frt.positions, frt.normals, scene.lights[0], oracleOptions);
         Comparison cmp = compare(oracle, frt.visibility), exact = compare(decoded, frt.visibility);
         std::printf("%s: frt differs from the oracle on %zu of %zu pixels, on the decoded mesh on %zu\n", c.scene, cmp.differing, cmp.compared,
                     exact.differing);

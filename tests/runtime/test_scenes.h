@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "penumbra/penumbra.h"
+#include "penumbra/preprocess.h"
 
 namespace penumbra::test {
 
@@ -66,12 +67,12 @@ inline Mesh wiresOverGround()
     return mesh;
 }
 
-// One frame of the mesh from the camera with the light, G-buffer and
+// One frame of the model from the camera with the light, G-buffer and
 // light-0 visibility read back; no validation message allowed.
-inline Frame renderWithGBuffer(const Mesh& mesh, const Camera& camera, const Light& light, ShadowMethod method, uint32_t size)
+inline Frame renderWithGBuffer(const CompressedModel& model, const Camera& camera, const Light& light, ShadowMethod method, uint32_t size)
 {
     Renderer renderer;
-    renderer.loadModel(mesh);
+    renderer.loadModel(model);
     renderer.setCamera(camera);
     renderer.setLights({light});
     RenderSettings settings;
@@ -81,6 +82,12 @@ inline Frame renderWithGBuffer(const Mesh& mesh, const Camera& camera, const Lig
     Frame frame = renderer.render(settings);
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
     return frame;
+}
+
+// The same of a mesh, preprocessed as Renderer::loadModel(mesh) does.
+inline Frame renderWithGBuffer(const Mesh& mesh, const Camera& camera, const Light& light, ShadowMethod method, uint32_t size)
+{
+    return renderWithGBuffer(buildCompressedModel(mesh, PreprocessOptions{}), camera, light, method, size);
 }
 
 // A point light over the middle of the bounds, `above` of their height up,
