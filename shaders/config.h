@@ -122,7 +122,7 @@
 #define PENUMBRA_THIN_LIST_MAX (1u << 24) // most slivers listed per light layer (the list is sized min(triangles, this))
 #define PENUMBRA_THIN_RECTS_MAX (1u << 20) // thin list: most hard-map entries whose rectangle is kept (32 bytes each) for the fill
 #define PENUMBRA_THIN_HARD_SCALE 2       // hard-shadow thin maps: shadow-map texels per thin-map texel side (thin_triangles.comp, classify.comp)
-#define PENUMBRA_THIN_RUN_MAX 128u       // most consecutive slivers of a strip merged into one list entry (7 bits of it)
+#define PENUMBRA_THIN_RUN_MAX 32767u     // most strip bytes from a run's first sliver to its last (15 bits of its list entry)
 // compact.comp.glsl phases.
 #define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list
 #define PENUMBRA_COMPACT_DISPATCH 1u     // the tracer's indirect dispatch size from the list's count

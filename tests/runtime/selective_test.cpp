@@ -101,9 +101,11 @@ TEST(HardShadows, SelectiveMatchesFullRayTracingOnProceduralScenes)
 
 // The thin-triangle pass keeps the rectangles of its first listed runs for the fill, up to a capacity
 // (PENUMBRA_THIN_RECTS_MAX, within RendererOptions::maxModelBufferBytes); the later runs are decoded
-// again from the model. With model buffers of 32 KiB (1,024 rectangles, against about 5,300 runs of
-// this city's sun view: counted when the test was written) the fill takes both paths, and the frame
-// must equal the one whose every run kept its rectangle.
+// again from the model, walking the strip bytes from a run's first sliver to its last (restarts,
+// degenerate and wider triangles between them). With model buffers of 32 KiB (1,024 rectangles,
+// against about 5,300 runs of this city's sun view when the test was written; runs across a leaf's
+// strips list about a quarter fewer on the suite's 250 k city) the fill takes both paths, and the
+// frame must equal the one whose every run kept its rectangle.
 TEST(HardShadows, ThinRunsBeyondTheKeptRectanglesAreDecodedAgain)
 {
     GenerateOptions generate;
