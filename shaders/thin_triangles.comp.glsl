@@ -184,21 +184,16 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
     r = SliverRect(vec2(0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     if (v0.w == 0.0 || v1.w == 0.0 || v2.w == 0.0)
         return false; // crosses the light's near plane: the shadow map clips it too
-    vec2 p[3] = vec2[3](v0.xy, v1.xy, v2.xy);
     r.zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
     if (!(r.zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
         return false;
-    // Longest edge a -> b, third vertex c.
-    int a = 0;
-    float longest = -1.0;
-    for (int i = 0; i < 3; ++i) {
-        float len = distance(p[i], p[(i + 1) % 3]);
-        if (len > longest) {
-            longest = len;
-            a = i;
-        }
-    }
-    vec2 A = p[a], B = p[(a + 1) % 3], C = p[(a + 2) % 3];
+    // Longest edge A -> B (the first of equally long ones), third vertex C: chosen with selects, not
+    // by indexing an array with the lane's edge (llvmpipe keeps such an array in per-lane memory).
+    const float l0 = distance(v0.xy, v1.xy), l1 = distance(v1.xy, v2.xy), l2 = distance(v2.xy, v0.xy);
+    const bool e0 = l0 >= l1 && l0 >= l2, e1 = !e0 && l1 >= l2;
+    const float longest = e0 ? l0 : e1 ? l1 : l2;
+    const vec3 vA = e0 ? v0.xyz : e1 ? v1.xyz : v2.xyz, vB = e0 ? v1.xyz : e1 ? v2.xyz : v0.xyz, vC = e0 ? v2.xyz : e1 ? v0.xyz : v1.xyz;
+    const vec2 A = vA.xy, B = vB.xy, C = vC.xy;
     float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
     float height = longest > 0.0 ? twiceArea / longest : 0.0;
     if (height >= PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_TEXELS)
@@ -215,10 +210,9 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
     r.d1 = max(longest, along) + e_d;
     r.n0 = min(0.0, c) - e_n;
     r.n1 = max(0.0, c) + e_n;
-    const float z[3] = float[3](v0.z, v1.z, v2.z);
-    r.zA = z[a];
-    r.zB = z[(a + 1) % 3];
-    r.zC = z[(a + 2) % 3];
+    r.zA = vA.z;
+    r.zB = vB.z;
+    r.zC = vC.z;
     r.longest = longest;
     r.along = along;
     return true;
