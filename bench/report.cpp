@@ -577,7 +577,8 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
        << ", Vulkan " << results.device.apiVersion << "\n";
     md << "- image " << o.size << "x" << o.size << ", " << o.frames
        << " timed frame(s) per case after one warm-up frame (on a GPU, warm-up frames for half a second) and the untimed frames "
-          "until the occlusion culling is steady (two frames in a row drew what the frame before drew, within 1%); GPU times from timestamp queries, the Embree oracle's on "
+          "until the occlusion culling is steady (the most a view drew in 5 frames in a row stopped falling); a scene's methods take "
+          "turns frame by frame; GPU times from timestamp queries, the Embree oracle's on "
           "the CPU\n";
     md << "- command: `penumbra bench " << o.suite << " --out " << o.outDir << " --size " << o.size << " --frames "
        << o.frames << " --scan-triangles " << o.scanTriangles << " --light-samples " << o.lightSamples

@@ -231,9 +231,9 @@ struct CullLog {
     }
 };
 
-// log: the scene's culling log for this light; nullptr: time the frames after the warm-up as they come.
-Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind, const SoftShadowParams& params,
-                    uint32_t frames, bool floors = false, CullLog* log = nullptr)
+// The warm-up of one case: a frame that reads the G-buffer back, then untimed frames
+// (log: the scene's culling log for this light; nullptr: none beyond the GPU's clocks).
+Measurement warmUp(Renderer& renderer, RenderSettings settings, ShadowKind kind, const SoftShadowParams& params, CullLog* log)
 {
     Measurement m;
     const auto start = std::chrono::steady_clock::now();
@@ -247,20 +247,23 @@ Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind
     if (renderer.device().type != "cpu")
         for (uint32_t i = 0; i < 200 && std::chrono::steady_clock::now() - start < std::chrono::milliseconds(500); ++i)
             renderShadows(renderer, settings, kind, params);
-    // Untimed frames until the culling is steady (CullLog; the steady frame is the first timed
-    // one), at most kSettleFrames: otherwise a scene's first method timed the culling's learning
-    // and the next ones its steady state.
+    // Untimed frames until the culling is steady (CullLog), at most kSettleFrames: otherwise a
+    // scene's first method timed the culling's learning and the next ones its steady state.
     constexpr uint32_t kSettleFrames = 16;
-    if (log && !log->steady(m.gbuffer.stats))
-        for (uint32_t i = 0; i < kSettleFrames; ++i) {
-            FrameStats stats = renderShadows(renderer, settings, kind, params).stats;
-            if (log->steady(stats)) {
-                m.timed.push_back(std::move(stats));
-                break;
-            }
-            ++m.settleFrames;
-        }
-    while (m.timed.size() < frames)
+    bool steady = !log || log->steady(m.gbuffer.stats);
+    for (uint32_t i = 0; !steady && i < kSettleFrames; ++i) {
+        steady = log->steady(renderShadows(renderer, settings, kind, params).stats);
+        ++m.settleFrames;
+    }
+    return m;
+}
+
+// A case timed alone: warmUp, `frames` timed frames, then as many floor frames when `floors`.
+Measurement measure(Renderer& renderer, RenderSettings settings, ShadowKind kind, const SoftShadowParams& params,
+                    uint32_t frames, bool floors = false)
+{
+    Measurement m = warmUp(renderer, settings, kind, params, nullptr);
+    for (uint32_t i = 0; i < frames; ++i)
         m.timed.push_back(renderShadows(renderer, settings, kind, params).stats);
     settings.measureFloors = floors;
     for (uint32_t i = 0; floors && i < frames; ++i)
@@ -451,13 +454,29 @@ class SuiteRunner {
             if ((kind == ShadowKind::Hard || shadowMethodDoesAreaLights(method)) && methodTakes(method, section, light) &&
                 wantsMethod(method))
                 methods.push_back(method);
+        // Each method warmed up in turn (the first one waits for the culling to learn this light),
+        // then the timed frames in rounds, one frame of each method a round, so that a burst of
+        // load on a shared machine lands on every method rather than on one (timed one after
+        // another, two runs of the full suite gave the 1 M interior's srt / sm at 1024^2 as 1.24
+        // and 1.53; bursts that last a whole scene still move both). Then the floor frames,
+        // method by method.
         std::vector<Measurement> measured(methods.size());
-        CullLog cullLog; // this light's: the first method's frames wait for the culling to learn it
+        CullLog cullLog;
         for (size_t i = 0; i < methods.size(); ++i) {
             step(label + " " + shadowMethodName(methods[i]));
+            measured[i] = warmUp(*renderer, baseSettings(methods[i]), kind, soft, &cullLog);
+        }
+        step(label + " timed");
+        for (uint32_t frame = 0; frame < options.frames; ++frame)
+            for (size_t i = 0; i < methods.size(); ++i)
+                measured[i].timed.push_back(renderShadows(*renderer, baseSettings(methods[i]), kind, soft).stats);
+        for (size_t i = 0; i < methods.size(); ++i) {
             const bool floors = options.floors && section == "methods" &&
                                 (methods[i] == ShadowMethod::ShadowMap || methods[i] == ShadowMethod::Selective);
-            measured[i] = measure(*renderer, baseSettings(methods[i]), kind, soft, options.frames, floors, &cullLog);
+            RenderSettings settings = baseSettings(methods[i]);
+            settings.measureFloors = true;
+            for (uint32_t frame = 0; floors && frame < options.frames; ++frame)
+                measured[i].floors.push_back(renderShadows(*renderer, settings, kind, soft).stats);
             stepDone(label + " " + shadowMethodName(methods[i]));
         }
 
