@@ -123,6 +123,7 @@
 #define PENUMBRA_THIN_RECTS_MAX (1u << 20) // thin list: most hard-map entries whose rectangle is kept (32 bytes each) for the fill
 #define PENUMBRA_THIN_HARD_SCALE 2       // hard-shadow thin maps: shadow-map texels per thin-map texel side (thin_triangles.comp, classify.comp)
 #define PENUMBRA_THIN_RUN_MAX 32767u     // most strip bytes from a run's first sliver to its last (15 bits of its list entry)
+#define PENUMBRA_THIN_ALONE_ROWS 6.0   // thin fill: a rectangle at most this many rows high is filled by its own lane; taller ones by the subgroup
 // compact.comp.glsl phases.
 #define PENUMBRA_COMPACT_LIST 0u         // marked pixels into the ray list
 #define PENUMBRA_COMPACT_DISPATCH 1u     // the tracer's indirect dispatch size from the list's count

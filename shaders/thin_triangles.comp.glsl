@@ -218,13 +218,6 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
     return true;
 }
 
-// True when triangle (v0, v1, v2) (projectVertex) is a sliver whose conservative rectangle is filled.
-bool isSliver(vec4 v0, vec4 v1, vec4 v2)
-{
-    SliverRect r;
-    return sliverRect(v0, v1, v2, r);
-}
-
 // `into` grown to hold rectangle r, in into's frame (r's corners projected
 // onto into's axes: the result holds both rectangles).
 SliverRect unionRect(SliverRect into, SliverRect r)
@@ -241,15 +234,11 @@ SliverRect unionRect(SliverRect into, SliverRect r)
     return into;
 }
 
-// Fills the conservative rectangle of triangle (v0, v1, v2) (projectVertex)
-// when it is thin, or rectangle `run` (merged slivers, hard shadows: pass
-// merged = true): rows first, first + step, ... of it (fillListedShared: the
-// lanes of a subgroup share one rectangle's rows).
-void emitIfThin(vec4 v0, vec4 v1, vec4 v2, int first, int step, bool merged, SliverRect run)
+// Fills rectangle r (a hard map's run of slivers, or an area light's single
+// sliver with its edges' depths): rows first, first + step, ... of it
+// (fillListedShared: the lanes of a subgroup share one rectangle's rows).
+void fillRect(int first, int step, SliverRect r)
 {
-    SliverRect r = run;
-    if (!merged && !sliverRect(v0, v1, v2, r))
-        return;
     const bool local = kLocalDepths != 0u;
     // A hard map's thin texels are PENUMBRA_THIN_HARD_SCALE shadow-map texels a side (classify reads
     // texel / scale): the rectangle in thin texels, grown by the half width of a square as wide as the
@@ -454,9 +443,9 @@ void decodeLeaf(ModelTable table, GeometryChunks chunks, uvec2 leaf)
 // vertices to its last sliver decoded again, walked as stripByte walks them
 // (restarts, degenerate triangles), and the slivers among them joined in the
 // first one's frame (`run`; false when none passed sliverRect): every sliver
-// between a run's first and last joined it when it was listed. `first`: the
-// first sliver's projected vertices.
-bool listedRun(ModelTable table, uint index, out SliverRect run, out vec4 first[3])
+// between a run's first and last joined it when it was listed (an area
+// light's run is one sliver, whose edges' depths `run` keeps).
+bool listedRun(ModelTable table, uint index, out SliverRect run)
 {
     uvec2 entry = thinTriangles[index];
     ClusterInfo cluster = clusterInfo(table, entry.x);
@@ -471,7 +460,6 @@ bool listedRun(ModelTable table, uint index, out SliverRect run, out vec4 first[
     // Bytes of the current strip before byte k, counted so that the first sliver (k = 2) gets its parity.
     uint position = odd ? 1u : 0u;
     bool have = false; // a rectangle in `run` (each of the run's slivers passed sliverRect when listed)
-    first = vec4[3](vec4(0.0), vec4(0.0), vec4(0.0));
     for (uint k = 0u; k < bytes; ++k) {
         uint i2;
         vec3 v;
@@ -498,8 +486,6 @@ bool listedRun(ModelTable table, uint index, out SliverRect run, out vec4 first[
                 run = have ? unionRect(run, r) : r;
                 have = true;
             }
-            if (k == 2u)
-                first = vec4[3](a, b, p2);
         }
         i0 = i1;
         i1 = i2;
@@ -510,24 +496,33 @@ bool listedRun(ModelTable table, uint index, out SliverRect run, out vec4 first[
     return have;
 }
 
-// PENUMBRA_THIN_FILL of a hard-shadow map: the subgroup's runs one after
-// another, the lanes sharing each rectangle's rows (every 8th row each), so
-// that the loops stay uniform: one invocation per run looping over its own
-// rectangle kept most lanes idle behind the longest (llvmpipe runs a
-// subgroup's loop as long as any lane is in it).
+// PENUMBRA_THIN_FILL: the subgroup's runs one after another, the lanes
+// sharing each rectangle's rows (every 8th row each), so that the loops stay
+// uniform: one invocation per run looping over its own rectangle kept most
+// lanes idle behind the longest (llvmpipe runs a subgroup's loop as long as
+// any lane is in it). A hard map's run is kept by the list phase (up to
+// thinRectCapacity) or decoded again; an area light's sliver is always
+// decoded again, and its per-texel depths come from its edges (zA, zB, zC,
+// longest, along), shared with the rectangle.
 void fillListedShared(ModelTable table, uint index, bool valid)
 {
     SliverRect run;
-    vec4 unused[3]; // the first sliver's vertices: a merged rectangle is filled without them
     bool have;
-    if (index < thinRectCapacity) {
+    if (kLocalDepths == 0u && index < thinRectCapacity) {
         // Kept by the list phase: no decoding.
         const vec4 a = texelFetch(thinRectTexels, int(2u * index)), b = texelFetch(thinRectTexels, int(2u * index + 1u));
         run = SliverRect(a.xy, a.zw, vec2(-a.w, a.z), 0.0, b.x, 0.0, b.y, b.z, 0.0, 0.0, 0.0, 0.0, 0.0);
         have = valid;
     } else
-        have = valid && listedRun(table, index, run, unused);
-    uvec4 pending = subgroupBallot(have);
+        have = valid && listedRun(table, index, run);
+    // A rectangle a few rows high (most single slivers) is filled by its own lane, beside the
+    // others; the subgroup shares the rows of the taller ones.
+    const float rows = (abs(run.d.y) * (run.d1 - run.d0) + abs(run.nrm.y) * (run.n1 - run.n0)) /
+                       (kLocalDepths != 0u ? 1.0 : float(PENUMBRA_THIN_HARD_SCALE));
+    const bool alone = have && rows <= PENUMBRA_THIN_ALONE_ROWS;
+    if (alone)
+        fillRect(0, 1, run);
+    uvec4 pending = subgroupBallot(have && !alone);
     const int lane = int(gl_SubgroupInvocationID), lanes = int(gl_SubgroupSize);
     while (subgroupBallotBitCount(pending) != 0u) {
         uint s = subgroupBallotFindLSB(pending);
@@ -541,22 +536,21 @@ void fillListedShared(ModelTable table, uint index, bool valid)
         r.n0 = subgroupShuffle(run.n0, s);
         r.n1 = subgroupShuffle(run.n1, s);
         r.zMin = subgroupShuffle(run.zMin, s);
-        emitIfThin(vec4(0.0), vec4(0.0), vec4(0.0), lane, lanes, true, r);
+        if (kLocalDepths != 0u) {
+            r.zA = subgroupShuffle(run.zA, s);
+            r.zB = subgroupShuffle(run.zB, s);
+            r.zC = subgroupShuffle(run.zC, s);
+            r.longest = subgroupShuffle(run.longest, s);
+            r.along = subgroupShuffle(run.along, s);
+        }
+        fillRect(lane, lanes, r);
     }
-}
-
-// The fill of listed run `index` for an area light's map (its per-texel depths: the first sliver's edges).
-void fillListed(ModelTable table, uint index)
-{
-    SliverRect run;
-    vec4 first[3];
-    listedRun(table, index, run, first);
-    emitIfThin(first[0], first[1], first[2], 0, 1, false, run);
 }
 
 // PENUMBRA_THIN_LIST: each workgroup takes PENUMBRA_THIN_TRIANGLES_GROUP_SIZE BVH nodes and lists their
 // leaves that may hold slivers; then each invocation decodes whole leaves of the list, one after
-// another, and lists the slivers. PENUMBRA_THIN_FILL: one invocation per listed sliver.
+// another, and lists the slivers. PENUMBRA_THIN_FILL: one invocation per listed run, the subgroup's
+// lanes filling each run's rectangle together (fillListedShared).
 void main()
 {
     ModelTable table = ModelTable(push.modelTable);
@@ -575,10 +569,7 @@ void main()
     if (kPhase == PENUMBRA_THIN_FILL) {
         uint index = group * PENUMBRA_THIN_TRIANGLES_GROUP_SIZE + gl_LocalInvocationIndex;
         bool valid = index < min(thinCount, thinCapacity);
-        if (kLocalDepths == 0u)
-            fillListedShared(table, index, valid);
-        else if (valid)
-            fillListed(table, index);
+        fillListedShared(table, index, valid);
         return;
     }
     const uint lane = gl_LocalInvocationIndex;
