@@ -199,38 +199,6 @@ Frame renderShadows(Renderer& renderer, const RenderSettings& settings, ShadowKi
                                     : renderSoftShadows(renderer, settings, params);
 }
 
-// The triangles each raster view drew, frame after frame, since a light was set (any method's
-// frames: the renderer keeps one culling history per view whatever the method).
-struct CullLog {
-    std::map<std::string, std::vector<uint64_t>> drawn;
-
-    // Adds a frame. The occlusion culling learns what each view hides over its first frames: a
-    // group of clusters whose box passes its query is drawn whole and becomes cells, each tested
-    // again only every PENUMBRA_CULL_RETEST_FRAMES frames (culling.h). The 1 M interior's sun view
-    // drew 89% of its triangles in the first two frames and 39-44% from the tenth on (its shadow
-    // map 396 -> 211 ms on lavapipe), going round an uneven cycle of 4 to 6 frames as hidden
-    // groups pass their query again. So a view is steady once the most it drew in a window of
-    // PENUMBRA_CULL_RETEST_FRAMES + 1 frames has stopped falling: the window ending at this frame,
-    // and the one ending at the frame before, drew what the window before each drew, within 1%.
-    bool steady(const FrameStats& stats)
-    {
-        constexpr size_t window = PENUMBRA_CULL_RETEST_FRAMES + 1;
-        bool all = true;
-        for (const ViewCullStats& view : stats.views) {
-            std::vector<uint64_t>& log = drawn[view.name];
-            log.push_back(view.trianglesDrawn);
-            const size_t n = log.size();
-            auto most = [&](size_t last) { return double(*std::max_element(log.begin() + (last + 1 - window), log.begin() + (last + 1))); };
-            auto same = [&](size_t last) {
-                const double x = most(last), y = most(last - 1);
-                return std::abs(x - y) <= 0.01 * std::max(x, y);
-            };
-            all = all && n >= window + 2 && same(n - 1) && same(n - 2);
-        }
-        return all;
-    }
-};
-
 // The warm-up of one case: a frame that reads the G-buffer back, then untimed frames
 // (log: the scene's culling log for this light; nullptr: none beyond the GPU's clocks).
 Measurement warmUp(Renderer& renderer, RenderSettings settings, ShadowKind kind, const SoftShadowParams& params, CullLog* log)
@@ -850,6 +818,24 @@ void checkOptions(const SuiteOptions& options)
 } // namespace
 
 namespace bench {
+
+bool CullLog::steady(const FrameStats& stats)
+{
+    constexpr size_t window = PENUMBRA_CULL_RETEST_FRAMES + 1;
+    bool all = true;
+    for (const ViewCullStats& view : stats.views) {
+        std::vector<uint64_t>& log = drawn[view.name];
+        log.push_back(view.trianglesDrawn);
+        const size_t n = log.size();
+        auto most = [&](size_t last) { return double(*std::max_element(log.begin() + (last + 1 - window), log.begin() + (last + 1))); };
+        auto same = [&](size_t last) {
+            const double x = most(last), y = most(last - 1);
+            return std::abs(x - y) <= 0.01 * std::max(x, y);
+        };
+        all = all && n >= window + 2 && same(n - 1) && same(n - 2);
+    }
+    return all;
+}
 
 size_t stageGroupOf(const std::string& passName)
 {
