@@ -177,7 +177,7 @@ struct Measurement {
     Frame gbuffer;                 // the warm-up frame, with positions, normals and visibility
     std::vector<FrameStats> timed; // the timed frames, without G-buffer readback
     std::vector<FrameStats> floors; // frames with RenderSettings::measureFloors (sm and srt of the methods section)
-    uint32_t settleFrames = 0;     // untimed frames after the warm-up until the culling was steady (measure)
+    uint32_t settleFrames = 0;     // untimed frames after the warm-up until the culling was steady (warmUp)
 };
 
 // The measurement whose G-buffer the oracle traces from (every method's camera pass is the
@@ -441,10 +441,12 @@ class SuiteRunner {
         for (size_t i = 0; i < methods.size(); ++i) {
             const bool floors = options.floors && section == "methods" &&
                                 (methods[i] == ShadowMethod::ShadowMap || methods[i] == ShadowMethod::Selective);
-            RenderSettings settings = baseSettings(methods[i]);
-            settings.measureFloors = true;
-            for (uint32_t frame = 0; floors && frame < options.frames; ++frame)
-                measured[i].floors.push_back(renderShadows(*renderer, settings, kind, soft).stats);
+            if (floors) {
+                RenderSettings settings = baseSettings(methods[i]);
+                settings.measureFloors = true;
+                for (uint32_t frame = 0; frame < options.frames; ++frame)
+                    measured[i].floors.push_back(renderShadows(*renderer, settings, kind, soft).stats);
+            }
             stepDone(label + " " + shadowMethodName(methods[i]));
         }
 
