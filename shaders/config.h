@@ -55,6 +55,7 @@
 #define PENUMBRA_CULL_RETRY_FRAMES 16   // ... is culled by its frustum only for this many frames, then tried again
 #define PENUMBRA_CULL_MIN_TRIANGLES 65536 // occlusion culling: a view whose frustum holds fewer triangles is culled by its frustum only
 #define PENUMBRA_THIN_TEXELS 1.5         // thin-triangle pass: triangles narrower than this (texels) are rasterized conservatively
+#define PENUMBRA_THIN_ASPECT 3.0         // ... if at least this many times longer than high, in the light's view and in model space
 #define PENUMBRA_MASK_GROUP_SIZE 8       // penumbra_mask.comp: workgroups of 8x8 texels of the coarser level
 #define PENUMBRA_MASK_TARGET_TEXELS 16.0 // penumbra splats are drawn at the mask level where they span at most this many texels
 #define PENUMBRA_RECEIVER_TILE 8u        // penumbra mask: camera pixels' deepest map depth is kept per tile of this many texels a side

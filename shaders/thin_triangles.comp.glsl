@@ -3,10 +3,12 @@
 // conservative-rasterization extension on lavapipe). Leaves are decoded
 // one invocation per strip byte (see main), exactly as the tracer does
 // (bvh_traversal.glsli: forEachStripTriangle, decodeVertex, degenerate
-// triangles skipped) unless the leaf's smallest model-space altitude (computed at
-// upload) rules out slivers at this light's texel size, projects every triangle with the layer's viewProj and
-// keeps those whose height over their longest edge (or whose longest edge)
-// is under PENUMBRA_THIN_TEXELS texels: such a triangle may be missed by the
+// triangles skipped) unless the leaf's data (computed at upload over its long
+// and narrow triangles) rules out slivers at this light's texel size, projects
+// every triangle with the layer's viewProj and keeps those long and narrow in
+// model space (thinInModelSpace) and in the view: under PENUMBRA_THIN_TEXELS
+// texels high over their longest edge, at least that long and
+// PENUMBRA_THIN_ASPECT times longer than high. Such a triangle may be missed by the
 // shadow map, so every texel whose centre lies in the rectangle around its
 // longest edge, grown by the texel square's half width in each direction of
 // the edge's frame (so every texel the triangle touches is included), takes
@@ -174,11 +176,14 @@ float rectArea(SliverRect r)
 
 // False unless triangle (v0, v1, v2) (projectVertex) is a sliver whose
 // rectangle is filled: in front of the light's near plane, its depth not
-// clipped, under PENUMBRA_THIN_TEXELS texels high over its longest edge and
-// at least that long. Slivers only (long and narrow: wires, poles, bars):
-// triangles small in every direction belong to dense surfaces whose
-// neighbours cover the texels; the depth-discontinuity test handles their
-// silhouettes.
+// clipped, under PENUMBRA_THIN_TEXELS texels high over its longest edge, at
+// least that long and at least PENUMBRA_THIN_ASPECT times longer than high.
+// Slivers only (long and narrow: wires, poles, bars): triangles small in
+// every direction belong to dense surfaces whose neighbours cover the
+// texels; the depth-discontinuity test handles their silhouettes. (Without
+// the aspect rule, the well-shaped triangles of the 2 M scan a texel or two
+// across were slivers: 27.7% of its pixels got rays at 1024^2, 14.8% with it
+// and thinInModelSpace.)
 bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
 {
     r = SliverRect(vec2(0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
@@ -196,7 +201,7 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
     const vec2 A = vA.xy, B = vB.xy, C = vC.xy;
     float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
     float height = longest > 0.0 ? twiceArea / longest : 0.0;
-    if (height >= PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_TEXELS)
+    if (height >= PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_ASPECT * height)
         return false;
     vec2 d = longest > 1e-12 ? (B - A) / longest : vec2(1.0, 0.0);
     vec2 nrm = vec2(-d.y, d.x);
@@ -308,12 +313,13 @@ ClusterInfo clusterInfo(ModelTable table, uint cluster)
     return kTexelAccess != 0u ? clusterTexels(cluster) : loadCluster(table, cluster);
 }
 
-// A leaf whose every triangle is wider than the thin threshold in model space, at the smallest texel size
-// the leaf can see, holds no sliver unless seen edge-on; edge-on faces of closed objects are covered by
-// their neighbours in the shadow map, so such a leaf is skipped without decoding. So is, in an
-// orthographic view, a leaf whose every edge is shorter than the threshold in texels (a dense scan's small
-// triangles): a segment of length L spans at most L x size / 2 x |the view's x, y rows| texels (the map
-// fitted to the view may have oblong texels: texelSize is the longer side, so it cannot bound this).
+// The leaf's data cover only its long and narrow triangles (thinInModelSpace; none: the float maximum
+// altitude). A leaf with none, or whose every such triangle is wider than the thin threshold in model
+// space at the smallest texel size the leaf can see, holds no sliver unless seen edge-on; edge-on faces of
+// closed objects are covered by their neighbours in the shadow map, so such a leaf is skipped without
+// decoding. So is, in an orthographic view, a leaf whose every such triangle's edges are shorter than the
+// threshold in texels: a segment of length L spans at most L x size / 2 x |the view's x, y rows| texels
+// (the map fitted to the view may have oblong texels: texelSize is the longer side, so it cannot bound this).
 // node, slot: the leaf's node and child slot; record: kGeometryBudget: the node record's first texel in the
 // pool (its altitudes follow the node; no longest edges there).
 bool mayHoldSlivers(ModelTable table, uint node, uint slot, uint clusterIndex, uint record)
@@ -337,6 +343,21 @@ bool mayHoldSlivers(ModelTable table, uint node, uint slot, uint clusterIndex, u
     return altitude < PENUMBRA_THIN_TEXELS * texel && longEnough;
 }
 
+// Whether triangle (a, b, c) (model space) is long and narrow: its longest
+// edge at least PENUMBRA_THIN_ASPECT times its height over that edge. A
+// triangle that is not (a well-shaped triangle of a surface, seen edge-on or
+// small) is no sliver in any light's view: its neighbours in the surface cover
+// the texels around it, and where it is the surface's silhouette the
+// depth-discontinuity test marks the receivers beside it; mayHoldSlivers'
+// leaf data counts only the long and narrow ones (nodeLeafAltitudes).
+bool thinInModelSpace(vec3 a, vec3 b, vec3 c)
+{
+    const vec3 ab = b - a, bc = c - b, ca = a - c;
+    const float longest2 = max(dot(ab, ab), max(dot(bc, bc), dot(ca, ca)));
+    // height = |n| / longest, so longest >= aspect height <=> longest^2 >= aspect |n|
+    return longest2 >= PENUMBRA_THIN_ASPECT * length(cross(ab, ca));
+}
+
 // The strip walk of one leaf (forEachStripTriangle, as the tracer's leaf
 // test): the last two projected vertices are kept, so each strip byte
 // decodes and projects one vertex. Hard shadows: the slivers of a leaf (a
@@ -351,6 +372,7 @@ bool mayHoldSlivers(ModelTable table, uint node, uint slot, uint clusterIndex, u
 struct StripWalk {
     uint i0, i1;
     vec4 p0, p1;
+    vec3 m0, m1;   // the same vertices in model space
     uint position; // bytes of the current strip so far
     uint runLength; // slivers in the open run (0: none)
     uint runEntry;  // its first sliver's strip position | odd << 16
@@ -383,7 +405,7 @@ void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded
     // run (masked) for every triangle.
     SliverRect r;
     bool sliver = !restart && w.position >= 2u && w.i0 != w.i1 && w.i1 != i2 && w.i0 != i2 &&
-                  sliverRect(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2, r);
+                  thinInModelSpace(w.m0, w.m1, decoded) && sliverRect(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2, r);
     bool merged = false;
     if (sliver && kLocalDepths == 0u && w.runLength != 0u && byte - (w.runEntry & 0xFFFFu) <= PENUMBRA_THIN_RUN_MAX) {
         SliverRect grown = unionRect(w.run, r);
@@ -404,6 +426,8 @@ void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded
     w.p0 = w.p1;
     w.i1 = i2;
     w.p1 = p2;
+    w.m0 = w.m1;
+    w.m1 = decoded;
     w.position = restart ? 0u : w.position + 1u;
 }
 
@@ -413,6 +437,7 @@ void decodeLeaf(ModelTable table, GeometryChunks chunks, uvec2 leaf)
     StripWalk w;
     w.i0 = w.i1 = 0u;
     w.p0 = w.p1 = vec4(0.0);
+    w.m0 = w.m1 = vec3(0.0);
     w.position = 0u;
     w.runLength = w.runEntry = w.runLast = 0u;
     if (kTexelAccess != 0u) {
@@ -456,6 +481,7 @@ bool listedRun(ModelTable table, uint index, out SliverRect run)
     if (kTexelAccess == 0u)
         strips = openLeaf(table, geometryChunksOf(push.modelTable, table), cluster, byte - 2u);
     vec4 p[2] = vec4[2](vec4(0.0), vec4(0.0));
+    vec3 m0 = vec3(0.0), m1 = vec3(0.0);
     uint i0 = 0u, i1 = 0u;
     // Bytes of the current strip before byte k, counted so that the first sliver (k = 2) gets its parity.
     uint position = odd ? 1u : 0u;
@@ -477,7 +503,7 @@ bool listedRun(ModelTable table, uint index, out SliverRect run)
         }
         vec4 p2 = projectVertex(v);
         const bool restart = i2 == 0xFFu;
-        if (!restart && position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
+        if (!restart && position >= 2u && i0 != i1 && i1 != i2 && i0 != i2 && thinInModelSpace(m0, m1, v)) {
             // The parity alternates along the strip.
             bool flip = ((position - 2u) & 1u) != 0u;
             vec4 a = flip ? p[1] : p[0], b = flip ? p[0] : p[1];
@@ -491,6 +517,8 @@ bool listedRun(ModelTable table, uint index, out SliverRect run)
         i1 = i2;
         p[0] = p[1];
         p[1] = p2;
+        m0 = m1;
+        m1 = v;
         position = restart ? 0u : position + 1u;
     }
     return have;

@@ -8,9 +8,15 @@
 
 #include <glm/geometric.hpp>
 
+#include "config.h"
+
 namespace penumbra {
 
-// A node's leaf slots' smallest triangle altitudes (model_geometry.h).
+// A node's leaf slots' smallest triangle altitudes (model_geometry.h), over
+// the triangles the thin-triangle pass can take for slivers: those at least
+// PENUMBRA_THIN_ASPECT times longer than high in model space (its
+// thinInModelSpace), with a margin so that rounding on the device cannot find
+// one that was left out here.
 void nodeLeafAltitudes(const CompressedModel& model, uint32_t n, float out[model::kNodeChildren], float longestEdges[model::kNodeChildren])
 {
     const model::Node& node = model.nodes[n];
@@ -29,7 +35,10 @@ void nodeLeafAltitudes(const CompressedModel& model, uint32_t n, float out[model
                       p2 = decodePosition(cluster, vertices[c]);
             float longest = std::max({glm::length(p1 - p0), glm::length(p2 - p1), glm::length(p0 - p2)});
             float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
-            smallest = std::min(smallest, longest > 0.0f ? twiceArea / longest : 0.0f);
+            float altitude = longest > 0.0f ? twiceArea / longest : 0.0f;
+            if (longest < 0.999f * float(PENUMBRA_THIN_ASPECT) * altitude)
+                return; // wide in model space: a sliver in no light's view (thinInModelSpace)
+            smallest = std::min(smallest, altitude);
             longestEdge = std::max(longestEdge, longest);
         });
         out[slot] = smallest;

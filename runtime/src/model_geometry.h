@@ -45,8 +45,10 @@ struct PagedBvh {
 
 // A node's leaf slots' smallest decoded-triangle altitudes (model units; 0
 // for slots that are not leaves), and when `longest` is given their longest
-// edges: the thin-triangle pass skips leaves that cannot hold a sliver (every
-// triangle wide, or every triangle short, at the light's texel size).
+// edges, both over the triangles long and narrow in model space (a leaf with
+// none: the float maximum and 0): the thin-triangle pass skips leaves that
+// cannot hold a sliver (no long and narrow triangle; every one wide, or every
+// one short, at the light's texel size).
 void nodeLeafAltitudes(const CompressedModel& model, uint32_t node, float out[model::kNodeChildren],
                        float longest[model::kNodeChildren] = nullptr);
 // Whether the altitudes and longest edges of every node fit one buffer of this device (else the thin-triangle
