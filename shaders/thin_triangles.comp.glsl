@@ -174,7 +174,23 @@ float rectArea(SliverRect r)
     return (r.d1 - r.d0) * (r.n1 - r.n0);
 }
 
-// False unless triangle (v0, v1, v2) (projectVertex) is a sliver whose
+// Whether triangle (a, b, c) (model space) is long and narrow: its longest
+// edge at least PENUMBRA_THIN_ASPECT times its height over that edge. A
+// triangle that is not (a well-shaped triangle of a surface, seen edge-on or
+// small) is no sliver in any light's view: its neighbours in the surface cover
+// the texels around it, and where it is the surface's silhouette the
+// depth-discontinuity test marks the receivers beside it; mayHoldSlivers'
+// leaf data counts only the long and narrow ones (nodeLeafAltitudes).
+bool thinInModelSpace(vec3 a, vec3 b, vec3 c)
+{
+    const vec3 ab = b - a, bc = c - b, ca = a - c;
+    const float longest2 = max(dot(ab, ab), max(dot(bc, bc), dot(ca, ca)));
+    // height = |n| / longest, so longest >= aspect height <=> longest^2 >= aspect |n|
+    return longest2 >= PENUMBRA_THIN_ASPECT * length(cross(ab, ca));
+}
+
+// False unless triangle (v0, v1, v2) (projectVertex; m0, m1, m2: the same vertices in model space, in
+// any order) is long and narrow in model space (thinInModelSpace) and a sliver whose
 // rectangle is filled: in front of the light's near plane, its depth not
 // clipped, under PENUMBRA_THIN_TEXELS texels high over its longest edge, at
 // least that long and at least PENUMBRA_THIN_ASPECT times longer than high.
@@ -184,9 +200,11 @@ float rectArea(SliverRect r)
 // the aspect rule, the well-shaped triangles of the 2 M scan a texel or two
 // across were slivers: 27.7% of its pixels got rays at 1024^2, 14.8% with it
 // and thinInModelSpace.)
-bool sliverRect(vec4 v0, vec4 v1, vec4 v2, out SliverRect r)
+bool sliverRect(vec4 v0, vec4 v1, vec4 v2, vec3 m0, vec3 m1, vec3 m2, out SliverRect r)
 {
     r = SliverRect(vec2(0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    if (!thinInModelSpace(m0, m1, m2))
+        return false;
     if (v0.w == 0.0 || v1.w == 0.0 || v2.w == 0.0)
         return false; // crosses the light's near plane: the shadow map clips it too
     r.zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
@@ -343,21 +361,6 @@ bool mayHoldSlivers(ModelTable table, uint node, uint slot, uint clusterIndex, u
     return altitude < PENUMBRA_THIN_TEXELS * texel && longEnough;
 }
 
-// Whether triangle (a, b, c) (model space) is long and narrow: its longest
-// edge at least PENUMBRA_THIN_ASPECT times its height over that edge. A
-// triangle that is not (a well-shaped triangle of a surface, seen edge-on or
-// small) is no sliver in any light's view: its neighbours in the surface cover
-// the texels around it, and where it is the surface's silhouette the
-// depth-discontinuity test marks the receivers beside it; mayHoldSlivers'
-// leaf data counts only the long and narrow ones (nodeLeafAltitudes).
-bool thinInModelSpace(vec3 a, vec3 b, vec3 c)
-{
-    const vec3 ab = b - a, bc = c - b, ca = a - c;
-    const float longest2 = max(dot(ab, ab), max(dot(bc, bc), dot(ca, ca)));
-    // height = |n| / longest, so longest >= aspect height <=> longest^2 >= aspect |n|
-    return longest2 >= PENUMBRA_THIN_ASPECT * length(cross(ab, ca));
-}
-
 // The strip walk of one leaf (forEachStripTriangle, as the tracer's leaf
 // test): the last two projected vertices are kept, so each strip byte
 // decodes and projects one vertex. Hard shadows: the slivers of a leaf (a
@@ -405,7 +408,7 @@ void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded
     // run (masked) for every triangle.
     SliverRect r;
     bool sliver = !restart && w.position >= 2u && w.i0 != w.i1 && w.i1 != i2 && w.i0 != i2 &&
-                  thinInModelSpace(w.m0, w.m1, decoded) && sliverRect(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2, r);
+                  sliverRect(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2, w.m0, w.m1, decoded, r);
     bool merged = false;
     if (sliver && kLocalDepths == 0u && w.runLength != 0u && byte - (w.runEntry & 0xFFFFu) <= PENUMBRA_THIN_RUN_MAX) {
         SliverRect grown = unionRect(w.run, r);
@@ -503,12 +506,12 @@ bool listedRun(ModelTable table, uint index, out SliverRect run)
         }
         vec4 p2 = projectVertex(v);
         const bool restart = i2 == 0xFFu;
-        if (!restart && position >= 2u && i0 != i1 && i1 != i2 && i0 != i2 && thinInModelSpace(m0, m1, v)) {
+        if (!restart && position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
             // The parity alternates along the strip.
             bool flip = ((position - 2u) & 1u) != 0u;
             vec4 a = flip ? p[1] : p[0], b = flip ? p[0] : p[1];
             SliverRect r;
-            if (sliverRect(a, b, p2, r)) {
+            if (sliverRect(a, b, p2, m0, m1, v, r)) {
                 run = have ? unionRect(run, r) : r;
                 have = true;
             }
