@@ -112,77 +112,72 @@ float softVisibility(LightData light, uvec2 pixel, uint index, vec3 p, vec3 n)
 }
 #endif
 
+// One exit: a pixel that lists no sample (background, facing away, another
+// layer, not binned, outside a spot light's cone) is a flag, not a return:
+// on lavapipe an early return puts the rest of the shader under an execution
+// mask (pixelOfInvocation).
 uvec2 samplePixel()
 {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 size = imageSize(visibilityImage);
-    if (any(greaterThanEqual(pixel, size)))
-        return uvec2(0u);
+    ivec2 size = imageSize(visibilityImage), pixel;
+    const bool inside = pixelOfInvocation(size, pixel);
     uint index = uint(pixel.y * size.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
+    const bool covered = position.w != 0.0;
     LightData light = frame.lights[push.lightIndex];
+    vec3 n = imageLoad(gNormal, pixel).xyz;
     if (kMode == PENUMBRA_AFSM_RESOLVE) {
-        if (position.w == 0.0) {
-            imageStore(visibilityImage, pixel, vec4(-1.0));
-            marks[index] = 0u;
-            return uvec2(0u);
-        }
-        vec3 n = imageLoad(gNormal, pixel).xyz;
 #ifdef PENUMBRA_AFSM_SOFT
-        float visibility = 0.0;
-        PENUMBRA_SKIP_UNLESS(softSample(light, position.xyz, n))
+        // softVisibility clears the pixel's masks: once per pixel, by its own invocation.
+        float visibility = unlitOrBackground(covered);
+        PENUMBRA_SKIP_UNLESS(inside && covered && softSample(light, position.xyz, n))
             visibility = softVisibility(light, uvec2(pixel), index, position.xyz, n);
-        imageStore(visibilityImage, pixel, vec4(visibility));
 #else
         ShadowRay ray;
         bool facing = afsmSampleRay(light, position.xyz, n, push.originOffset, ray);
-        imageStore(visibilityImage, pixel, vec4(facing && shadowed[index] == 0u ? 1.0 : 0.0));
+        float visibility = covered ? (facing && shadowed[index] == 0u ? 1.0 : 0.0) : -1.0;
 #endif
-        marks[index] = 0u;
+        if (inside) {
+            imageStore(visibilityImage, pixel, vec4(visibility));
+            marks[index] = 0u;
+        }
         return uvec2(0u);
     }
-    if (position.w == 0.0)
-        return uvec2(0u);
-    vec3 n = imageLoad(gNormal, pixel).xyz;
 #ifdef PENUMBRA_AFSM_SOFT
-    if (!softSample(light, position.xyz, n))
-        return uvec2(0u);
+    bool listed = inside && covered && softSample(light, position.xyz, n);
     vec3 origin = position.xyz + n * push.originOffset;
-    if (afsmLayer(light, position.xyz, push.cube != 0u) != push.layer)
-        return uvec2(0u);
+    listed = listed && afsmLayer(light, position.xyz, push.cube != 0u) == push.layer;
 #else
     ShadowRay ray;
-    if (!afsmSampleRay(light, position.xyz, n, push.originOffset, ray))
-        return uvec2(0u);
+    bool listed = inside && covered && afsmSampleRay(light, position.xyz, n, push.originOffset, ray);
     vec3 origin = ray.origin;
-    if (shadowLayer(light, position.xyz) != push.layer)
-        return uvec2(0u);
+    listed = listed && shadowLayer(light, position.xyz) == push.layer;
 #endif
     float depth, w;
     uint cell = afsmGridCell(push.viewProj, origin, push.gridSize, depth, w);
-    if (cell == AFSM_NOT_BINNED)
-        return uvec2(0u);
+    listed = listed && cell != AFSM_NOT_BINNED;
 #ifndef PENUMBRA_AFSM_SOFT
     // A spot light's grid is its cone: samples outside it get no light (shade), nothing to list.
     if (uint(light.positionType.w) != PENUMBRA_LIGHT_POINT) {
         vec4 clip = push.viewProj * vec4(origin, 1.0);
-        if (any(greaterThan(abs(clip.xy), vec2(clip.w))))
-            return uvec2(0u);
+        listed = listed && !any(greaterThan(abs(clip.xy), vec2(clip.w)));
     }
 #endif
+    uvec2 counts = uvec2(0u);
     if (kMode == PENUMBRA_AFSM_COUNT) {
-        uint before = atomicAdd(cellCount[cell], 1u);
-        if (before == push.sliceSamples) { // the cell's first sample past one slice: once per crowded cell
-            atomicMin(crowded[0], cell % push.gridSize);
-            atomicMin(crowded[1], cell / push.gridSize);
-            atomicMax(crowded[2], cell % push.gridSize);
-            atomicMax(crowded[3], cell / push.gridSize);
+        if (listed) {
+            uint before = atomicAdd(cellCount[cell], 1u);
+            if (before == push.sliceSamples) { // the cell's first sample past one slice: once per crowded cell
+                atomicMin(crowded[0], cell % push.gridSize);
+                atomicMin(crowded[1], cell / push.gridSize);
+                atomicMax(crowded[2], cell % push.gridSize);
+                atomicMax(crowded[3], cell / push.gridSize);
+            }
+            // Depths lie in [0, 1] (the grid's depth range holds the model) but for a hair past it; clamped as the casters' depth
+            // test clamps; non-negative floats order as uints.
+            atomicMax(cellDepth[cell], floatBitsToUint(clamp(depth, 0.0, 1.0)));
+            counts = uvec2(before + 1u, floatBitsToUint(w)); // the cell's last sample sees its count
         }
-        // Depths lie in [0, 1] (the grid's depth range holds the model) but for a hair past it; clamped as the casters' depth
-        // test clamps; non-negative floats order as uints.
-        atomicMax(cellDepth[cell], floatBitsToUint(clamp(depth, 0.0, 1.0)));
-        return uvec2(before + 1u, floatBitsToUint(w)); // the cell's last sample sees its count
-    } else {
+    } else if (listed) {
         uint slot = cellCount[cell] + atomicAdd(cellFill[cell], 1u);
         slotShadowed[slot] = 0u;
         atomicAdd(cellAlive[cell], 1u);
@@ -197,7 +192,7 @@ uvec2 samplePixel()
                      vec4(afsmAxisV(shape, c, light.areaU.xyz, light.areaV.xyz, position.xyz, jitter), 0.0));
 #endif
     }
-    return uvec2(0u);
+    return counts;
 }
 
 void main()

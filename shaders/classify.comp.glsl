@@ -40,10 +40,8 @@ layout(push_constant) uniform ClassifyPush {
 
 void classifyPixel()
 {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 imageSizeXY = imageSize(visibilityImage);
-    if (any(greaterThanEqual(pixel, imageSizeXY)))
-        return;
+    ivec2 imageSizeXY = imageSize(visibilityImage), pixel;
+    const bool inside = pixelOfInvocation(imageSizeXY, pixel);
     uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
     // Background pixels take the same path (one store of each output per
@@ -65,7 +63,8 @@ void classifyPixel()
     // frt draws no map: a light-facing pixel's visibility is its ray's, the others' 0 (as afsm and rh store it).
     float visibility = kMode == PENUMBRA_CLASSIFY_ALL ? (lightFacing ? 1.0 : 0.0)
                        : !s.inside || s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
-    imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
+    if (inside)
+        imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
 
     bool mark = lightFacing && kMode == PENUMBRA_CLASSIFY_ALL;
     if (kMode == PENUMBRA_CLASSIFY_PIP && lightFacing && s.inside) {
@@ -76,7 +75,8 @@ void classifyPixel()
                (visibility == 1.0 && thinOccluderNearer(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel / int(PENUMBRA_THIN_HARD_SCALE), s.layer)).r),
                                                          light, s, d, dHat));
     }
-    marks[index] = mark ? 1u : 0u;
+    if (inside)
+        marks[index] = mark ? 1u : 0u;
 }
 
 #ifdef PENUMBRA_FLOOR
@@ -85,8 +85,7 @@ void main()
 {
     ivec2 size = imageSize(visibilityImage), pixel;
     float sum;
-    if (!floorPixel(size, pixel, sum))
-        return;
+    const bool inside = floorPixel(size, pixel, sum);
     ivec2 mapSize = textureSize(shadowMap, 0).xy;
     ivec2 texel = pixel * mapSize / size;
     float depth = push.mode != PENUMBRA_CLASSIFY_ALL ? texelFetch(shadowMap, ivec3(texel, 0), 0).r : 0.0; // frt reads no map
@@ -101,8 +100,10 @@ void main()
         depth += q.x + q.y + q.z + q.w;
     }
     sum += depth + thin + frame.lights[push.lightIndex].positionType.x;
-    imageStore(visibilityImage, pixel, vec4(floorNever(sum) ? 0.5 : 1.0));
-    marks[uint(pixel.y * size.x + pixel.x)] = floorNever(sum) ? 1u : 0u;
+    if (inside) {
+        imageStore(visibilityImage, pixel, vec4(floorNever(sum) ? 0.5 : 1.0));
+        marks[uint(pixel.y * size.x + pixel.x)] = floorNever(sum) ? 1u : 0u;
+    }
 }
 #else
 void main()

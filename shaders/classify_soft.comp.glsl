@@ -81,24 +81,22 @@ bool inMask(LightData light, ShadowLookup s)
     return splatReaches(0u, uvec2(s.texel), depth) || (!mapHides(light, s) && splatReaches(1u, uvec2(s.texel), depth));
 }
 
-uvec2 classifyPixel()
+// One exit, every store guarded by `inside` and by the pixel's case rather
+// than returned from: on lavapipe an early return puts the rest of the
+// shader under an execution mask (pixelOfInvocation).
+void classifyPixel()
 {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 imageSizeXY = imageSize(visibilityImage);
-    if (any(greaterThanEqual(pixel, imageSizeXY)))
-        return uvec2(0u);
+    ivec2 imageSizeXY = imageSize(visibilityImage), pixel;
+    const bool inside = pixelOfInvocation(imageSizeXY, pixel);
     uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
     vec4 position = imageLoad(gPosition, pixel);
-    if (position.w == 0.0) {
-        imageStore(visibilityImage, pixel, vec4(-1.0));
-        marks[index] = 0u;
-        return uvec2(0u);
-    }
+    // Background: visibility -1, no mark, in every mode.
+    const bool covered = position.w != 0.0;
     LightData light = frame.lights[push.lightIndex];
     vec3 p = position.xyz;
     vec3 n = imageLoad(gNormal, pixel).xyz;
     vec2 heights = areaLightHeightRange(light, p, n);
-    bool reached = heights.y > 0.0 && inFrontOfEmitter(light, p);
+    bool reached = covered && heights.y > 0.0 && inFrontOfEmitter(light, p);
     ivec2 size = textureSize(shadowMap, 0).xy;
     ShadowLookup s = projectToAreaMap(light, push.slot, p, size);
 
@@ -107,13 +105,13 @@ uvec2 classifyPixel()
         vec3 eye = lightMapEye(light, push.slot).xyz;
         bool lit = reached && dot(n, eye - p) > 0.0 && s.inside && s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r;
         float previous = push.first != 0u ? 0.0 : imageLoad(visibilityImage, pixel).r;
-        imageStore(visibilityImage, pixel, vec4(previous + (lit ? push.weight : 0.0)));
-        if (push.first != 0u)
-            marks[index] = 0u;
-        return uvec2(push.first, 0u);
-    }
-    if (kMode == PENUMBRA_SOFT_RECEIVERS) {
-        if (reached && s.inside) {
+        if (inside) {
+            imageStore(visibilityImage, pixel, vec4(covered ? previous + (lit ? push.weight : 0.0) : -1.0));
+            if (push.first != 0u || !covered)
+                marks[index] = 0u;
+        }
+    } else if (kMode == PENUMBRA_SOFT_RECEIVERS) {
+        if (inside && reached && s.inside) {
             uint tiles = (push.mapSize + PENUMBRA_RECEIVER_TILE - 1u) / PENUMBRA_RECEIVER_TILE;
             uvec2 tile = uvec2(s.texel) / PENUMBRA_RECEIVER_TILE;
             uint depthBits = floatBitsToUint(areaMapLinearDepth(light, push.slot, s.depth));
@@ -121,41 +119,45 @@ uvec2 classifyPixel()
             if (!mapHides(light, s))
                 atomicMax(receivers[tiles * tiles + tile.y * tiles + tile.x], depthBits);
         }
-        return uvec2(0u);
-    }
-    if (kMode == PENUMBRA_SOFT_CORNER_MASK) {
-        if (reached && (!s.inside || inMask(light, s)))
-            marks[index] = 1u;
-        return uvec2(0u);
-    }
-    bool mark;
-    float visibility = 0.0;
-    if (kMode == PENUMBRA_SOFT_ALL)
-        mark = reached;
-    else {
-        // The shadow map's own umbra/lit boundary is as uncertain as for hard shadows (3.1): the
-        // mask leaves the occluder texel's neighbourhood to the hard-shadow tests.
-        float distance;
-        vec3 L = towardLight(light, p, distance);
-        bool lit = s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r;
-        // As for hard shadows, a thin occluder the map dropped matters only where the map says lit.
-        bool boundary = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
-                        (lit && thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, 0)).r), light, s, size, n, L));
-        bool penumbra = marks[index] != 0u || heights.x <= 0.0 || !s.inside || inMask(light, s);
-        mark = reached && (penumbra || boundary);
-        // Outside the mask no penumbra reaches the pixel: every light sample agrees, so one of
-        // them (sample 0, as frt traces it) decides the map's uncertain umbra/lit boundary.
-        if (mark && !penumbra) {
-            imageStore(visibilityImage, pixel, vec4(0.0));
-            marks[index] = PENUMBRA_MARK_ONE_SAMPLE;
-            return uvec2(1u, 1u);
+        if (inside && !covered) {
+            imageStore(visibilityImage, pixel, vec4(-1.0));
+            marks[index] = 0u;
         }
-        if (reached && !mark)
-            visibility = lit ? 1.0 : 0.0;
+    } else if (kMode == PENUMBRA_SOFT_CORNER_MASK) {
+        if (inside && !covered) {
+            imageStore(visibilityImage, pixel, vec4(-1.0));
+            marks[index] = 0u;
+        }
+        if (inside && reached && (!s.inside || inMask(light, s)))
+            marks[index] = 1u;
+    } else {
+        bool mark;
+        uint markValue = 1u;
+        float visibility = unlitOrBackground(covered);
+        if (kMode == PENUMBRA_SOFT_ALL) {
+            mark = reached;
+        } else {
+            // The shadow map's own umbra/lit boundary is as uncertain as for hard shadows (3.1): the
+            // mask leaves the occluder texel's neighbourhood to the hard-shadow tests.
+            float distance;
+            vec3 L = towardLight(light, p, distance);
+            bool lit = s.depth <= texelFetch(shadowMap, ivec3(s.texel, 0), 0).r;
+            // As for hard shadows, a thin occluder the map dropped matters only where the map says lit.
+            bool boundary = depthDiscontinuityMayAffect(shadowMap, frame.pip.x, light, s, size, n, L) ||
+                            (lit && thinOccluderMayAffect(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel, 0)).r), light, s, size, n, L));
+            bool penumbra = marks[index] != 0u || heights.x <= 0.0 || !s.inside || inMask(light, s);
+            mark = reached && (penumbra || boundary);
+            // Outside the mask no penumbra reaches the pixel: every light sample agrees, so one of
+            // them (sample 0, as frt traces it) decides the map's uncertain umbra/lit boundary.
+            markValue = mark && !penumbra ? PENUMBRA_MARK_ONE_SAMPLE : 1u;
+            if (reached && !mark)
+                visibility = lit ? 1.0 : 0.0;
+        }
+        if (inside) {
+            imageStore(visibilityImage, pixel, vec4(visibility));
+            marks[index] = mark ? markValue : 0u;
+        }
     }
-    imageStore(visibilityImage, pixel, vec4(visibility));
-    marks[index] = mark ? 1u : 0u;
-    return uvec2(1u, mark ? 1u : 0u);
 }
 
 #ifdef PENUMBRA_FLOOR
@@ -164,8 +166,7 @@ void main()
 {
     ivec2 size = imageSize(visibilityImage), pixel;
     float sum;
-    if (!floorPixel(size, pixel, sum))
-        return;
+    const bool inside = floorPixel(size, pixel, sum);
     uint index = uint(pixel.y * size.x + pixel.x);
     ivec2 mapSize = textureSize(shadowMap, 0).xy;
     ivec2 texel = pixel * mapSize / size;
@@ -182,8 +183,11 @@ void main()
     sum += depth + uintBitsToFloat(maskWord) + frame.lights[push.lightIndex].positionType.x;
     // The averaged visibility and the marks are read back by later maps: written unchanged.
     vec4 visibility = imageLoad(visibilityImage, pixel);
-    imageStore(visibilityImage, pixel, floorNever(sum) ? vec4(0.5) : visibility);
-    marks[index] = marks[index] | (floorNever(sum) ? 1u : 0u);
+    uint marked = marks[index];
+    if (inside) {
+        imageStore(visibilityImage, pixel, floorNever(sum) ? vec4(0.5) : visibility);
+        marks[index] = marked | (floorNever(sum) ? 1u : 0u);
+    }
 }
 #else
 void main()

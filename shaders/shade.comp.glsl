@@ -54,32 +54,31 @@ void main()
 {
     ivec2 size = imageSize(outColor), pixel;
     float sum;
-    if (!floorPixel(size, pixel, sum))
-        return;
+    const bool inside = floorPixel(size, pixel, sum);
 #ifdef PENUMBRA_SHADE_LOOKUP
     // The shadow map's texel (the lookup's one fetch) instead of the visibility image; the visibility is written.
     sum += texelFetch(shadowMap, ivec3(pixel * textureSize(shadowMap, 0).xy / size, 0), 0).r;
-    imageStore(visibilityImage, pixel, vec4(floorNever(sum) ? 0.5 : 1.0));
+    if (inside)
+        imageStore(visibilityImage, pixel, vec4(floorNever(sum) ? 0.5 : 1.0));
 #else
     sum += imageLoad(visibilityImage, pixel).r;
 #endif
     sum += frame.lights[push.lightIndex].colorIntensity.x;
     // Later lights add to the colour: written unchanged.
     vec4 color = imageLoad(outColor, pixel);
-    imageStore(outColor, pixel, floorNever(sum) ? vec4(0.5) : color);
+    if (inside)
+        imageStore(outColor, pixel, floorNever(sum) ? vec4(0.5) : color);
 }
 #else
 void main()
 {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 size = imageSize(outColor);
-    if (any(greaterThanEqual(pixel, size)))
-        return;
+    ivec2 size = imageSize(outColor), pixel;
+    const bool inside = pixelOfInvocation(size, pixel);
 
     vec4 position = imageLoad(gPosition, pixel);
     const bool covered = position.w != 0.0;
     if (kCountCovered != 0u) {
-        uint coveredPixels = subgroupAdd(covered ? 1u : 0u);
+        uint coveredPixels = subgroupAdd(covered && inside ? 1u : 0u);
         if (subgroupElect() && coveredPixels != 0u)
             atomicAdd(stats[PENUMBRA_STAT_COVERED], uint64_t(coveredPixels));
     }
@@ -126,13 +125,13 @@ void main()
     ShadowLookup s = type == PENUMBRA_LIGHT_POINT ? projectToLayer(frame.lights[push.lightIndex].viewProj[layer], layer, p, mapSize)
                                                   : projectToShadowMap(light, p, mapSize);
     float visibility = !s.inside || s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
-    if (kStoreVisibility != 0u)
+    if (kStoreVisibility != 0u && inside)
         imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
 #else
     float visibility = max(imageLoad(visibilityImage, pixel).r, 0.0);
 #endif
     const bool area = type == PENUMBRA_LIGHT_RECTANGLE || type == PENUMBRA_LIGHT_DISK || type == PENUMBRA_LIGHT_SPHERE;
-    if (area && covered && visibility > 0.0 && visibility < 1.0)
+    if (area && covered && inside && visibility > 0.0 && visibility < 1.0)
         atomicAdd(stats[PENUMBRA_STAT_PENUMBRA], uint64_t(1));
     float nDotL = max(dot(n, toLight), 0.0);
     color += albedo * light.colorIntensity.rgb * light.colorIntensity.w * attenuation * nDotL * visibility;
@@ -141,6 +140,7 @@ void main()
     // Background pixels keep the background (the first light writes it).
     // The colour image holds half floats (frame_targets.h): clamped to the largest finite one, not infinity.
     color = min(color, vec3(65504.0));
-    imageStore(outColor, pixel, covered ? vec4(color, 1.0) : kFirstLight != 0u ? frame.background : imageLoad(outColor, pixel));
+    if (inside)
+        imageStore(outColor, pixel, covered ? vec4(color, 1.0) : kFirstLight != 0u ? frame.background : imageLoad(outColor, pixel));
 }
 #endif
