@@ -67,13 +67,18 @@ void classifyPixel()
         imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
 
     bool mark = lightFacing && kMode == PENUMBRA_CLASSIFY_ALL;
-    if (kMode == PENUMBRA_CLASSIFY_PIP && lightFacing && s.inside) {
-        // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
+    if (kMode == PENUMBRA_CLASSIFY_PIP) {
+        // Both tests for every pixel, their results masked after: on lavapipe the tests inside an
+        // `if` on the pixel (or behind a short-circuit) run under an execution mask, which costs more
+        // than testing the pixels that need no test. The thin texel is clamped into the map for those.
         float d = linearLightDepth(light, s.depth);
         float dHat = receiverNearestDepth(light, d, size, n, L);
-        mark = depthDiscontinuityNear(shadowMap, frame.pip.x, light, s, size, d, dHat) ||
-               (visibility == 1.0 && thinOccluderNearer(uintBitsToFloat(imageLoad(thinMap, ivec3(s.texel / int(PENUMBRA_THIN_HARD_SCALE), s.layer)).r),
-                                                         light, s, d, dHat));
+        const bool discontinuity = depthDiscontinuityNear(shadowMap, frame.pip.x, light, s, size, d, dHat);
+        const ivec2 thinTexel = clamp(s.texel / int(PENUMBRA_THIN_HARD_SCALE), ivec2(0), imageSize(thinMap).xy - 1);
+        const float thinDepth = uintBitsToFloat(imageLoad(thinMap, ivec3(thinTexel, s.layer)).r);
+        // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
+        const bool thin = visibility == 1.0 && thinOccluderNearer(thinDepth, light, s, d, dHat);
+        mark = lightFacing && s.inside && (discontinuity || thin);
     }
     if (inside)
         marks[index] = mark ? 1u : 0u;

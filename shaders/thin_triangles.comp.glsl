@@ -202,14 +202,14 @@ bool thinInModelSpace(vec3 a, vec3 b, vec3 c)
 // and thinInModelSpace.)
 bool sliverRect(vec4 v0, vec4 v1, vec4 v2, vec3 m0, vec3 m1, vec3 m2, out SliverRect r)
 {
-    r = SliverRect(vec2(0.0), vec2(1.0, 0.0), vec2(0.0, 1.0), 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    if (!thinInModelSpace(m0, m1, m2))
-        return false;
-    if (v0.w == 0.0 || v1.w == 0.0 || v2.w == 0.0)
-        return false; // crosses the light's near plane: the shadow map clips it too
+    // Every test computed and the rectangle filled whatever they say, their results combined at the
+    // end: on lavapipe an early return puts the rest under an execution mask, for every triangle.
+    const bool modelThin = thinInModelSpace(m0, m1, m2);
+    // Crossing the light's near plane: the shadow map clips it too.
+    const bool front = v0.w != 0.0 && v1.w != 0.0 && v2.w != 0.0;
     r.zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
-    if (!(r.zMin >= 0.0)) // the rectangle's depth would be clipped (zMin <= 1 by construction)
-        return false;
+    // The rectangle's depth would be clipped (zMin <= 1 by construction).
+    const bool unclipped = r.zMin >= 0.0;
     // Longest edge A -> B (the first of equally long ones), third vertex C: chosen with selects, not
     // by indexing an array with the lane's edge (llvmpipe keeps such an array in per-lane memory).
     const float l0 = distance(v0.xy, v1.xy), l1 = distance(v1.xy, v2.xy), l2 = distance(v2.xy, v0.xy);
@@ -219,8 +219,7 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, vec3 m0, vec3 m1, vec3 m2, out Sliver
     const vec2 A = vA.xy, B = vB.xy, C = vC.xy;
     float twiceArea = abs((B.x - A.x) * (C.y - A.y) - (B.y - A.y) * (C.x - A.x));
     float height = longest > 0.0 ? twiceArea / longest : 0.0;
-    if (height >= PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_TEXELS || longest < PENUMBRA_THIN_ASPECT * height)
-        return false;
+    const bool shape = height < PENUMBRA_THIN_TEXELS && longest >= PENUMBRA_THIN_TEXELS && longest >= PENUMBRA_THIN_ASPECT * height;
     vec2 d = longest > 1e-12 ? (B - A) / longest : vec2(1.0, 0.0);
     vec2 nrm = vec2(-d.y, d.x);
     float c = dot(C - A, nrm);
@@ -238,7 +237,7 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, vec3 m0, vec3 m1, vec3 m2, out Sliver
     r.zC = vC.z;
     r.longest = longest;
     r.along = along;
-    return true;
+    return modelThin && front && unclipped && shape;
 }
 
 // `into` grown to hold rectangle r, in into's frame (r's corners projected
@@ -406,15 +405,15 @@ void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded
     bool odd = ((w.position - 2u) & 1u) != 0u;
     // Slivers are listed for the fill phase: on lavapipe a fill here would
     // run (masked) for every triangle.
+    // The tests and the union for every byte, their results combined after (no short-circuit `&&`
+    // before sliverRect, no `if` around the union): lavapipe runs such branches under a mask.
     SliverRect r;
-    bool sliver = !restart && w.position >= 2u && w.i0 != w.i1 && w.i1 != i2 && w.i0 != i2 &&
-                  sliverRect(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2, w.m0, w.m1, decoded, r);
-    bool merged = false;
-    if (sliver && kLocalDepths == 0u && w.runLength != 0u && byte - (w.runEntry & 0xFFFFu) <= PENUMBRA_THIN_RUN_MAX) {
-        SliverRect grown = unionRect(w.run, r);
-        merged = rectArea(grown) <= rectArea(w.run) + rectArea(r);
-        w.run = merged ? grown : w.run;
-    }
+    const bool rect = sliverRect(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2, w.m0, w.m1, decoded, r);
+    const bool sliver = !restart && w.position >= 2u && w.i0 != w.i1 && w.i1 != i2 && w.i0 != i2 && rect;
+    const SliverRect grown = unionRect(w.run, r);
+    const bool smaller = rectArea(grown) <= rectArea(w.run) + rectArea(r);
+    const bool merged = sliver && kLocalDepths == 0u && w.runLength != 0u && byte - (w.runEntry & 0xFFFFu) <= PENUMBRA_THIN_RUN_MAX && smaller;
+    w.run = merged ? grown : w.run;
     // The open run is listed when a sliver does not join it (area lights: every sliver is a run of
     // its own) or at the leaf's end; the triangles that are no slivers leave it open.
     if (sliver && !merged)

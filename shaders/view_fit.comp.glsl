@@ -76,13 +76,12 @@ uint orderKey(float f)
 // (outside the image, or background).
 bool blockPoint(ivec2 origin, ivec2 size, int i, out vec3 p)
 {
+    // Past the image's edge the nearest pixel is read and left out (no early return: on lavapipe
+    // it would put the rest of the loop under an execution mask).
     ivec2 pixel = origin + ivec2(i % VIEW_BOUNDS_BLOCK, i / VIEW_BOUNDS_BLOCK);
-    p = vec3(0.0);
-    if (any(greaterThanEqual(pixel, size)))
-        return false;
-    vec4 g = imageLoad(gPosition, pixel);
+    vec4 g = imageLoad(gPosition, min(pixel, size - 1));
     p = g.xyz;
-    return g.w > 0.0;
+    return all(lessThan(pixel, size)) && g.w > 0.0;
 }
 
 // Bounds keys of map k of light l from the subgroup's lanes' bounds: one
