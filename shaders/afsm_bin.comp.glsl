@@ -87,10 +87,12 @@ layout(push_constant) uniform AfsmBinPush {
     uint64_t nodeRecords; // kGeometryBudget: the pool's (node records, 16-byte texels: NodeArray)
 } push;
 
+// No early return: a caster that takes no cells gets an empty cell range, a cell with nothing to
+// test an empty sample range, and the budget ends the loops by their condition (lavapipe runs the
+// code after an early return under an execution mask).
 void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
 {
-    if (!afsmCasts(frame.lights[push.lightIndex], cluster, push.closedBackFaces != 0u, v0, v1, v2))
-        return;
+    const bool casts = afsmCasts(frame.lights[push.lightIndex], cluster, push.closedBackFaces != 0u, v0, v1, v2);
 #ifdef PENUMBRA_AFSM_SOFT
     LightData light = frame.lights[push.lightIndex];
     float nearest;
@@ -109,13 +111,14 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     // The cells one by one, counting the work as afsmComputeWork does (the
     // raster path's mirror of this choice); past the budget the raster path
     // takes the caster (the cells tested so far are tested twice).
-    if (r.empty || !(afsmRectCells(r, push.gridSize) <= push.computeCells))
-        return;
+    const bool take = casts && !r.empty && afsmRectCells(r, push.gridSize) <= push.computeCells;
     ivec2 first, last;
     afsmRectCellRange(r, push.gridSize, first, last);
+    last = take ? last : first - 1;
     uint work = 0u;
-    for (int y = first.y; y <= last.y; ++y)
-        for (int x = first.x; x <= last.x; ++x) {
+    bool over = false;
+    for (int y = first.y; y <= last.y && !over; ++y)
+        for (int x = first.x; x <= last.x && !over; ++x) {
             uint cell = uint(y) * push.gridSize + uint(x);
             uint count = afsmCellCount(cell);
 #ifdef PENUMBRA_AFSM_SOFT
@@ -125,15 +128,15 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
             bool beyond = afsmCellBehind(cell, afsmNearestOver(depth, corner, margin));
 #endif
             work += 1u + (beyond ? 0u : perSample * count);
-            if (work > PENUMBRA_AFSM_COMPUTE_BUDGET)
-                return;
-            if (count == 0u || beyond || cellAlive[cell] == 0u)
-                continue;
+            over = work > PENUMBRA_AFSM_COMPUTE_BUDGET;
+            const bool alive = cellAlive[cell] != 0u;
 #ifdef PENUMBRA_AFSM_SOFT
-            afsmTestCellSoft(cell, 0u, count, light, table, v0, v1, v2); // at most PENUMBRA_AFSM_COMPUTE_BUDGET iterations
+            const bool test = !over && count != 0u && !beyond && alive;
+            afsmTestCellSoft(cell, 0u, test ? count : 0u, light, table, v0, v1, v2); // at most PENUMBRA_AFSM_COMPUTE_BUDGET iterations
 #else
-            if (afsmCellMayMeetTriangle(corner + 0.5, projected, !behind, margin))
-                afsmTestCellHard(cell, 0u, count, v0, v1, v2);
+            const bool meets = afsmCellMayMeetTriangle(corner + 0.5, projected, !behind, margin);
+            const bool test = !over && count != 0u && !beyond && alive && meets;
+            afsmTestCellHard(cell, 0u, test ? count : 0u, v0, v1, v2);
 #endif
         }
 }

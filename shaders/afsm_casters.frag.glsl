@@ -60,7 +60,10 @@ void main()
     uint cell = cellXY.y * push.gridSize + cellXY.x;
     vec2 v[3] = vec2[](projected01.xy, projected01.zw, projected2.xy);
     // Empty cells and those whose samples all lie nearer the light failed the depth test (afsm_casters.geom.glsl).
-    if (cellAlive[cell] == 0u || afsmCellCount(cell) <= push.sliceBegin || !afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0, projected2.z))
-        return;
-    afsmTestCellHard(cell, push.sliceBegin, push.sliceBegin + afsmSliceSamples(0u), vertex0, vertex1, vertex2);
+    // A fragment with nothing to test gets an empty range rather than an early return (lavapipe would
+    // run the loop under an execution mask).
+    const bool alive = cellAlive[cell] != 0u, more = afsmCellCount(cell) > push.sliceBegin;
+    const bool meets = afsmCellMayMeetTriangle(vec2(cellXY) + 0.5, v, projected2.w != 0.0, projected2.z);
+    const uint end = alive && more && meets ? push.sliceBegin + afsmSliceSamples(0u) : push.sliceBegin;
+    afsmTestCellHard(cell, push.sliceBegin, end, vertex0, vertex1, vertex2);
 }
