@@ -49,6 +49,9 @@ layout(constant_id = 3) const uint kSplitVertexTexels = 0u;
 // script made every cluster that can reach this view resident (clusterMayReachView); the others
 // write no texel of it.
 layout(constant_id = 4) const uint kGeometryBudget = 0u;
+// 1: push.viewProj's last row is (0, 0, 0, 1) (an orthographic map: a directional light's), so clip w
+// is exactly 1 and projectVertex divides by nothing (the same values: x / 1 = x).
+layout(constant_id = 5) const uint kAffine = 0u;
 // The slivers of this view: count, the fill's indirect dispatch, then per run of slivers of one
 // leaf (stripByte) its cluster and its first sliver's strip position (the byte of its third
 // vertex, relative to the cluster's strips) | odd << 16 | (bytes from it to its last sliver's) << 17.
@@ -152,8 +155,8 @@ float nearestDepthInSlab(EdgeDepth edges[3], float lo, float hi)
 vec4 projectVertex(vec3 v)
 {
     vec4 clip = push.viewProj * vec4(v, 1.0);
-    vec3 ndc = clip.xyz / clip.w;
-    return vec4((ndc.xy * 0.5 + 0.5) * push.mapSize, ndc.z, clip.w > 0.0 ? 1.0 : 0.0);
+    vec3 ndc = kAffine != 0u ? clip.xyz : clip.xyz / clip.w;
+    return vec4((ndc.xy * 0.5 + 0.5) * push.mapSize, ndc.z, kAffine != 0u || clip.w > 0.0 ? 1.0 : 0.0);
 }
 
 // A sliver's conservative rectangle {A + d t + nrm u : t in [d0, d1], u in

@@ -120,12 +120,15 @@ void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, co
                                uint32_t mapSize, uint32_t thinLayers, const ThinView& view) const
 {
     const uint32_t texels = texelsComplete ? 1u : 0u, local = view.areaLight ? 1u : 0u, split = vertexTexelsSplit ? 1u : 0u;
+    const uint32_t paged = geometry.paged() ? 1u : 0u;
+    // An orthographic view's clip w is exactly 1: its vertices are projected without the division (kAffine).
+    const glm::mat4& m = view.viewProj;
+    const uint32_t affine = m[0][3] == 0.0f && m[1][3] == 0.0f && m[2][3] == 0.0f && m[3][3] == 1.0f ? 1u : 0u;
     // The list's count, cleared for this view.
     vk::memoryBarrier(cmd, kCompute | kIndirect, kStorageRW | kIndirectRead, kClear, kTransferWrite);
     vkCmdFillBuffer(cmd, list.buffer, 0, sizeof(uint32_t), 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW | kRectRead);
-    kernel.bind(cmd, geometry.paged() ? vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split, 1u}
-                                      : vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split});
+    kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_LIST, split, paged, affine});
     // One invocation per node, then per leaf of the workgroup's nodes.
     const uint32_t groups = std::max(groupCount(geometry.nodeCount, PENUMBRA_THIN_TRIANGLES_GROUP_SIZE), 1u);
     const Groups2D dispatch = spreadGroups(groups, device.properties.limits.maxComputeWorkGroupCount[0]);
@@ -146,7 +149,7 @@ void ThinTrianglesPass::record(VkCommandBuffer cmd, const vk::Device& device, co
     kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_DISPATCH, split});
     vkCmdDispatch(cmd, 1, 1, 1);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kIndirectRead | kRectRead);
-    kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_FILL, split});
+    kernel.bind(cmd, vk::Specialization{texels, local, PENUMBRA_THIN_FILL, split, 0u, affine}); // the fill decodes runs past the rectangles' capacity
     vkCmdDispatchIndirect(cmd, list.buffer, sizeof(uint32_t));
 }
 
