@@ -100,6 +100,11 @@ void classifyPixel()
     ivec2 size = textureSize(shadowMap, 0).xy;
     ShadowLookup s = projectToAreaMap(light, push.slot, p, size);
 
+    // The modes that store nothing for a covered pixel's visibility (below) store the background's here.
+    if ((kMode == PENUMBRA_SOFT_RECEIVERS || kMode == PENUMBRA_SOFT_CORNER_MASK) && inside && !covered) {
+        imageStore(visibilityImage, pixel, vec4(-1.0));
+        marks[index] = 0u;
+    }
     if (kMode == PENUMBRA_SOFT_AVERAGE) {
         // One point-light shadow map of K: the point must be above the pixel's plane.
         vec3 eye = lightMapEye(light, push.slot).xyz;
@@ -119,15 +124,7 @@ void classifyPixel()
             if (!mapHides(light, s))
                 atomicMax(receivers[tiles * tiles + tile.y * tiles + tile.x], depthBits);
         }
-        if (inside && !covered) {
-            imageStore(visibilityImage, pixel, vec4(-1.0));
-            marks[index] = 0u;
-        }
     } else if (kMode == PENUMBRA_SOFT_CORNER_MASK) {
-        if (inside && !covered) {
-            imageStore(visibilityImage, pixel, vec4(-1.0));
-            marks[index] = 0u;
-        }
         if (inside && reached && (!s.inside || inMask(light, s)))
             marks[index] = 1u;
     } else {

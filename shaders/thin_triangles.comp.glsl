@@ -406,10 +406,9 @@ void stripByte(inout StripWalk w, uint cluster, uint byte, uint i2, vec3 decoded
     vec4 p2 = projectVertex(decoded);
     bool restart = i2 == 0xFFu;
     bool odd = ((w.position - 2u) & 1u) != 0u;
-    // Slivers are listed for the fill phase: on lavapipe a fill here would
-    // run (masked) for every triangle.
-    // The tests and the union for every byte, their results combined after (no short-circuit `&&`
-    // before sliverRect, no `if` around the union): lavapipe runs such branches under a mask.
+    // Slivers are listed for the fill phase: on lavapipe a fill here would run (masked) for every
+    // triangle. For the same reason the tests and the union run for every byte, their results
+    // combined after (no short-circuit `&&` before sliverRect, no `if` around the union).
     SliverRect r;
     const bool rect = sliverRect(odd ? w.p1 : w.p0, odd ? w.p0 : w.p1, p2, w.m0, w.m1, decoded, r);
     const bool sliver = !restart && w.position >= 2u && w.i0 != w.i1 && w.i1 != i2 && w.i0 != i2 && rect;
