@@ -103,10 +103,10 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     vec2 projected[3];
     bool behind;
     AfsmDepthBound depth;
-    AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, projected, behind, depth);
+    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
+    AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, margin, projected, behind, depth);
     float nearest = depth.nearest;
     uint perSample = 1u;
-    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
 #endif
     // The cells one by one, counting the work as afsmComputeWork does (the
     // raster path's mirror of this choice); past the budget the raster path

@@ -5,9 +5,10 @@
 // conservative rasterization of each triangle over the sample grid. lavapipe
 // has no conservative-rasterization extension, so the triangle is drawn
 // grown: each edge moved out by half a cell's extent along its normal plus
-// half a cell (afsm_casters.glsli: afsmMovedCorner), or as its bounding
-// rectangle grown by one cell where that is smaller (a sharp corner's moved
-// edges meet far away). Every cell whose area the triangle's
+// the light's margin (afsm_casters.glsli: afsmMovedCorner, afsmCellMargin),
+// or as its bounding rectangle grown by half a cell plus the margin
+// (afsmHardRect) where that is smaller (a sharp corner's moved edges meet
+// far away). Every cell whose area the triangle's
 // projection touches has its centre inside, so the fragment shader sees every
 // cell whose samples the triangle can shadow (afsm_casters.frag.glsl tests
 // them exactly). A triangle reaching behind a perspective projection's eye
@@ -68,11 +69,11 @@ void main()
     vec2 cells[3];
     bool behind;
     AfsmDepthBound depth;
-    AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, cells, behind, depth);
+    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
+    AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, margin, cells, behind, depth);
     if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
         return;
     // The triangle grown by half a cell and the margin of afsmCellMayMeetTriangle (below), or the rectangle.
-    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
     vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);
     if (push.sliceBegin > 0u) { // the crowded cells' rectangle only
         lo = max(lo, vec2(crowded[0], crowded[1]));

@@ -33,7 +33,7 @@
 #define PENUMBRA_AFSM_TABLE_WORDS (1u << 23) // afsm: lookup table of plane -> sample bitmask, at most this many uints (32 MiB)
 #define PENUMBRA_AFSM_TABLE_GROUP 64     // afsm_table.comp: table entries per workgroup (one word of each)
 #define PENUMBRA_AFSM_BIN_GROUP 64       // afsm_bin.comp: BVH nodes per workgroup (their leaves then decoded one per invocation)
-#define PENUMBRA_AFSM_COMPUTE_CELLS 16.0 // afsm: casters whose grown rectangle spans at most this many grid cells are tested in compute
+#define PENUMBRA_AFSM_COMPUTE_CELLS 12.0 // afsm: casters whose grown rectangle (afsmHardRect) spans at most this many grid cells are tested in compute
 #define PENUMBRA_AFSM_COMPUTE_BUDGET 384u // ... when their cells and samples take at most this many loop iterations (lavapipe: 65535 per invocation)
 #define PENUMBRA_AFSM_FRAGMENT_ITERATIONS 60000u // afsm raster path: most loop iterations one fragment spends on a cell's samples
                                          // (lavapipe silently ends an invocation's loops after 65535 in all); a cell with more
