@@ -51,8 +51,8 @@ layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };     /
 // (min x, min y, max x, max y; cleared to ~0, ~0, 0, 0). C++: afsm.h (AfsmFar).
 layout(set = 0, binding = 9, std430) buffer Far { uint farBits; uint cellMost; uint crowded[4]; };
 layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth (float bits)
-layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared here)
-layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (counted here)
+layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared by AfsmPass before the list)
+layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (AfsmPass copies the counts after the list)
 
 // The mode (PENUMBRA_AFSM_*) is a specialization constant, push.mode its copy: one pipeline per mode
 // (llvmpipe runs both sides of an if, masked: every mode's code at each subgroup; rh_build.comp measures it).
@@ -178,9 +178,7 @@ uvec2 samplePixel()
             counts = uvec2(before + 1u, floatBitsToUint(w)); // the cell's last sample sees its count
         }
     } else if (listed) {
-        uint slot = cellCount[cell] + atomicAdd(cellFill[cell], 1u);
-        slotShadowed[slot] = 0u;
-        atomicAdd(cellAlive[cell], 1u);
+        uint slot = cellCount[cell] + atomicAdd(cellFill[cell], 1u); // slotShadowed: cleared, cellAlive: the count (AfsmPass)
 #ifndef PENUMBRA_AFSM_SOFT
         AfsmRaySlots(push.slots).slots[slot] = afsmRaySlot(ray, index);
 #else

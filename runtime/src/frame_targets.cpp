@@ -180,7 +180,7 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     // The casters read these three through texel views (afsm_casters.glsli).
     const VkBufferUsageFlags texels = VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
     afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst | texels, vk::MemoryUse::DeviceLocal);
-    afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst | texels, vk::MemoryUse::DeviceLocal);
+    afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst | texels | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
     // Also the source of the per-cell depth grid (afsmDepth), copied after the count pass.
     afsmCellDepth = vk::createBuffer(device, cells * 4, kStorageDst | texels | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
     afsmCellFirstTexels = vk::createTexelView(device, afsmCellFirst, VK_FORMAT_R32_UINT, 4);

@@ -471,7 +471,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded), 2 * sizeof(uint32_t), ~0u); // the crowded cells' minima
     vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded) + 8, 2 * sizeof(uint32_t), 0);
     vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(cells) * 4, 0);
-    vkCmdFillBuffer(cmd, targets.cellAlive->buffer, 0, VkDeviceSize(cells) * 4, 0);
+    vkCmdFillBuffer(cmd, targets.slotShadowed->buffer, 0, VK_WHOLE_SIZE, 0); // no slot shadowed yet
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_COUNT, layer, viewProj, cube, originOffset, soft), soft);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
@@ -487,6 +487,11 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_LIST, layer, viewProj, cube, originOffset, soft), soft);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry | kCompute | kCopy,
                       kStorageRW | kTransferRead | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT); // the slots and the cells: texel fetches too
+    // Every listed sample is alive (not shadowed) until the casters run: the cells' counts, as the list filled them
+    // (a copy instead of an atomic per sample in the list pass).
+    const VkBufferCopy counts{0, 0, VkDeviceSize(cells) * 4};
+    vkCmdCopyBuffer(cmd, targets.cellCount->buffer, targets.cellAlive->buffer, 1, &counts);
+    vk::memoryBarrier(cmd, kCopy, kTransferWrite, kFragment | kCompute, kStorageRW);
 
     // The cells' farthest sample depths into the depth image the casters are tested against.
     const vk::Image& depth = *targets.depth;
