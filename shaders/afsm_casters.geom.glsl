@@ -81,7 +81,7 @@ void main()
         if (any(greaterThan(lo, hi)))
             return;
     }
-    // The grown triangle (its edges moved out, afsm_casters.glsli: afsmMovedCorner) where twice its area is under half the
+    // The grown triangle (its edges moved out, afsm_casters.glsli: afsmMovedCorner) where its area is under a quarter of the
     // rectangle's, else the rectangle, as a strip of four vertices (the triangle's last one repeated). llvmpipe
     // rasterizes an axis-aligned rectangle on a fast path, so a thin diagonal triangle pays more per cell than the
     // rectangle around it (plant at 640^2: afsm_casters 790 ms with the smaller of the two, 640-657 with half).

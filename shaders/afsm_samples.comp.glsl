@@ -134,7 +134,8 @@ uvec2 samplePixel()
 #else
         ShadowRay ray;
         bool facing = afsmSampleRay(light, position.xyz, n, push.originOffset, ray);
-        float visibility = covered ? (facing && shadowed[index] == 0u ? 1.0 : 0.0) : -1.0;
+        const bool lit = covered && facing && shadowed[index] == 0u;
+        float visibility = lit ? 1.0 : unlitOrBackground(covered); // not nested selects: see unlitOrBackground
 #endif
         if (inside) {
             imageStore(visibilityImage, pixel, vec4(visibility));
