@@ -844,7 +844,7 @@ size_t stageGroupOf(const std::string& passName)
     static const std::map<std::string, size_t> groups = {{"camera", 0},        {"view_fit", 0},   {"view_fit_readback", 5},   {"shadow_map", 0},     {"thin_triangles", 1},
                                                          {"penumbra_mask", 1}, {"classify", 1},   {"compact", 2},
                                                          {"trace", 3},         {"shade", 4},      {"readback", 5},
-                                                         {"afsm_casters", 0},  {"afsm_bin", 0},     {"afsm_samples", 1},
+                                                         {"afsm_casters", 0},  {"afsm_bin", 0},     {"afsm_rows", 0},     {"afsm_samples", 1},
                                                          {"rh_build", 1},      {"rh_traverse", 3}};
     auto it = groups.find(passName);
     return it == groups.end() ? kStageGroupCount - 1 : it->second;

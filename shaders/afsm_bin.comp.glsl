@@ -59,11 +59,15 @@ layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
 layout(set = 0, binding = 8, std430) readonly buffer Params {
     uint64_t softMasks, softTable;
     uint softSamples, softTableSize;
+    uint64_t wideList;   // hard shadows: AfsmWideList (afsm_wide.glsli) of the casters left to afsm_wide.comp; 0: none (the raster path's)
+    uint wideCasters;    // byte offset of its casters
+    uint wideCapacity;   // casters it holds
 };
 layout(set = 0, binding = 9, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
 layout(set = 0, binding = 10) uniform usamplerBuffer slotTexels;                      // RGBA32UI over the slots (afsm_casters.glsli: afsmRaySlotAt)
 
 #include "afsm_casters.glsli"
+#include "afsm_wide.glsli"
 
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer ClusterMask { uint bits[]; };
 // kGeometryBudget: per node, its record's first 16-byte texel in the pool, or cluster | PENUMBRA_NODE_ABSENT
@@ -109,12 +113,15 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     uint perSample = 1u;
 #endif
     // The cells one by one, counting the work as afsmComputeWork does (the
-    // raster path's mirror of this choice); past the budget the raster path
-    // takes the caster (the cells tested so far are tested twice).
+    // raster path's mirror of this choice); past the budget afsm_wide.comp
+    // (else the raster path) takes the caster (the cells tested so far are
+    // tested twice).
     const bool take = casts && !r.empty && afsmRectCells(r, push.gridSize) <= push.computeCells;
     ivec2 first, last;
     afsmRectCellRange(r, push.gridSize, first, last);
-    last = take ? last : first - 1;
+    // No sample of its cells lies beyond the caster (or none is there): nothing to test, in either path.
+    const bool noneBeyond = casts && !r.empty && afsmBlocksBehind(first, last, push.gridSize, nearest);
+    last = take && !noneBeyond ? last : first - 1;
     uint work = 0u;
     bool over = false;
     for (int y = first.y; y <= last.y && !over; ++y)
@@ -139,6 +146,11 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
             afsmTestCellHard(cell, 0u, test ? count : 0u, v0, v1, v2);
 #endif
         }
+#ifndef PENUMBRA_AFSM_SOFT
+    // The casters the loop above did not test to the end: afsm_wide.comp's.
+    if (wideList != 0ul && casts && !r.empty && !noneBeyond && (!take || over))
+        afsmWideAppend(wideList, wideCasters, wideCapacity, cluster, v0, v1, v2);
+#endif
 }
 
 shared uvec2 passingLeaves[4 * PENUMBRA_AFSM_BIN_GROUP]; // cluster, leaf reference (start | count << 16)

@@ -52,6 +52,7 @@ layout(push_constant) uniform AfsmCastersPush {
     float computeCells;
     uint closedBackFaces;
     uint sliceBegin;    // the first sample of each cell's list this draw tests (0, or a later slice of the crowded cells)
+    uint64_t wideList;  // afsm_casters.geom.glsl's
 } push;
 
 void main()

@@ -1,5 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Alias-free shadow maps, casters (Sintorn et al. 2008, section 3.2):
 // conservative rasterization of each triangle over the sample grid. lavapipe
@@ -14,7 +15,11 @@
 // them exactly). A triangle reaching behind a perspective projection's eye
 // covers the whole grid. With
 // push.computeCells > 0 the triangles whose rectangle spans at most that many
-// cells were tested by the compute path (afsm_bin.comp.glsl) and are left out.
+// cells were tested by the compute path (afsm_bin.comp.glsl) and are left out;
+// with push.wideList, afsm_wide.comp.glsl tested the others but those of the
+// clusters it marked (afsm_wide.glsli), and only theirs are drawn. A caster
+// no sample of whose cells' blocks lies beyond it is left out too
+// (afsmBlocksBehind).
 //
 // Slices (push.sliceBegin > 0): a fragment tests at most afsmSliceSamples
 // of its cell's samples (lavapipe silently ends an invocation's loops after
@@ -38,6 +43,7 @@ layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBit
 #define AFSM_RECTANGLES_ONLY 1
 #define AFSM_POLYGONS 1
 #include "afsm_casters.glsli"
+#include "afsm_wide.glsli"
 
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 4) out;
@@ -60,10 +66,13 @@ layout(push_constant) uniform AfsmCastersPush {
     float computeCells; // rectangles of at most this many cells: the compute path's (0: none)
     uint closedBackFaces; // closed clusters cast only light-back-facing triangles (afsm_casters.glsli)
     uint sliceBegin;      // > 0: a later slice of the crowded cells (see above)
+    uint64_t wideList;    // != 0: afsm_wide.comp tested the casters the compute path left, but those of the clusters marked here
 } push;
 
 void main()
 {
+    if (push.wideList != 0ul && !afsmWideOverflowed(push.wideList, cluster[0]))
+        return;
     if (!afsmCasts(frame.lights[push.lightIndex], cluster[0], push.closedBackFaces != 0u, worldPosition[0], worldPosition[1], worldPosition[2]))
         return;
     vec2 cells[3];
@@ -72,6 +81,10 @@ void main()
     const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
     AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, margin, cells, behind, depth);
     if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
+        return;
+    ivec2 firstCell, lastCell;
+    afsmRectCellRange(r, push.gridSize, firstCell, lastCell);
+    if (afsmBlocksBehind(firstCell, lastCell, push.gridSize, depth.nearest))
         return;
     // The triangle grown by half a cell and the margin of afsmCellMayMeetTriangle (below), or the rectangle.
     vec2 lo = (r.lo * 0.5 + 0.5) * float(push.gridSize), hi = (r.hi * 0.5 + 0.5) * float(push.gridSize);

@@ -154,7 +154,8 @@ uvec2 samplePixel()
     listed = listed && shadowLayer(light, position.xyz) == push.layer;
 #endif
     float depth, w;
-    uint cell = afsmGridCell(push.viewProj, origin, push.gridSize, depth, w);
+    uvec2 cellXY;
+    uint cell = afsmGridCell(push.viewProj, origin, push.gridSize, depth, w, cellXY);
     listed = listed && cell != AFSM_NOT_BINNED;
 #ifndef PENUMBRA_AFSM_SOFT
     // A spot light's grid is its cone: samples outside it get no light (shade), nothing to list.
@@ -176,6 +177,9 @@ uvec2 samplePixel()
             // Depths lie in [0, 1] (the grid's depth range holds the model) but for a hair past it; clamped as the casters' depth
             // test clamps; non-negative floats order as uints.
             atomicMax(cellDepth[cell], floatBitsToUint(clamp(depth, 0.0, 1.0)));
+            // And its block's (afsm_casters.glsli: afsmBlocksBehind).
+            const uvec2 block = cellXY >> 3u;
+            atomicMax(cellDepth[push.gridSize * push.gridSize + block.y * ((push.gridSize + 7u) >> 3u) + block.x], floatBitsToUint(clamp(depth, 0.0, 1.0)));
             counts = uvec2(before + 1u, floatBitsToUint(w)); // the cell's last sample sees its count
         }
     } else if (listed) {

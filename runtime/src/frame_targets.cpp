@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "passes/afsm.h"
 #include "passes/penumbra_mask.h"
 #include "passes/thin_triangles.h"
 
@@ -181,8 +182,9 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     const VkBufferUsageFlags texels = VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
     afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst | texels, vk::MemoryUse::DeviceLocal);
     afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst | texels | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
-    // Also the source of the per-cell depth grid (afsmDepth), copied after the count pass.
-    afsmCellDepth = vk::createBuffer(device, cells * 4, kStorageDst | texels | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
+    // Also the source of the per-cell depth grid (afsmDepth), copied after the count pass; then per block of 8x8
+    // cells, its farthest sample depth (afsm_casters.glsli: afsmBlocksBehind).
+    afsmCellDepth = vk::createBuffer(device, (cells + passes::afsmBlockCount(gridSize)) * 4, kStorageDst | texels | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
     afsmCellFirstTexels = vk::createTexelView(device, afsmCellFirst, VK_FORMAT_R32_UINT, 4);
     afsmCellCountTexels = vk::createTexelView(device, afsmCellCount, VK_FORMAT_R32_UINT, 4);
     afsmCellDepthTexels = vk::createTexelView(device, afsmCellDepth, VK_FORMAT_R32_UINT, 4);

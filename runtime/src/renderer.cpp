@@ -821,7 +821,11 @@ struct Renderer::Impl::FrameScript {
                 r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
                                      {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false,
                                       afsmBackFaces, most},
-                                     [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged);
+                                     [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged, [this] {
+                                         timer.mark(cmd, PassId::AfsmRows);
+                                         r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+                                         beginCommands();
+                                     });
                 timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
@@ -1023,6 +1027,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         out.afsmClosedClusters = afsmClosedClusters;
         out.afsmCellMost = uint32_t(counters[PENUMBRA_STAT_AFSM_CELL_MOST]);
         out.afsmSliceDraws = r.afsm.takeSliceDraws();
+        r.afsm.takeWideStats(out.afsmWideCasters, out.afsmWideRasterLayers);
         out.afsmComputePath = r.afsm.computePathUsed();
         out.afsmClosedCasting = !afsmClosedClusters ? "none closed"
                                 : afsmBackFaces     ? "back faces"

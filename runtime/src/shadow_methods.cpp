@@ -10,7 +10,7 @@ namespace penumbra {
 const char* passName(PassId pass)
 {
     static const char* const names[] = {"camera",         "view_fit",       "view_fit_readback", "shadow_map",  "thin_triangles",
-                                        "penumbra_mask",  "afsm_samples",   "afsm_bin",          "afsm_casters",      "rh_build",    "rh_traverse", "classify",    "compact",
+                                        "penumbra_mask",  "afsm_samples",   "afsm_bin",          "afsm_rows",         "afsm_casters",      "rh_build",    "rh_traverse", "classify",    "compact",
                                         "trace",          "shade",          "readback",          "camera_floor", "view_fit_floor",
                                         "shadow_map_floor", "classify_floor", "compact_floor",   "shade_floor"};
     static_assert(sizeof(names) / sizeof(names[0]) == size_t(PassId::Count));

@@ -15,7 +15,7 @@ namespace penumbra {
 
 // The frame's passes, in the order stats report them.
 enum class PassId : uint32_t {
-    Camera, ViewFit, ViewFitReadback, ShadowMap, ThinTriangles, PenumbraMask, AfsmSamples, AfsmBin, AfsmCasters, RhBuild, RhTraverse, Classify,
+    Camera, ViewFit, ViewFitReadback, ShadowMap, ThinTriangles, PenumbraMask, AfsmSamples, AfsmBin, AfsmRows, AfsmCasters, RhBuild, RhTraverse, Classify,
     Compact, Trace, Shade,
     Readback,
     // RenderSettings::measureFloors: the null twins of the per-pixel passes and the raster passes' uncompressed depth-only draws.

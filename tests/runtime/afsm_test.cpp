@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <string>
 #include <vector>
@@ -96,6 +97,56 @@ TEST(AliasFreeShadowMaps, SuiteScenesMatchTheOracle)
         EXPECT_LE(r.afsmDecoded.fraction(), test::kDecodedMeshBound)
             << name << ": afsm differs from the decoded-mesh oracle on " << r.afsmDecoded.differing << " of " << r.afsmDecoded.compared;
         EXPECT_LE(r.afsm.differing, r.srt.differing) << name;
+    }
+}
+
+// The hard casters the compute path leaves are tested a grid row at a time
+// (afsm_wide.comp); the clusters it cannot finish (its list full, or a caster
+// past its loop budget) are left to the raster path, which then draws only
+// theirs. Every route gives the same image, bit for bit: the row pass on its
+// own, the raster path on its own (PENUMBRA_AFSM_WIDE=0), and the two
+// together (a list of 64 casters; a budget of 12 iterations a caster).
+TEST(AliasFreeShadowMaps, RowPassAndRasterPathGiveTheSameImage)
+{
+    for (const char* name : {"interior", "city"}) {
+        GenerateOptions options;
+        options.triangles = 60'000;
+        const Scene scene = generateScene(name, options);
+        const CompressedModel model = buildCompressedModel(scene.mesh, PreprocessOptions{});
+        auto render = [&](const char* variable, const char* value) {
+            if (variable)
+                setenv(variable, value, 1); // read when the renderer is made
+            Renderer renderer;
+            if (variable)
+                unsetenv(variable);
+            renderer.loadModel(model);
+            renderer.setCamera(scene.cameras[0]);
+            renderer.setLights({scene.lights[0]});
+            RenderSettings settings;
+            settings.width = settings.height = 256;
+            settings.shadows = ShadowMethod::AliasFree;
+            Frame frame = renderer.render(settings);
+            EXPECT_EQ(renderer.validationMessageCount(), 0u);
+            return frame;
+        };
+        const Frame rows = render(nullptr, nullptr);
+        const Frame raster = render("PENUMBRA_AFSM_WIDE", "0");
+        const Frame full = render("PENUMBRA_AFSM_WIDE_CAPACITY", "64");
+        const Frame budget = render("PENUMBRA_AFSM_WIDE_ITERATIONS", "12");
+        std::printf("[ afsm     ] %s: %u casters row by row, %u with the raster path off\n", name, rows.stats.afsmWideCasters,
+                    raster.stats.afsmWideCasters);
+        EXPECT_GT(rows.stats.afsmWideCasters, 0u) << name;
+        EXPECT_EQ(rows.stats.afsmWideRasterLayers, 0u) << name;
+        EXPECT_EQ(raster.stats.afsmWideCasters, 0u) << name;
+        EXPECT_EQ(full.stats.afsmWideRasterLayers, 1u) << name;
+        EXPECT_EQ(budget.stats.afsmWideRasterLayers, 1u) << name;
+        for (const Frame* other : {&raster, &full, &budget}) {
+            ASSERT_EQ(other->visibility.size(), rows.visibility.size());
+            size_t differing = 0;
+            for (size_t i = 0; i < rows.visibility.size(); ++i)
+                differing += rows.visibility[i] != other->visibility[i];
+            EXPECT_EQ(differing, 0u) << name << ": " << (other == &raster ? "raster path alone" : other == &full ? "list full" : "loop budget");
+        }
     }
 }
 

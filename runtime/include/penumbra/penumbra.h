@@ -247,6 +247,12 @@ struct FrameStats {
     // invocation's loops after 65535 iterations).
     uint32_t afsmCellMost = 0;
     uint32_t afsmSliceDraws = 0;
+    // afsm, hard shadows: the casters the compute path left to the compute
+    // pass that tests them a grid row at a time (afsm_wide.comp), and the
+    // light layers whose raster path still drew because that pass left some
+    // clusters to it (its list full, or a caster past its loop budget).
+    uint32_t afsmWideCasters = 0;
+    uint32_t afsmWideRasterLayers = 0;
     // afsm: whether the small casters were binned in compute (afsm_bin.comp):
     // not when the model's largest leaf could take one invocation past that
     // loop limit (passes::afsmBinIterations), nor for the uncompressed model;

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdlib>
 #include <cstring>
+#include <string>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -245,6 +247,14 @@ void AfsmPass::create(vk::Device& device)
     table.create(device, "afsm_table.comp", {kStorage}, sizeof(AfsmTablePush));
     bin.create(device, "afsm_bin.comp", binBindingTypes(), sizeof(AfsmBinPush));
     binSoft.create(device, "afsm_bin.comp.soft", binBindingTypes(), sizeof(AfsmBinPush));
+    wide.create(device, "afsm_wide.comp", binBindingTypes(), sizeof(AfsmWidePush));
+    // Test and measurement switches: the row pass off, or its list and loop budget smaller (the raster path's fallback).
+    if (const char* env = std::getenv("PENUMBRA_AFSM_WIDE"))
+        wideOn = std::string(env) != "0";
+    if (const char* env = std::getenv("PENUMBRA_AFSM_WIDE_CAPACITY"))
+        wideCapacityLimit = std::clamp(uint32_t(std::strtoul(env, nullptr, 10)), 1u, uint32_t(PENUMBRA_AFSM_WIDE_CAPACITY));
+    if (const char* env = std::getenv("PENUMBRA_AFSM_WIDE_ITERATIONS"))
+        wideIterations = std::clamp(uint32_t(std::strtoul(env, nullptr, 10)), 1u, uint32_t(PENUMBRA_AFSM_WIDE_ITERATIONS));
     params = createBuffer(device, sizeof(AfsmParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
     cellMostReadback = createBuffer(device, 16, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUse::Readback);
     closedBits = createBuffer(device, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload, Addressable::Yes);
@@ -271,7 +281,7 @@ void AfsmPass::create(vk::Device& device)
 
 void AfsmPass::destroy(vk::Device& device)
 {
-    for (vk::ComputeKernel* kernel : {&samples, &samplesSoft, &scan, &table, &bin, &binSoft})
+    for (vk::ComputeKernel* kernel : {&samples, &samplesSoft, &scan, &table, &bin, &binSoft, &wide})
         kernel->destroy(device);
     casters.destroy(device);
     softCasters.destroy(device);
@@ -282,10 +292,10 @@ void AfsmPass::destroy(vk::Device& device)
     castersPool = VK_NULL_HANDLE;
     castersSetLayout = VK_NULL_HANDLE;
     castersSet = VK_NULL_HANDLE;
-    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &params, &clusterMasks, &closedBits, &cellMostReadback})
+    for (vk::Buffer* buffer : {&tables[0], &tables[1], &tableSamples, &masks, &params, &clusterMasks, &closedBits, &cellMostReadback, &wideList, &wideReadback})
         vk::destroyBuffer(device, *buffer);
     tableCounts[0] = tableCounts[1] = 0;
-    maskWords = maskPixels = clusterMaskWords = 0;
+    maskWords = maskPixels = clusterMaskWords = wideWords = wideCapacity = 0;
     closedModel = insideModel = nullptr;
     closedCount = 0;
 }
@@ -312,6 +322,7 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
     binBindings.push_back(vk::texelBuffer(t.slotTexels));
     bin.write(device, binBindings);
     binSoft.write(device, binBindings);
+    wide.write(device, binBindings);
     std::vector<vk::Binding> casterBindings = common;
     casterBindings.push_back(vk::storageBuffer(closedBits.buffer));
     casterBindings.push_back(vk::texelBuffer(t.slotTexels));
@@ -322,7 +333,8 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
 
 void AfsmPass::writeParams() const
 {
-    const AfsmParams values{masksAddress, tableAddress, softSamples, softTable.packed()};
+    const AfsmParams values{masksAddress, tableAddress, softSamples, softTable.packed(),
+                            wideOn ? wideAddress : 0, wideCastersOffset(), wideCapacity};
     std::memcpy(params.mapped, &values, sizeof(values));
 }
 
@@ -470,7 +482,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     vkCmdFillBuffer(cmd, targets.far->buffer, 0, offsetof(AfsmFar, crowded), 0);
     vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded), 2 * sizeof(uint32_t), ~0u); // the crowded cells' minima
     vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded) + 8, 2 * sizeof(uint32_t), 0);
-    vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(cells) * 4, 0);
+    vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(cells + afsmBlockCount(grid)) * 4, 0);
     vkCmdFillBuffer(cmd, targets.slotShadowed->buffer, 0, VK_WHOLE_SIZE, 0); // no slot shadowed yet
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_COUNT, layer, viewProj, cube, originOffset, soft), soft);
@@ -507,7 +519,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
 
 void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry,
                              VkDeviceAddress modelTable, const CasterLayer& layer, const std::function<void()>& afterCompute,
-                             const PagedCasters* paged)
+                             const PagedCasters* paged, const std::function<void()>& afterRows)
 {
     if (geometry.paged() && !paged)
         fail("afsm", "paged geometry needs the casters' ranges");
@@ -517,6 +529,8 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     // The compute path: the small casters of the view's clusters (compressed model only).
     const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits();
     computeUsed = compute;
+    // afsm_wide.comp takes the hard casters the compute path leaves.
+    const bool useWide = compute && wideOn && !layer.soft && afterRows;
     if (compute) {
         const uint32_t clusters = uint32_t(culling.model->clusterMin.size());
         const uint32_t words = (clusters + 31) / 32;
@@ -527,6 +541,22 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
             clusterMasks = vk::createBuffer(device, VkDeviceSize(words) * 4 * 6 * PENUMBRA_MAX_LIGHTS, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                             vk::MemoryUse::Upload, vk::Addressable::Yes);
             clusterMaskWords = words;
+        }
+        // The list holds every triangle of the model, up to PENUMBRA_AFSM_WIDE_CAPACITY (or the environment's smaller one).
+        const uint32_t capacity = uint32_t(std::min<uint64_t>(wideCapacityLimit, std::max<uint64_t>(culling.model->totalTriangles, 1)));
+        if (wideWords < words || wideCapacity != capacity) {
+            vkDeviceWaitIdle(device.device);
+            vk::destroyBuffer(device, wideList);
+            wideWords = std::max(wideWords, words);
+            wideCapacity = capacity;
+            wideList = vk::createBuffer(device, wideCastersOffset() + VkDeviceSize(wideCapacity) * sizeof(AfsmWideCaster),
+                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                            VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                        vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
+            wideAddress = vk::bufferAddress(device, wideList);
+            if (!wideReadback.buffer)
+                wideReadback = vk::createBuffer(device, 16, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
+            writeParams();
         }
         std::vector<uint32_t> bits(clusterMaskWords, 0u);
         for (uint32_t c : culling.viewClusters(layer.view))
@@ -545,6 +575,10 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                          layer.closedBackFaces ? 1u : 0u,
                          0,
                          0};
+        if (useWide) { // an empty list, no cluster marked
+            vkCmdFillBuffer(cmd, wideList.buffer, 0, wideCastersOffset(), 0);
+            vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+        }
         const vk::ComputeKernel& kernel = layer.soft ? binSoft : bin;
         const Groups2D groups = spreadGroups(groupCount(geometry.nodeCount, PENUMBRA_AFSM_BIN_GROUP), device.properties.limits.maxComputeWorkGroupCount[0]);
         if (geometry.paged()) {
@@ -567,9 +601,40 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
             kernel.push(cmd, push);
             vkCmdDispatch(cmd, groups.x, groups.y, 1);
         }
+        vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+        afterCompute();
+        if (useWide) { // the casters binned to the list: its dispatch, then the tests
+            const AfsmWidePush widePush{layer.viewProj, wideAddress, grid, layer.lightIndex, wideCapacity, wideCastersOffset(), wideIterations, 0};
+            wide.bind(cmd, vk::Specialization{0u});
+            wide.push(cmd, widePush);
+            vkCmdDispatch(cmd, 1, 1, 1);
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | kCompute,
+                              VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | kStorageRW);
+            wide.bind(cmd, vk::Specialization{1u});
+            wide.push(cmd, widePush);
+            vkCmdDispatchIndirect(cmd, wideList.buffer, offsetof(AfsmWideHeader, dispatch));
+            // Whether it left clusters to the raster path: read back once the commands ran (afterRows).
+            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCopy, kTransferRead);
+            const VkBufferCopy regions[2] = {{offsetof(AfsmWideHeader, count), 0, 4}, {offsetof(AfsmWideHeader, marked), 4, 4}};
+            vkCmdCopyBuffer(cmd, wideList.buffer, wideReadback.buffer, 2, regions);
+            vk::memoryBarrier(cmd, kCopy, kTransferWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
+        }
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry, kStorageRW);
+    } else {
+        afterCompute();
     }
-    afterCompute();
+    if (useWide) {
+        // Every caster was tested (afsm_wide.comp marked no cluster): no raster path.
+        afterRows();
+        const uint32_t* header = static_cast<const uint32_t*>(wideReadback.mapped);
+        wideCasters += header[0];
+        if (header[1] == 0) {
+            culling.markView(cmd, layer.view, false); // the view's timestamps, as its draws would have written
+            culling.markView(cmd, layer.view, true);
+            return;
+        }
+        ++wideRasterLayers;
+    }
     // The raster path: the other casters (all of them without the compute path).
     VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     depthAttachment.imageView = targets.depth->view;
@@ -582,7 +647,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     rendering.pDepthAttachment = &depthAttachment;
     const float computeCells = compute ? float(PENUMBRA_AFSM_COMPUTE_CELLS) : 0.0f;
     const uint32_t closed = layer.closedBackFaces ? 1u : 0u;
-    AfsmCastersPush hardPush{layer.viewProj, layer.lightIndex, grid, layer.originOffset, computeCells, closed, 0};
+    AfsmCastersPush hardPush{layer.viewProj, layer.lightIndex, grid, layer.originOffset, computeCells, closed, 0, useWide ? wideAddress : 0};
     AfsmSoftPush softPush{layer.viewProj, masksAddress, tableAddress, layer.lightIndex, grid, layer.originOffset,
                           softSamples,   softTable.packed(), computeCells, closed, 0};
     const vk::RasterPipelines& pipelines = layer.soft ? softCasters : casters;
@@ -630,6 +695,13 @@ void AfsmPass::recordCellMostReadback(VkCommandBuffer cmd) const
 uint32_t AfsmPass::cellMost() const
 {
     return *static_cast<const uint32_t*>(cellMostReadback.mapped);
+}
+
+void AfsmPass::takeWideStats(uint32_t& casters, uint32_t& rasterLayers)
+{
+    casters = wideCasters;
+    rasterLayers = wideRasterLayers;
+    wideCasters = wideRasterLayers = 0;
 }
 
 uint32_t AfsmPass::takeSliceDraws()

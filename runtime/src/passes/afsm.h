@@ -92,8 +92,9 @@ struct AfsmCastersPush {
     float computeCells; // casters of at most this many cells are the compute path's (0: none)
     uint32_t closedBackFaces; // closed clusters cast only light-back-facing triangles
     uint32_t sliceBegin;      // the first sample of each cell's list the draw tests (> 0: a later slice of the crowded cells)
+    uint64_t wideList;        // != 0: afsm_wide.comp tested the casters the compute path left but those of the clusters it marked
 };
-static_assert(sizeof(AfsmCastersPush) == 88);
+static_assert(sizeof(AfsmCastersPush) == 96);
 
 struct AfsmSoftPush {
     glm::mat4 viewProj;
@@ -129,8 +130,39 @@ static_assert(sizeof(AfsmBinPush) == 128);
 struct AfsmParams {
     uint64_t masks, table;
     uint32_t samples, tableSize;
+    uint64_t wideList;     // hard shadows: the casters left to afsm_wide.comp (afsm_wide.glsli: AfsmWideList); 0: none
+    uint32_t wideCasters;  // byte offset of its casters
+    uint32_t wideCapacity; // casters it holds
 };
-static_assert(sizeof(AfsmParams) == 24);
+static_assert(sizeof(AfsmParams) == 40);
+
+// The head of afsm_wide.comp's list (afsm_wide.glsli: AfsmWideList).
+struct AfsmWideHeader {
+    uint32_t count;       // casters appended (those past the capacity are not stored)
+    uint32_t dispatch[3]; // the tests' indirect dispatch
+    uint32_t marked;      // 1: some cluster is marked (its casters left to the raster path)
+    uint32_t pad[3];
+};
+static_assert(sizeof(AfsmWideHeader) == 32);
+
+// A caster of afsm_wide.comp's list (afsm_wide.glsli): its world-space vertices, v0.w its cluster's bits.
+struct AfsmWideCaster {
+    float v0Cluster[4], v1[4], v2[4];
+};
+static_assert(sizeof(AfsmWideCaster) == 48);
+
+// afsm_wide.comp's push constants.
+struct AfsmWidePush {
+    glm::mat4 viewProj;
+    uint64_t list;
+    uint32_t gridSize;
+    uint32_t lightIndex;
+    uint32_t capacity;
+    uint32_t casters;    // byte offset of the casters in the list
+    uint32_t iterations; // most loop iterations a subgroup spends on its caster (PENUMBRA_AFSM_WIDE_ITERATIONS)
+    uint32_t pad;
+};
+static_assert(sizeof(AfsmWidePush) == 96);
 
 struct AfsmTablePush {
     uint64_t table;
@@ -149,7 +181,7 @@ struct AfsmTargets {
     const vk::Buffer* slots = nullptr; // per slot (a pixel's worth): AfsmRaySlot or AfsmSlot (48 bytes), addressable
     const vk::Buffer* shadowed = nullptr;
     const vk::Buffer* far = nullptr;
-    const vk::Buffer* cellDepth = nullptr;
+    const vk::Buffer* cellDepth = nullptr; // per cell, then per block of 8x8 cells (afsmBlockCount): the farthest sample depth
     const vk::Buffer* slotShadowed = nullptr;
     const vk::Buffer* cellAlive = nullptr;
     const vk::Image* depth = nullptr; // D32, grid x grid: each cell's farthest sample depth, for the casters' depth test
@@ -165,6 +197,14 @@ struct AfsmTargets {
 // again over the crowded cells once per further slice. samples 0: hard
 // shadows; else the light samples of soft shadows.
 uint32_t afsmSliceSamples(uint32_t samples);
+
+// The blocks of 8x8 cells of a grid of gridSize^2 cells: the cells' depth
+// buffer holds each block's farthest sample depth after the cells' own
+// (afsm_casters.glsli: afsmBlocksBehind).
+constexpr uint32_t afsmBlockCount(uint32_t gridSize)
+{
+    return ((gridSize + 7) / 8) * ((gridSize + 7) / 8);
+}
 
 // The most loop iterations one invocation of afsm_bin.comp can take (hard or
 // soft) with leaves of at most leafTriangles triangles in leafBytes strip
@@ -297,8 +337,14 @@ class AfsmPass {
     };
     // afterCompute: runs between the two paths (the frame's timestamp).
     // paged: required with paged geometry, ignored otherwise.
+    // afterRows: runs after afsm_wide.comp (hard shadows, with the compute
+    // path): marks its timestamp, submits what is recorded, waits for it and
+    // begins recording again on cmd, so that the raster path is drawn only
+    // when afsm_wide.comp left casters to it (AfsmWideHeader::marked). Not
+    // given: afsm_wide.comp is not used (the raster path takes those casters).
     void recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable,
-                       const CasterLayer& layer, const std::function<void()>& afterCompute, const PagedCasters* paged = nullptr);
+                       const CasterLayer& layer, const std::function<void()>& afterCompute, const PagedCasters* paged = nullptr,
+                       const std::function<void()>& afterRows = {});
     // Whether a cell of the bound image's grid could hold more than
     // afsmSliceSamples (soft: of the prepared sample count): then the
     // frame reads the layer's cellMost back before its casters.
@@ -309,6 +355,10 @@ class AfsmPass {
     uint32_t cellMost() const;
     // Draws of the casters over crowded cells since the last call (one per slice past the first).
     uint32_t takeSliceDraws();
+    // Since the last call: the casters afsm_wide.comp listed, and the layers
+    // whose raster path still drew (some cluster marked), when recordCasters
+    // was given `submit`.
+    void takeWideStats(uint32_t& casters, uint32_t& rasterLayers);
     // Whether the last recordCasters binned casters in compute.
     bool computePathUsed() const { return computeUsed; }
     // The grid of a layer: afsmGridSize for the bound image (the targets hold the larger, soft one).
@@ -320,7 +370,7 @@ class AfsmPass {
     void dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft) const;
     AfsmSamplesPush samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
                                 bool soft) const;
-    vk::ComputeKernel samples, samplesSoft, scan, table, bin, binSoft;
+    vk::ComputeKernel samples, samplesSoft, scan, table, bin, binSoft, wide;
     void writeParams() const;
     VkDescriptorSetLayout castersSetLayout = VK_NULL_HANDLE;
     VkDescriptorPool castersPool = VK_NULL_HANDLE;
@@ -351,6 +401,18 @@ class AfsmPass {
     const void* insideModel = nullptr;
     bool insideAnswer = false;
     vk::Buffer clusterMasks; // per light layer: bit per cluster in its view (host-visible)
+    // afsm_wide.comp's list (afsm_wide.glsli: AfsmWideList): head, overflow bits for wideWords * 32 clusters,
+    // then PENUMBRA_AFSM_WIDE_CAPACITY casters; wideOn: used (PENUMBRA_AFSM_WIDE=0 turns it off).
+    vk::Buffer wideList;
+    vk::Buffer wideReadback; // host-visible: the layer's AfsmWideHeader count and marked
+    uint32_t wideWords = 0;
+    uint64_t wideAddress = 0;
+    uint32_t wideCasters = 0, wideRasterLayers = 0; // since the last takeWideStats
+    bool wideOn = true;
+    // PENUMBRA_AFSM_WIDE_CAPACITY and _ITERATIONS, or (tests: the raster path's fallback) the environment's.
+    uint32_t wideCapacityLimit = PENUMBRA_AFSM_WIDE_CAPACITY, wideIterations = PENUMBRA_AFSM_WIDE_ITERATIONS;
+    uint32_t wideCapacity = 0; // the list's: the model's triangles, at most wideCapacityLimit
+    uint32_t wideCastersOffset() const { return (sizeof(AfsmWideHeader) + 4 * wideWords + 15) & ~15u; }
     uint32_t clusterMaskWords = 0;
 };
 

@@ -1,0 +1,154 @@
+// Alias-free shadow maps, hard shadows: the casters the compute path
+// (afsm_bin.comp.glsl) does not take, tested without the rasterizer (Sintorn
+// et al. 2008, section 3.2: "conservative rasterization" of each caster over
+// the sample grid, here row by row in compute). afsm_bin lists them (their
+// world-space vertices, AfsmWideCaster); here each subgroup takes one caster
+// and its lanes test the samples of each row of its cells together. The
+// cells of a grid row are consecutive in the sample lists (the prefix sum
+// runs over the cells row by row), so the samples of the cells a caster can
+// cover on a row are one range of slots: the lanes walk that range eight (a
+// subgroup) at a time. On lavapipe the raster path pays a triangle setup per
+// caster and a fragment invocation per cell with about half of its SIMD lanes
+// live, and each fragment loops over its own cell's samples; here every lane
+// of the subgroup tests a sample on every step but the last of a row.
+//
+// Which cells a row takes: those whose square can meet the caster's
+// projection grown by the light's margin (afsmCellMayMeetTriangle's test,
+// solved for the row's cell centres along x), within the caster's grown
+// rectangle (afsmHardRect). Every sample a caster can block lies in such a
+// cell, so the samples tested include every sample the caster shadows; each
+// is tested exactly (afsmSlotHits, the tracer's watertight test).
+//
+// Bounded: the list holds at most push.capacity casters; a caster past it,
+// or one whose rows would take the subgroup past its share of lavapipe's loop
+// limit (PENUMBRA_AFSM_WIDE_ITERATIONS), marks its cluster in the overflow
+// bits, and the raster path then draws that cluster's casters
+// (afsm_casters.geom.glsl): a caster tested by both paths changes nothing.
+//
+// kPhase 0: one invocation writes the indirect dispatch from the list's
+// length. kPhase 1: the tests.
+#version 460
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+
+#include "config.h"
+#include "shadow_common.glsli"
+#include "shadow_ray.glsli"
+#include "penumbra/light_sampling.h"
+#define AFSM_SLOTS 1
+#include "afsm.glsli"
+
+layout(local_size_x = PENUMBRA_AFSM_WIDE_GROUP) in;
+layout(constant_id = 0) const uint kPhase = 1u;
+
+// C++: runtime/src/passes/afsm.h (AfsmBinBinding: the compute path's set).
+layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
+layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;
+layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;
+layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
+layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;
+layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
+layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
+layout(set = 0, binding = 9, std430) readonly buffer ClosedBits { uint closedBits[]; };
+layout(set = 0, binding = 10) uniform usamplerBuffer slotTexels;
+
+#include "afsm_casters.glsli"
+#include "afsm_wide.glsli"
+
+layout(push_constant) uniform AfsmWidePush {
+    mat4 viewProj;   // the layer's grid projection
+    uint64_t list;   // AfsmWideList
+    uint gridSize;
+    uint lightIndex;
+    uint capacity;   // casters the list holds
+    uint casters;    // byte offset of the casters in the list (after the overflow bits)
+    uint iterations; // most loop iterations of a subgroup (PENUMBRA_AFSM_WIDE_ITERATIONS; lavapipe: 65535 in all)
+    uint pad;
+} push;
+
+// The range [lo, hi] of cell columns x whose centre x + 0.5 satisfies
+// n.x (x + 0.5) <= c, narrowed; n.x = 0: all or none. The quotient is moved
+// out by a thousandth of a cell against its rounding.
+void afsmNarrowRow(float nx, float c, inout int lo, inout int hi)
+{
+    const float bound = c / nx;
+    if (nx > 0.0)
+        hi = min(hi, int(floor(bound - 0.5 + 1e-3)));
+    else if (nx < 0.0)
+        lo = max(lo, int(ceil(bound - 0.5 - 1e-3)));
+    else if (c < 0.0)
+        hi = lo - 1;
+}
+
+void main()
+{
+    AfsmWideList list = AfsmWideList(push.list);
+    if (kPhase == 0u) {
+        if (gl_GlobalInvocationID.x == 0u) {
+            // One caster per subgroup; 2-D above 65535 workgroups.
+            const uint casters = min(list.count, push.capacity);
+            const uint perGroup = gl_NumSubgroups;
+            const uint groups = (casters + perGroup - 1u) / perGroup;
+            const uint x = min(groups, 65535u);
+            list.dispatch[0] = x;
+            list.dispatch[1] = x == 0u ? 1u : (groups + x - 1u) / x;
+            list.dispatch[2] = 1u;
+        }
+        return;
+    }
+    const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    const uint index = group * gl_NumSubgroups + gl_SubgroupID;
+    if (index >= min(list.count, push.capacity))
+        return;
+    // The same caster in every lane of the subgroup.
+    AfsmWideCasters casters = AfsmWideCasters(push.list + push.casters);
+    const AfsmWideCaster caster = casters.casters[index];
+    const vec3 v0 = caster.v0Cluster.xyz, v1 = caster.v1.xyz, v2 = caster.v2.xyz;
+    const uint cluster = floatBitsToUint(caster.v0Cluster.w);
+    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
+    vec2 v[3];
+    bool behind;
+    AfsmDepthBound depth;
+    const AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, margin, v, behind, depth);
+    ivec2 first, last;
+    afsmRectCellRange(r, push.gridSize, first, last);
+    // The edges' half-planes, each moved out by the cell square's extent along its normal and the margin
+    // (afsmCellMayMeetTriangle); none for a caster seen edge-on or reaching behind the eye.
+    const float area = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[1].y - v[0].y) * (v[2].x - v[0].x);
+    const bool edges = !behind && area != 0.0;
+    const float orientation = area > 0.0 ? 1.0 : -1.0;
+    vec2 normal[3];
+    float reach[3];
+    for (int i = 0; i < 3; ++i) {
+        const vec2 a = v[i], b = v[(i + 1) % 3];
+        normal[i] = orientation * vec2(b.y - a.y, a.x - b.x);
+        reach[i] = 0.5 * (abs(normal[i].x) + abs(normal[i].y)) + margin * length(normal[i]) + dot(normal[i], a);
+    }
+    const uint lane = gl_SubgroupInvocationID, width = gl_SubgroupSize;
+    const uint gridSize = push.gridSize;
+    uint iterations = 0u;
+    bool over = false;
+    for (int y = first.y; y <= last.y && !over; ++y) {
+        int lo = first.x, hi = last.x;
+        if (edges)
+            for (int i = 0; i < 3; ++i) // n . (x + 0.5, y + 0.5) <= reach
+                afsmNarrowRow(normal[i].x, reach[i] - normal[i].y * (float(y) + 0.5), lo, hi);
+        const uint row = uint(y) * gridSize;
+        const bool cells = lo <= hi;
+        const uint begin = cells ? afsmCellFirst(row + uint(lo)) : 0u;
+        const uint end = cells ? afsmCellFirst(row + uint(hi)) + afsmCellCount(row + uint(hi)) : 0u;
+        iterations += 5u + (end - begin + width - 1u) / width; // the row, its edges, its samples
+        over = iterations > push.iterations;
+        for (uint slot = begin + lane; slot < end && !over; slot += width) {
+            const AfsmRaySlot s = afsmRaySlotAt(slot);
+            if (afsmSlotHits(s, v0, v1, v2)) {
+                slotShadowed[slot] = 1u;
+                shadowed[afsmSlotPixel(s)] = 1u;
+            }
+        }
+    }
+    if (over && subgroupElect())
+        afsmWideMark(list, cluster);
+}
