@@ -153,6 +153,39 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
 #endif
 }
 
+// Hard shadows: whether no sample of the blocks under a leaf's box lies
+// beyond the box's nearest corner (afsmBlocksBehind), so that none of its
+// triangles can shadow one: its box's projection, grown as afsmHardRect grows
+// a caster's, holds theirs, and its nearest corner is no farther than their
+// nearest vertices. Not for a box reaching behind a perspective grid's eye,
+// nor for soft shadows (a caster's influence region reaches past its
+// projection).
+bool afsmLeafBehind(WideNode node, vec3 steps, uint slot)
+{
+#ifdef PENUMBRA_AFSM_SOFT
+    return false;
+#else
+    vec3 boxMin, boxMax;
+    decodeChildBox(node, steps, slot, boxMin, boxMax);
+    AfsmRect r = AfsmRect(vec2(3.0e38), vec2(-3.0e38), false, false);
+    float nearest = 1.0;
+    bool front = true; // every corner in front of the eye
+    for (int i = 0; i < 8; ++i) {
+        const vec3 corner = vec3((i & 1) != 0 ? boxMax.x : boxMin.x, (i & 2) != 0 ? boxMax.y : boxMin.y, (i & 4) != 0 ? boxMax.z : boxMin.z);
+        const vec4 clip = push.viewProj * vec4(corner, 1.0);
+        front = front && clip.w > 1e-20;
+        const float w = max(clip.w, 1e-20);
+        nearest = min(nearest, clip.z / w);
+        r.lo = min(r.lo, clip.xy / w);
+        r.hi = max(r.hi, clip.xy / w);
+    }
+    r = afsmGrow(r, push.gridSize, 0.5 + afsmCellMargin(frame.lights[push.lightIndex]) + 1.0 / 64.0);
+    ivec2 first, last;
+    afsmRectCellRange(r, push.gridSize, first, last);
+    return front && !r.empty && afsmBlocksBehind(first, last, push.gridSize, nearest - 1e-6);
+#endif
+}
+
 shared uvec2 passingLeaves[4 * PENUMBRA_AFSM_BIN_GROUP]; // cluster, leaf reference (start | count << 16)
 shared uint passingCount;
 
@@ -188,8 +221,9 @@ void main()
         bool inView = cluster != PENUMBRA_NO_CLUSTER && (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u;
         if (kGeometryBudget != 0u)
             inView = inView && cluster >= push.clusterBegin && cluster < push.clusterEnd;
+        const vec3 steps = nodeSteps(node);
         for (uint slot = 0u; slot < 4u; ++slot)
-            if (inView && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF)
+            if (inView && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF && !afsmLeafBehind(node, steps, slot))
                 passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);
     }
     barrier();
