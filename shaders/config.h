@@ -36,8 +36,8 @@
 #define PENUMBRA_AFSM_COMPUTE_CELLS 12.0 // afsm: casters whose grown rectangle (afsmHardRect) spans at most this many grid cells are tested in compute
 #define PENUMBRA_AFSM_COMPUTE_BUDGET 384u // ... when their cells and samples take at most this many loop iterations (lavapipe: 65535 per invocation)
 #define PENUMBRA_AFSM_FRAGMENT_ITERATIONS 60000u // afsm raster path: most loop iterations one fragment spends on a cell's samples
-#define PENUMBRA_AFSM_WIDE_GROUP 64        // afsm_wide.comp: invocations per workgroup (one listed caster per subgroup)
-#define PENUMBRA_AFSM_WIDE_ITERATIONS 60000u // afsm_wide.comp: most loop iterations one subgroup spends on its caster (lavapipe: 65535)
+#define PENUMBRA_AFSM_WIDE_GROUP 64        // afsm_wide.comp: invocations per workgroup (one listed caster each)
+#define PENUMBRA_AFSM_WIDE_ITERATIONS 60000u // afsm_wide.comp: most loop iterations one subgroup spends on its casters (lavapipe: 65535)
 #define PENUMBRA_AFSM_WIDE_CAPACITY 1048576u // afsm_wide.comp: most casters one layer's list holds (48 bytes each; the model's triangles if fewer); past it, the raster path
                                          // (lavapipe silently ends an invocation's loops after 65535 in all); a cell with more
                                          // samples is tested in slices, one more draw per slice (afsm.h: afsmSliceSamples)
