@@ -30,8 +30,10 @@
 // those clusters' casters
 // (afsm_casters.geom.glsl): a caster tested by both paths changes nothing.
 //
-// kPhase 0: one invocation writes the indirect dispatch from the list's
-// length. kPhase 1: the tests.
+// kPhase (PENUMBRA_AFSM_WIDE_*): the first pass's indirect dispatch from the
+// list's length; the first pass; the second pass's dispatch; the second pass
+// (the casters the first reached past a subgroup's loop budget, one caster
+// per subgroup with a budget of its own).
 #version 460
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
@@ -48,7 +50,7 @@
 #include "afsm.glsli"
 
 layout(local_size_x = PENUMBRA_AFSM_WIDE_GROUP) in;
-layout(constant_id = 0) const uint kPhase = 1u;
+layout(constant_id = 0) const uint kPhase = PENUMBRA_AFSM_WIDE_TEST;
 
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding: the compute path's set).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
@@ -121,79 +123,104 @@ WideSetup wideSetup(vec3 v0, vec3 v1, vec3 v2, float margin)
                      vec3(reach[0], reach[1], reach[2]));
 }
 
-void main()
+// Tests one caster (the same values in every lane) against the samples of its rows; counts the loop
+// iterations and stops once they pass push.iterations (over).
+void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, vec4 normals01, vec4 normal2Edges, vec3 reach, inout uint iterations,
+                inout bool over)
 {
-    AfsmWideList list = AfsmWideList(push.list);
-    if (kPhase == 0u) {
-        if (gl_GlobalInvocationID.x == 0u) {
-            // One caster per invocation; 2-D above 65535 workgroups.
-            const uint casters = min(list.count, push.capacity);
-            const uint groups = (casters + PENUMBRA_AFSM_WIDE_GROUP - 1u) / PENUMBRA_AFSM_WIDE_GROUP;
-            const uint x = min(groups, 65535u);
-            list.dispatch[0] = x;
-            list.dispatch[1] = x == 0u ? 1u : (groups + x - 1u) / x;
-            list.dispatch[2] = 1u;
-        }
-        return;
-    }
-    // Each lane sets up one caster (its rectangle and edges); then the subgroup tests them one after another.
     const uint lane = gl_SubgroupInvocationID, width = gl_SubgroupSize;
-    const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    const uint firstCaster = group * PENUMBRA_AFSM_WIDE_GROUP + gl_SubgroupID * width;
-    const uint listed = min(list.count, push.capacity);
-    const uint mine = min(firstCaster + lane, max(listed, 1u) - 1u);
-    AfsmWideCasters casters = AfsmWideCasters(push.list + push.casters);
-    const AfsmWideCaster caster = casters.casters[mine];
-    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
-    const WideSetup setup = wideSetup(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, margin);
-    const uint gridSize = push.gridSize;
-    uint iterations = 0u;
-    bool over = false;
-    for (uint k = 0u; k < width && firstCaster + k < listed; ++k) {
-        // Caster k of the subgroup's, in every lane.
-        const vec3 v0 = subgroupShuffle(caster.v0Cluster.xyz, k), v1 = subgroupShuffle(caster.v1.xyz, k), v2 = subgroupShuffle(caster.v2.xyz, k);
-        const uint cluster = subgroupShuffle(floatBitsToUint(caster.v0Cluster.w), k);
-        const ivec4 cells = subgroupShuffle(setup.cells, k);
-        const vec4 normals01 = subgroupShuffle(setup.normals01, k), normal2Edges = subgroupShuffle(setup.normal2Edges, k);
-        const vec3 reach = subgroupShuffle(setup.reach, k);
-        const vec2 normal[3] = vec2[](normals01.xy, normals01.zw, normal2Edges.xy);
-        const bool edges = normal2Edges.z != 0.0;
-        const ivec2 first = cells.xy, last = cells.zw;
-        ++iterations;
-        // Eight rows (a subgroup's width) at a time: each lane finds its row's range of the list, then the
-        // lanes test the ranges that hold samples one after another, together (on lavapipe a loop's entry
-        // and exit cost about as much as a few of its iterations: a row per lane finding its range makes
-        // eight rows one loop, and skipping the empty ones saved another 10-20% on the suite scenes).
-        for (int rows = first.y; rows <= last.y && !over; rows += int(width)) {
-            const int y = rows + int(lane);
-            int lo = first.x, hi = last.x;
-            if (edges)
-                for (int i = 0; i < 3; ++i) // n . (x + 0.5, y + 0.5) <= reach
-                    afsmNarrowRow(normal[i].x, reach[i] - normal[i].y * (float(y) + 0.5), lo, hi);
-            const uint row = uint(min(y, last.y)) * gridSize;
-            const bool cells = y <= last.y && lo <= hi;
-            const uint rowBegin = cells ? afsmCellFirst(row + uint(lo)) : 0u;
-            const uint rowEnd = cells ? afsmCellFirst(row + uint(hi)) + afsmCellCount(row + uint(hi)) : 0u;
-            iterations += 5u; // the rows' loop and their edges
-            // The rows holding samples, one after another (a ballot's words: one on lavapipe and NVIDIA).
-            const uvec4 holding = subgroupBallot(rowEnd > rowBegin);
-            for (uint word = 0u; word < (width + 31u) / 32u && !over; ++word)
-            for (uint pending = holding[word]; pending != 0u && !over; pending &= pending - 1u) {
-                const uint j = 32u * word + uint(findLSB(pending));
-                const uint begin = subgroupShuffle(rowBegin, j), end = subgroupShuffle(rowEnd, j);
-                iterations += 2u + (end - begin + width - 1u) / width;
-                over = iterations > push.iterations;
-                for (uint slot = begin + lane; slot < end && !over; slot += width) {
-                    const AfsmRaySlot s = afsmRaySlotAt(slot);
-                    if (afsmSlotHits(s, v0, v1, v2)) {
-                        slotShadowed[slot] = 1u;
-                        shadowed[afsmSlotPixel(s)] = 1u;
-                    }
+    const vec2 normal[3] = vec2[](normals01.xy, normals01.zw, normal2Edges.xy);
+    const bool edges = normal2Edges.z != 0.0;
+    const ivec2 first = cells.xy, last = cells.zw;
+    // Eight rows (a subgroup's width) at a time: each lane finds its row's range of the list, then the
+    // lanes test the ranges that hold samples one after another, together (on lavapipe a loop's entry
+    // and exit cost about as much as a few of its iterations: a row per lane finding its range makes
+    // eight rows one loop, and skipping the empty ones saved another 10-20% on the suite scenes).
+    for (int rows = first.y; rows <= last.y && !over; rows += int(width)) {
+        const int y = rows + int(lane);
+        int lo = first.x, hi = last.x;
+        if (edges)
+            for (int i = 0; i < 3; ++i) // n . (x + 0.5, y + 0.5) <= reach
+                afsmNarrowRow(normal[i].x, reach[i] - normal[i].y * (float(y) + 0.5), lo, hi);
+        const uint row = uint(min(y, last.y)) * push.gridSize;
+        const bool cells = y <= last.y && lo <= hi;
+        const uint rowBegin = cells ? afsmCellFirst(row + uint(lo)) : 0u;
+        const uint rowEnd = cells ? afsmCellFirst(row + uint(hi)) + afsmCellCount(row + uint(hi)) : 0u;
+        iterations += 5u; // the rows' loop and their edges
+        // The rows holding samples, one after another (a ballot's words: one on lavapipe and NVIDIA).
+        const uvec4 holding = subgroupBallot(rowEnd > rowBegin);
+        for (uint word = 0u; word < (width + 31u) / 32u && !over; ++word)
+        for (uint pending = holding[word]; pending != 0u && !over; pending &= pending - 1u) {
+            const uint j = 32u * word + uint(findLSB(pending));
+            const uint begin = subgroupShuffle(rowBegin, j), end = subgroupShuffle(rowEnd, j);
+            iterations += 2u + (end - begin + width - 1u) / width;
+            over = iterations > push.iterations;
+            for (uint slot = begin + lane; slot < end && !over; slot += width) {
+                const AfsmRaySlot s = afsmRaySlotAt(slot);
+                if (afsmSlotHits(s, v0, v1, v2)) {
+                    slotShadowed[slot] = 1u;
+                    shadowed[afsmSlotPixel(s)] = 1u;
                 }
             }
         }
-        // Past the subgroup's loop budget, this caster and the rest are the raster path's.
-        if (over && subgroupElect())
-            afsmWideMark(list, cluster);
+    }
+}
+
+// The indirect dispatch of `casters` casters, `perGroup` a workgroup; 2-D above 65535 workgroups.
+void writeDispatch(uint casters, uint perGroup, out uint dispatch[3])
+{
+    const uint groups = (casters + perGroup - 1u) / perGroup;
+    const uint x = min(groups, 65535u);
+    dispatch = uint[3](x, x == 0u ? 1u : (groups + x - 1u) / x, 1u);
+}
+
+void main()
+{
+    AfsmWideList list = AfsmWideList(push.list);
+    AfsmWideCasters casters = AfsmWideCasters(push.list + push.casters);
+    const uint listed = min(list.count, push.capacity);
+    const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
+    uint iterations = 0u;
+    bool over = false;
+    if (kPhase == PENUMBRA_AFSM_WIDE_DISPATCH) { // the first pass's dispatch: one caster per invocation
+        if (gl_GlobalInvocationID.x == 0u)
+            writeDispatch(listed, PENUMBRA_AFSM_WIDE_GROUP, list.dispatch);
+    } else if (kPhase == PENUMBRA_AFSM_WIDE_ALONE_DISPATCH) { // the second's: one caster per subgroup
+        if (gl_GlobalInvocationID.x == 0u)
+            writeDispatch(min(list.alone, push.capacity - listed), gl_NumSubgroups, list.aloneDispatch);
+    } else if (kPhase == PENUMBRA_AFSM_WIDE_TEST) {
+        // Each lane sets up one caster (its rectangle and edges); then the subgroup tests them one after
+        // another. Those it reaches past its loop budget go to the second pass, stored from the list's end
+        // down (those that do not fit there: the raster path's).
+        const uint lane = gl_SubgroupInvocationID, width = gl_SubgroupSize;
+        const uint firstCaster = group * PENUMBRA_AFSM_WIDE_GROUP + gl_SubgroupID * width;
+        const AfsmWideCaster caster = casters.casters[min(firstCaster + lane, max(listed, 1u) - 1u)];
+        const WideSetup setup = wideSetup(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, margin);
+        for (uint k = 0u; k < width && firstCaster + k < listed; ++k) {
+            // Caster k of the subgroup's, in every lane.
+            const vec3 v0 = subgroupShuffle(caster.v0Cluster.xyz, k), v1 = subgroupShuffle(caster.v1.xyz, k), v2 = subgroupShuffle(caster.v2.xyz, k);
+            const uint cluster = subgroupShuffle(floatBitsToUint(caster.v0Cluster.w), k);
+            ++iterations;
+            testCaster(v0, v1, v2, subgroupShuffle(setup.cells, k), subgroupShuffle(setup.normals01, k),
+                       subgroupShuffle(setup.normal2Edges, k), subgroupShuffle(setup.reach, k), iterations, over);
+            if (over && subgroupElect()) {
+                const uint alone = atomicAdd(list.alone, 1u);
+                if (alone < push.capacity - listed)
+                    casters.casters[push.capacity - 1u - alone] = AfsmWideCaster(vec4(v0, uintBitsToFloat(cluster)), vec4(v1, 0.0), vec4(v2, 0.0));
+                else
+                    afsmWideMark(list, cluster);
+            }
+        }
+    } else { // PENUMBRA_AFSM_WIDE_TEST_ALONE: one caster per subgroup, its own loop budget; past it, the raster path's
+        const uint index = group * gl_NumSubgroups + gl_SubgroupID;
+        if (index < min(list.alone, push.capacity - listed)) {
+            const AfsmWideCaster caster = casters.casters[push.capacity - 1u - index];
+            const WideSetup setup = wideSetup(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, margin);
+            testCaster(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, setup.cells, setup.normals01, setup.normal2Edges, setup.reach,
+                       iterations, over);
+            if (over && subgroupElect())
+                afsmWideMark(list, floatBitsToUint(caster.v0Cluster.w));
+        }
     }
 }

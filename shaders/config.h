@@ -39,6 +39,10 @@
 #define PENUMBRA_AFSM_WIDE_GROUP 64        // afsm_wide.comp: invocations per workgroup (one listed caster each)
 #define PENUMBRA_AFSM_WIDE_ITERATIONS 60000u // afsm_wide.comp: most loop iterations one subgroup spends on its casters (lavapipe: 65535)
 #define PENUMBRA_AFSM_WIDE_CAPACITY 1048576u // afsm_wide.comp: most casters one layer's list holds (48 bytes each; the model's triangles if fewer); past it, the raster path
+#define PENUMBRA_AFSM_WIDE_DISPATCH 0u        // afsm_wide.comp's phases: the first pass's indirect dispatch,
+#define PENUMBRA_AFSM_WIDE_TEST 1u            // ... the first pass (one caster per invocation, tested by its subgroup),
+#define PENUMBRA_AFSM_WIDE_ALONE_DISPATCH 2u  // ... the second pass's dispatch,
+#define PENUMBRA_AFSM_WIDE_TEST_ALONE 3u      // ... the second pass (one caster per subgroup)
                                          // (lavapipe silently ends an invocation's loops after 65535 in all); a cell with more
                                          // samples is tested in slices, one more draw per slice (afsm.h: afsmSliceSamples)
 #define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: records or nodes per workgroup

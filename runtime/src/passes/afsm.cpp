@@ -1,11 +1,13 @@
 #include "passes/afsm.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <tuple>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -554,8 +556,8 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                                             VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                                         vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
             wideAddress = vk::bufferAddress(device, wideList);
-            if (!wideReadback.buffer)
-                wideReadback = vk::createBuffer(device, 16, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
+            vk::destroyBuffer(device, wideReadback);
+            wideReadback = vk::createBuffer(device, 8 + VkDeviceSize(wideWords) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
             writeParams();
         }
         std::vector<uint32_t> bits(clusterMaskWords, 0u);
@@ -605,24 +607,34 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
         afterCompute();
         if (useWide) { // the casters binned to the list: its dispatch, then the tests
             const AfsmWidePush widePush{layer.viewProj, wideAddress, grid, layer.lightIndex, wideCapacity, wideCastersOffset(), wideIterations, 0};
-            wide.bind(cmd, vk::Specialization{0u});
-            wide.push(cmd, widePush);
-            vkCmdDispatch(cmd, 1, 1, 1);
-            vk::memoryBarrier(cmd, kCompute, kStorageWrite, VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | kCompute,
-                              VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | kStorageRW);
-            wide.bind(cmd, vk::Specialization{1u});
-            wide.push(cmd, widePush);
-            vkCmdDispatchIndirect(cmd, wideList.buffer, offsetof(AfsmWideHeader, dispatch));
+            // Two passes, each after its indirect dispatch is written: the list, then the casters its subgroups
+            // reached past their loop budget, one a subgroup.
+            for (const auto& [writeDispatch, test, dispatch] :
+                 {std::tuple{PENUMBRA_AFSM_WIDE_DISPATCH, PENUMBRA_AFSM_WIDE_TEST, offsetof(AfsmWideHeader, dispatch)},
+                  std::tuple{PENUMBRA_AFSM_WIDE_ALONE_DISPATCH, PENUMBRA_AFSM_WIDE_TEST_ALONE, offsetof(AfsmWideHeader, aloneDispatch)}}) {
+                wide.bind(cmd, vk::Specialization{uint32_t(writeDispatch)});
+                wide.push(cmd, widePush);
+                vkCmdDispatch(cmd, 1, 1, 1);
+                vk::memoryBarrier(cmd, kCompute, kStorageWrite, VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | kCompute,
+                                  VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | kStorageRW);
+                wide.bind(cmd, vk::Specialization{uint32_t(test)});
+                wide.push(cmd, widePush);
+                vkCmdDispatchIndirect(cmd, wideList.buffer, dispatch);
+                vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+            }
             // Whether it left clusters to the raster path: read back once the commands ran (afterRows).
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCopy, kTransferRead);
-            const VkBufferCopy regions[2] = {{offsetof(AfsmWideHeader, count), 0, 4}, {offsetof(AfsmWideHeader, marked), 4, 4}};
-            vkCmdCopyBuffer(cmd, wideList.buffer, wideReadback.buffer, 2, regions);
+            const VkBufferCopy regions[3] = {{offsetof(AfsmWideHeader, count), 0, 4},
+                                             {offsetof(AfsmWideHeader, marked), 4, 4},
+                                             {sizeof(AfsmWideHeader), 8, VkDeviceSize(wideWords) * 4}};
+            vkCmdCopyBuffer(cmd, wideList.buffer, wideReadback.buffer, 3, regions);
             vk::memoryBarrier(cmd, kCopy, kTransferWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
         }
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry, kStorageRW);
     } else {
         afterCompute();
     }
+    wideMarked.clear();
     if (useWide) {
         // Every caster was tested (afsm_wide.comp marked no cluster): no raster path.
         afterRows();
@@ -634,6 +646,11 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
             return;
         }
         ++wideRasterLayers;
+        // The marked clusters (in core: drawn alone, below; paged: the whole view, the geometry shader keeping theirs).
+        const uint32_t* bits = header + 2;
+        for (uint32_t word = 0; word < wideWords && !geometry.paged(); ++word)
+            for (uint32_t b = bits[word]; b; b &= b - 1)
+                wideMarked.push_back(32 * word + uint32_t(std::countr_zero(b)));
     }
     // The raster path: the other casters (all of them without the compute path).
     VkRenderingAttachmentInfo depthAttachment{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
@@ -665,7 +682,25 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
             vkCmdPushConstants(cmd, pipelines.layout, stages, 0, sizeof(hardPush), &hardPush);
     };
     auto end = [&] { vkCmdEndRendering(cmd); };
-    culling.recordView(cmd, layer.view, geometry, begin, end);
+    // afsm_wide.comp left only the marked clusters: those alone (in core), else the view's.
+    const bool markedOnly = useWide && !geometry.paged() && culling.model;
+    auto draw = [&](bool again) {
+        if (!markedOnly) {
+            if (again)
+                culling.recordViewAgain(cmd, layer.view, geometry, begin, end);
+            else
+                culling.recordView(cmd, layer.view, geometry, begin, end);
+            return;
+        }
+        if (!again)
+            culling.markView(cmd, layer.view, false);
+        begin(false);
+        drawClusters(cmd, geometry, *culling.model, wideMarked.data(), wideMarked.size());
+        end();
+        if (!again)
+            culling.markView(cmd, layer.view, true);
+    };
+    draw(false);
     // Crowded cells (more samples than one fragment may loop over, afsmSliceSamples): the casters again over those
     // cells, once per further slice of their lists (afsm_casters.geom.glsl, afsm_soft.geom.glsl). The compute path
     // takes no caster of a crowded cell (its work budget is far smaller than a slice).
@@ -673,7 +708,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     for (uint32_t first = slice; first < layer.cellMost; first += slice) {
         vk::memoryBarrier(cmd, kFragment, kStorageWrite, kFragment, kStorageRW);
         hardPush.sliceBegin = softPush.sliceBegin = first;
-        culling.recordViewAgain(cmd, layer.view, geometry, begin, end);
+        draw(true);
         ++sliceDraws;
     }
     vk::memoryBarrier(cmd, kFragment, kStorageWrite, kCompute | kClear, kStorageRW | kTransferWrite);

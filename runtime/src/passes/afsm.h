@@ -141,9 +141,12 @@ struct AfsmWideHeader {
     uint32_t count;       // casters appended (those past the capacity are not stored)
     uint32_t dispatch[3]; // the tests' indirect dispatch
     uint32_t marked;      // 1: some cluster is marked (its casters left to the raster path)
-    uint32_t pad[3];
+    uint32_t alone;       // casters the first pass handed to the second (one caster per subgroup)
+    uint32_t pad0[2];
+    uint32_t aloneDispatch[3]; // the second pass's indirect dispatch
+    uint32_t pad1;
 };
-static_assert(sizeof(AfsmWideHeader) == 32);
+static_assert(sizeof(AfsmWideHeader) == 48);
 
 // A caster of afsm_wide.comp's list (afsm_wide.glsli): its world-space vertices, v0.w its cluster's bits.
 struct AfsmWideCaster {
@@ -404,7 +407,8 @@ class AfsmPass {
     // afsm_wide.comp's list (afsm_wide.glsli: AfsmWideList): head, overflow bits for wideWords * 32 clusters,
     // then PENUMBRA_AFSM_WIDE_CAPACITY casters; wideOn: used (PENUMBRA_AFSM_WIDE=0 turns it off).
     vk::Buffer wideList;
-    vk::Buffer wideReadback; // host-visible: the layer's AfsmWideHeader count and marked
+    vk::Buffer wideReadback; // host-visible: the layer's AfsmWideHeader count and marked, then its overflow bits
+    std::vector<uint32_t> wideMarked; // the layer's marked clusters, ascending (the raster path draws them)
     uint32_t wideWords = 0;
     uint64_t wideAddress = 0;
     uint32_t wideCasters = 0, wideRasterLayers = 0; // since the last takeWideStats
