@@ -23,12 +23,14 @@
 // cell, so the samples tested include every sample the caster shadows; each
 // is tested exactly (afsmSlotHits, the tracer's watertight test).
 //
-// Bounded: the list holds at most push.capacity casters; a caster past it,
-// and the casters a subgroup reaches past its loop budget (lavapipe's loop
-// limit, PENUMBRA_AFSM_WIDE_ITERATIONS, for the subgroup's casters together),
-// mark their clusters in the overflow bits, and the raster path then draws
-// those clusters' casters
-// (afsm_casters.geom.glsl): a caster tested by both paths changes nothing.
+// Bounded: the list holds at most push.capacity casters. The casters a
+// subgroup reaches past its loop budget (lavapipe's loop limit,
+// PENUMBRA_AFSM_WIDE_ITERATIONS, for its casters together) go to a second
+// pass, one caster per subgroup, stored from the list's end down. A caster
+// past the capacity, one that does not fit there, or one that alone takes
+// more than the budget marks its cluster in the overflow bits, and the
+// raster path then draws that cluster's casters (afsm_casters.geom.glsl; the
+// frame reads the marks back): a caster tested by two paths changes nothing.
 //
 // kPhase (PENUMBRA_AFSM_WIDE_*): the first pass's indirect dispatch from the
 // list's length; the first pass; the second pass's dispatch; the second pass

@@ -636,7 +636,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     }
     wideMarked.clear();
     if (useWide) {
-        // Every caster was tested (afsm_wide.comp marked no cluster): no raster path.
+        // The marks, read back: no cluster marked (every caster tested) and there is no raster path.
         afterRows();
         const uint32_t* header = static_cast<const uint32_t*>(wideReadback.mapped);
         wideCasters += header[0];
