@@ -178,8 +178,7 @@ uvec2 samplePixel()
             // test clamps; non-negative floats order as uints.
             atomicMax(cellDepth[cell], floatBitsToUint(clamp(depth, 0.0, 1.0)));
             // And its block's (afsm_casters.glsli: afsmBlocksBehind).
-            const uvec2 block = cellXY >> 3u;
-            atomicMax(cellDepth[push.gridSize * push.gridSize + block.y * ((push.gridSize + 7u) >> 3u) + block.x], floatBitsToUint(clamp(depth, 0.0, 1.0)));
+            atomicMax(cellDepth[afsmBlockDepthIndex(cellXY >> 3u, push.gridSize)], floatBitsToUint(clamp(depth, 0.0, 1.0)));
             counts = uvec2(before + 1u, floatBitsToUint(w)); // the cell's last sample sees its count
         }
     } else if (listed) {
