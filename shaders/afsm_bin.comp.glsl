@@ -45,13 +45,16 @@ layout(local_size_x = PENUMBRA_AFSM_BIN_GROUP) in;
 // 1: paged geometry (geometry_pages.h): nodes through the node table, clusters of
 // [clusterBegin, clusterEnd) only; 0 (no budget): compiled out.
 layout(constant_id = 0) const uint kGeometryBudget = 0u;
+// 1: hard shadows of a directional light, sheared slots (afsm.glsli: AfsmParallel); afsm_casters.glsli's AFSM_PARALLEL.
+layout(constant_id = 1) const uint kParallel = 0u;
+#define AFSM_PARALLEL (kParallel != 0u)
 
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;  // R32UI: first slot per cell (afsm_casters.glsli: afsmCellFirst)
 layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;  // R32UI: samples per cell (afsmCellCount)
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
-layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; };
+layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; uint cellMost; uint crowded[4]; uvec4 parallel; }; // afsm_samples.comp.glsl
 layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };

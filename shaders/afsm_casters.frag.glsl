@@ -36,6 +36,10 @@ layout(location = 4) flat in vec4 projected2;
 layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;  // R32UI: first slot per cell (afsm_casters.glsli: afsmCellFirst)
 layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;  // R32UI: samples per cell (afsmCellCount)
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
+// Hard shadows of a directional light: the layer's shear, and in parallel.w bit 8 whether the slots are sheared
+// (afsm_samples.comp.glsl; afsm.glsli: AfsmParallel).
+layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; uint cellMost; uint crowded[4]; uvec4 parallel; };
+#define AFSM_PARALLEL ((parallel.w & 0x100u) != 0u)
 layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };          // per cell: samples not yet shadowed

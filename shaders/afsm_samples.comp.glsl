@@ -49,7 +49,8 @@ layout(set = 0, binding = 7, std430) buffer CellFill { uint cellFill[]; };     /
 layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };     // per pixel: 1 when a caster blocks its ray (soft: all its samples)
 // The layer's farthest sample's clip.w (float bits), its most samples in a cell, and its crowded cells' rectangle
 // (min x, min y, max x, max y; cleared to ~0, ~0, 0, 0). C++: afsm.h (AfsmFar).
-layout(set = 0, binding = 9, std430) buffer Far { uint farBits; uint cellMost; uint crowded[4]; };
+// Hard shadows of a directional light: the layer's permutation and shear (afsm.glsli: AfsmParallel), written by the list.
+layout(set = 0, binding = 9, std430) buffer Far { uint farBits; uint cellMost; uint crowded[4]; uvec4 parallel; };
 layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth (float bits)
 layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared by AfsmPass before the list)
 layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (AfsmPass copies the counts after the list)
@@ -57,6 +58,8 @@ layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };   
 // The mode (PENUMBRA_AFSM_*) is a specialization constant, push.mode its copy: one pipeline per mode
 // (llvmpipe runs both sides of an if, masked: every mode's code at each subgroup; rh_build.comp measures it).
 layout(constant_id = 0) const uint kMode = PENUMBRA_AFSM_COUNT;
+// 1: hard shadows of a directional light, the list writes the sheared slots (afsm.glsli: AfsmParallel).
+layout(constant_id = 1) const uint kParallel = 0u;
 
 layout(push_constant) uniform AfsmSamplesPush {
     mat4 viewProj;      // the layer's grid projection
@@ -186,11 +189,16 @@ uvec2 samplePixel()
 #ifndef PENUMBRA_AFSM_SOFT
         // As two 16-byte words of two 64-bit components (AfsmRaySlotWords): four stores a lane, not eight
         // (afsm_samples 39-43 -> 36-37 CPU ms on the 250k scan at 640^2, plant 31-32 -> 30-31).
-        const AfsmRaySlot written = afsmRaySlot(ray, index);
-        const uvec4 a = floatBitsToUint(written.originTMax), b = floatBitsToUint(written.shearPixel);
         AfsmRaySlotWords words = AfsmRaySlotWords(push.slots);
-        words.words[2u * slot] = u64vec2(packUint2x32(a.xy), packUint2x32(a.zw));
-        words.words[2u * slot + 1u] = u64vec2(packUint2x32(b.xy), packUint2x32(b.zw));
+        if (kParallel != 0u) { // the sheared origin and the pixel: one word
+            const uvec4 a = uvec4(floatBitsToUint(afsmShearPoint(afsmParallelOf(light), ray.origin)), index * 4u + uint(ray.k.z));
+            words.words[slot] = u64vec2(packUint2x32(a.xy), packUint2x32(a.zw));
+        } else {
+            const AfsmRaySlot written = afsmRaySlot(ray, index);
+            const uvec4 a = floatBitsToUint(written.originTMax), b = floatBitsToUint(written.shearPixel);
+            words.words[2u * slot] = u64vec2(packUint2x32(a.xy), packUint2x32(a.zw));
+            words.words[2u * slot + 1u] = u64vec2(packUint2x32(b.xy), packUint2x32(b.zw));
+        }
 #else
         uint shape = areaShape(light);
         vec4 jitter = afsmJitter(shape, sampleSeed(uint(pixel.x), uint(pixel.y), push.lightIndex));
@@ -211,6 +219,11 @@ uvec2 samplePixel()
 void main()
 {
     uvec2 counts = samplePixel(); // covered pixels are counted by shade
+#ifndef PENUMBRA_AFSM_SOFT
+    // The layer's permutation and shear, for the casters (the list's own values: afsmParallelOf).
+    if (kMode == PENUMBRA_AFSM_LIST && kParallel != 0u && gl_GlobalInvocationID.xy == uvec2(0u))
+        parallel = afsmPackParallel(afsmParallelOf(frame.lights[push.lightIndex]));
+#endif
     // The layer's farthest sample (clip.w) and its most samples in a cell: one atomic each per subgroup.
     if (kMode == PENUMBRA_AFSM_COUNT) {
         uint farthest = subgroupMax(counts.y);

@@ -53,12 +53,17 @@
 
 layout(local_size_x = PENUMBRA_AFSM_WIDE_GROUP) in;
 layout(constant_id = 0) const uint kPhase = PENUMBRA_AFSM_WIDE_TEST;
+// 1: a directional light's sheared slots (afsm.glsli: AfsmParallel): each caster's vertices sheared once, one
+// texel a sample (interior and plant at 640^2: afsm_rows about 30% less).
+layout(constant_id = 1) const uint kParallel = 0u;
+#define AFSM_PARALLEL (kParallel != 0u)
 
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding: the compute path's set).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;
 layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
+layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; uint cellMost; uint crowded[4]; uvec4 parallel; }; // afsm_samples.comp.glsl
 layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
@@ -134,6 +139,8 @@ void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, vec4 normals01, vec4 nor
     const vec2 normal[3] = vec2[](normals01.xy, normals01.zw, normal2Edges.xy);
     const bool edges = normal2Edges.z != 0.0;
     const ivec2 first = cells.xy, last = cells.zw;
+    const AfsmParallel f = afsmUnpackParallel(AFSM_PARALLEL ? parallel : uvec4(0u));
+    const vec3 w0 = afsmShearPoint(f, v0), w1 = afsmShearPoint(f, v1), w2 = afsmShearPoint(f, v2);
     // Eight rows (a subgroup's width) at a time: each lane finds its row's range of the list, then the
     // lanes test the ranges that hold samples one after another, together (on lavapipe a loop's entry
     // and exit cost about as much as a few of its iterations: a row per lane finding its range makes
@@ -157,13 +164,22 @@ void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, vec4 normals01, vec4 nor
             const uint begin = subgroupShuffle(rowBegin, j), end = subgroupShuffle(rowEnd, j);
             iterations += 2u + (end - begin + width - 1u) / width;
             over = iterations > push.iterations;
-            for (uint slot = begin + lane; slot < end && !over; slot += width) {
-                const AfsmRaySlot s = afsmRaySlotAt(slot);
-                if (afsmSlotHits(s, v0, v1, v2)) {
-                    slotShadowed[slot] = 1u;
-                    shadowed[afsmSlotPixel(s)] = 1u;
+            if (AFSM_PARALLEL)
+                for (uint slot = begin + lane; slot < end && !over; slot += width) {
+                    const uvec4 s = texelFetch(slotTexels, int(slot));
+                    if (afsmParallelHits(uintBitsToFloat(s.xyz), f.shear.z, w0, w1, w2)) {
+                        slotShadowed[slot] = 1u;
+                        shadowed[s.w >> 2u] = 1u;
+                    }
                 }
-            }
+            else
+                for (uint slot = begin + lane; slot < end && !over; slot += width) {
+                    const AfsmRaySlot s = afsmRaySlotAt(slot);
+                    if (afsmSlotHits(s, v0, v1, v2)) {
+                        slotShadowed[slot] = 1u;
+                        shadowed[afsmSlotPixel(s)] = 1u;
+                    }
+                }
         }
     }
 }

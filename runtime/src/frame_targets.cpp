@@ -197,7 +197,7 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     afsmSlotTexels = vk::createTexelView(device, afsmSlots, VK_FORMAT_R32G32B32A32_UINT, 16);
     afsmSlotShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
     afsmShadowed = vk::createBuffer(device, pixels * 4, kStorageDst, vk::MemoryUse::DeviceLocal);
-    afsmFar = vk::createBuffer(device, 32, kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal); // passes::AfsmFar
+    afsmFar = vk::createBuffer(device, sizeof(passes::AfsmFar), kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal); // passes::AfsmFar
     afsmGrid = gridSize;
     return true;
 }

@@ -814,13 +814,14 @@ struct Renderer::Impl::FrameScript {
             }
             r.afsm.clear(cmd);
             for (uint32_t layer = 0; layer < layers(light); ++layer) {
-                r.afsm.recordSamples(cmd, light, layer, l.viewProj[layer], layers(light) == 6, rayOffset, false);
+                const bool parallel = lights[light].type == LightType::Directional; // sheared slots (afsm.glsli: AfsmParallel)
+                r.afsm.recordSamples(cmd, light, layer, l.viewProj[layer], layers(light) == 6, rayOffset, false, parallel);
                 timer.mark(cmd, PassId::AfsmSamples);
                 const uint32_t most = afsmCellMost(false);
                 const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + layer);
                 r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
                                      {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false,
-                                      afsmBackFaces, most},
+                                      afsmBackFaces, most, parallel},
                                      [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged, [this] {
                                          timer.mark(cmd, PassId::AfsmRows);
                                          r.submitAndWait(cmd, timer.passesSinceLastSubmit());

@@ -465,16 +465,17 @@ AfsmSamplesPush AfsmPass::samplesPush(uint32_t lightIndex, uint32_t mode, uint32
     return push;
 }
 
-void AfsmPass::dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft) const
+void AfsmPass::dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft, bool parallel) const
 {
     const vk::ComputeKernel& kernel = soft ? samplesSoft : samples;
-    kernel.bind(cmd, vk::Specialization{push.mode}); // afsm_samples' mode is a specialization constant
+    // afsm_samples' mode, and whether the list writes sheared slots, are specialization constants.
+    kernel.bind(cmd, vk::Specialization{push.mode, parallel && !soft ? 1u : 0u});
     kernel.push(cmd, push);
     vkCmdDispatch(cmd, groupCount(targets.width, PENUMBRA_SHADE_GROUP_SIZE), groupCount(targets.height, PENUMBRA_SHADE_GROUP_SIZE), 1);
 }
 
 void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
-                             bool soft) const
+                             bool soft, bool parallel) const
 {
     const uint32_t grid = layerGrid(soft), cells = grid * grid;
     // The previous layer's casters read the lists, and its copy read the cells' depths.
@@ -484,6 +485,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     vkCmdFillBuffer(cmd, targets.far->buffer, 0, offsetof(AfsmFar, crowded), 0);
     vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded), 2 * sizeof(uint32_t), ~0u); // the crowded cells' minima
     vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded) + 8, 2 * sizeof(uint32_t), 0);
+    vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, parallel), sizeof(AfsmFar::parallel), 0); // the list writes it (parallel)
     vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(cells + afsmBlockCount(grid)) * 4, 0);
     vkCmdFillBuffer(cmd, targets.slotShadowed->buffer, 0, VK_WHOLE_SIZE, 0); // no slot shadowed yet
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
@@ -498,7 +500,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
         vkCmdDispatch(cmd, phase == 1 ? 1 : blocks, 1, 1);
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
     }
-    dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_LIST, layer, viewProj, cube, originOffset, soft), soft);
+    dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_LIST, layer, viewProj, cube, originOffset, soft), soft, parallel);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry | kCompute | kCopy,
                       kStorageRW | kTransferRead | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT); // the slots and the cells: texel fetches too
     // Every listed sample is alive (not shadowed) until the casters run: the cells' counts, as the list filled them
@@ -528,6 +530,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     if (!castersSet)
         fail("afsm", "this device lacks geometry shaders or fragment-shader stores (needed to rasterize the casters)");
     const uint32_t grid = layerGrid(layer.soft);
+    const uint32_t parallel = layer.parallel && !layer.soft ? 1u : 0u; // sheared slots (afsm_bin's and afsm_wide's kParallel)
     // The compute path: the small casters of the view's clusters (compressed model only).
     const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits();
     computeUsed = compute;
@@ -593,13 +596,13 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                 paged->makeResident(paged->ranges[j]);
                 push.clusterBegin = paged->ranges[j].front();
                 push.clusterEnd = paged->ranges[j].back() + 1;
-                kernel.bind(cmd, vk::Specialization{1u});
+                kernel.bind(cmd, vk::Specialization{1u, parallel});
                 kernel.push(cmd, push);
                 vkCmdDispatch(cmd, groups.x, groups.y, 1);
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             }
         } else {
-            kernel.bind(cmd);
+            kernel.bind(cmd, vk::Specialization{0u, parallel});
             kernel.push(cmd, push);
             vkCmdDispatch(cmd, groups.x, groups.y, 1);
         }
@@ -612,12 +615,12 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
             for (const auto& [writeDispatch, test, dispatch] :
                  {std::tuple{PENUMBRA_AFSM_WIDE_DISPATCH, PENUMBRA_AFSM_WIDE_TEST, offsetof(AfsmWideHeader, dispatch)},
                   std::tuple{PENUMBRA_AFSM_WIDE_ALONE_DISPATCH, PENUMBRA_AFSM_WIDE_TEST_ALONE, offsetof(AfsmWideHeader, aloneDispatch)}}) {
-                wide.bind(cmd, vk::Specialization{uint32_t(writeDispatch)});
+                wide.bind(cmd, vk::Specialization{uint32_t(writeDispatch), parallel});
                 wide.push(cmd, widePush);
                 vkCmdDispatch(cmd, 1, 1, 1);
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | kCompute,
                                   VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | kStorageRW);
-                wide.bind(cmd, vk::Specialization{uint32_t(test)});
+                wide.bind(cmd, vk::Specialization{uint32_t(test), parallel});
                 wide.push(cmd, widePush);
                 vkCmdDispatchIndirect(cmd, wideList.buffer, dispatch);
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);

@@ -75,8 +75,10 @@ struct AfsmFar {
     uint32_t farBits;    // the farthest sample's clip.w (float bits)
     uint32_t cellMost;   // the most samples in one cell
     uint32_t crowded[4]; // the cells holding more than afsmSliceSamples: min x, min y, max x, max y (~0, ~0, 0, 0: none)
+    uint32_t pad[2];
+    uint32_t parallel[4]; // hard shadows of a directional light: the layer's shear (afsm.glsli: AfsmParallel; 0: other layers)
 };
-static_assert(sizeof(AfsmFar) == 24);
+static_assert(sizeof(AfsmFar) == 48);
 
 struct AfsmScanPush {
     uint32_t count;
@@ -311,9 +313,11 @@ class AfsmPass {
     VkDeviceAddress closedBitsAddress(const vk::Device& device) const { return vk::bufferAddress(device, closedBits); }
     // Clears the samples' shadow flags (before a light's layers).
     void clear(VkCommandBuffer cmd) const;
-    // Counts, offsets and lists the samples of layer `layer` of the light in the grid of viewProj.
+    // Counts, offsets and lists the samples of layer `layer` of the light in the grid of viewProj. parallel
+    // (hard shadows of a directional light): the slots hold the rays' sheared origins (afsm.glsli:
+    // AfsmParallel), and the layer's casters must be recorded with CasterLayer::parallel.
     void recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
-                       bool soft) const;
+                       bool soft, bool parallel = false) const;
     // The casters of one layer: view `view` of `culling`, over the grid of
     // viewProj. The small ones are binned in compute (afsm_bin.comp) when the
     // model is compressed (modelTable: the tracer's model table; maskSlot:
@@ -326,6 +330,7 @@ class AfsmPass {
         bool soft = false;
         bool closedBackFaces = false; // closed clusters cast only light-back-facing triangles
         uint32_t cellMost = 0;        // the layer's most samples in one cell (cellMost; 0: none crowded, mayCrowd false)
+        bool parallel = false;        // hard shadows of a directional light: sheared slots (recordSamples' parallel)
     };
     // Paged geometry (geometry_pages.h): the compute path bins the view's
     // clusters in ranges whose pages fit the pool together (ascending, as
@@ -370,7 +375,7 @@ class AfsmPass {
     void recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const;
 
   private:
-    void dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft) const;
+    void dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft, bool parallel = false) const;
     AfsmSamplesPush samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
                                 bool soft) const;
     vk::ComputeKernel samples, samplesSoft, scan, table, bin, binSoft, wide;
