@@ -38,6 +38,9 @@
 #define AFSM_SOFT 1
 #endif
 #define AFSM_SLOTS 1
+#ifndef PENUMBRA_AFSM_SOFT
+#define AFSM_UNCOUNTED 1 // afsm_casters.glsli: afsmShadowSlot
+#endif
 #include "afsm.glsli"
 
 layout(local_size_x = PENUMBRA_AFSM_BIN_GROUP) in;
@@ -114,6 +117,9 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, margin, projected, behind, depth);
     float nearest = depth.nearest;
     uint perSample = 1u;
+    // A directional light's sheared slots: the caster's vertices sheared once, not once per cell.
+    const AfsmParallel f = afsmUnpackParallel(AFSM_PARALLEL ? parallel : uvec4(0u));
+    const vec3 w0 = afsmShearPoint(f, v0), w1 = afsmShearPoint(f, v1), w2 = afsmShearPoint(f, v2);
 #endif
     // The cells one by one, counting the work as afsmComputeWork does (the
     // raster path's mirror of this choice); past the budget afsm_wide.comp
@@ -139,14 +145,21 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
 #endif
             work += 1u + (beyond ? 0u : perSample * count);
             over = work > PENUMBRA_AFSM_COMPUTE_BUDGET;
+            #ifdef AFSM_UNCOUNTED
+            const bool alive = true; // its hits count nothing off (afsmShadowSlot)
+#else
             const bool alive = cellAlive[cell] != 0u;
+#endif
 #ifdef PENUMBRA_AFSM_SOFT
             const bool test = !over && count != 0u && !beyond && alive;
             afsmTestCellSoft(cell, 0u, test ? count : 0u, light, table, v0, v1, v2); // at most PENUMBRA_AFSM_COMPUTE_BUDGET iterations
 #else
             const bool meets = afsmCellMayMeetTriangle(corner + 0.5, projected, !behind, margin);
             const bool test = !over && count != 0u && !beyond && alive && meets;
-            afsmTestCellHard(cell, 0u, test ? count : 0u, v0, v1, v2);
+            if (AFSM_PARALLEL)
+                afsmTestCellParallel(cell, 0u, test ? count : 0u, w0, w1, w2, f.shear.z);
+            else
+                afsmTestCellHard(cell, 0u, test ? count : 0u, v0, v1, v2);
 #endif
         }
 #ifndef PENUMBRA_AFSM_SOFT
