@@ -121,10 +121,6 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     const AfsmParallel f = afsmUnpackParallel(AFSM_PARALLEL ? parallel : uvec4(0u));
     const vec3 w0 = afsmShearPoint(f, v0), w1 = afsmShearPoint(f, v1), w2 = afsmShearPoint(f, v2);
 #endif
-    // The cells one by one, counting the work as afsmComputeWork does (the
-    // raster path's mirror of this choice); past the budget afsm_wide.comp
-    // (else the raster path) takes the caster (the cells tested so far are
-    // tested twice).
     const bool take = casts && !r.empty && afsmRectCells(r, push.gridSize) <= push.computeCells;
     ivec2 first, last;
     afsmRectCellRange(r, push.gridSize, first, last);
@@ -133,35 +129,51 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     last = take && !noneBeyond ? last : first - 1;
     uint work = 0u;
     bool over = false;
+#ifdef PENUMBRA_AFSM_SOFT
+    // The cells one by one, counting the work as afsmComputeWork does (the
+    // raster path's mirror of this choice); past the budget afsm_wide.comp
+    // (else the raster path) takes the caster (the cells tested so far are
+    // tested twice).
     for (int y = first.y; y <= last.y && !over; ++y)
         for (int x = first.x; x <= last.x && !over; ++x) {
             uint cell = uint(y) * push.gridSize + uint(x);
             uint count = afsmCellCount(cell);
-#ifdef PENUMBRA_AFSM_SOFT
             bool beyond = afsmCellBehind(cell, nearest);
-#else
-            vec2 corner = vec2(x, y);
-            bool beyond = afsmCellBehind(cell, afsmNearestOver(depth, corner, margin));
-#endif
             work += 1u + (beyond ? 0u : perSample * count);
             over = work > PENUMBRA_AFSM_COMPUTE_BUDGET;
-            #ifdef AFSM_UNCOUNTED
-            const bool alive = true; // its hits count nothing off (afsmShadowSlot)
-#else
-            const bool alive = cellAlive[cell] != 0u;
-#endif
-#ifdef PENUMBRA_AFSM_SOFT
-            const bool test = !over && count != 0u && !beyond && alive;
+            const bool test = !over && count != 0u && !beyond && cellAlive[cell] != 0u;
             afsmTestCellSoft(cell, 0u, test ? count : 0u, light, table, v0, v1, v2); // at most PENUMBRA_AFSM_COMPUTE_BUDGET iterations
-#else
-            const bool meets = afsmCellMayMeetTriangle(corner + 0.5, projected, !behind, margin);
-            const bool test = !over && count != 0u && !beyond && alive && meets;
-            if (AFSM_PARALLEL)
-                afsmTestCellParallel(cell, 0u, test ? count : 0u, w0, w1, w2, f.shear.z);
-            else
-                afsmTestCellHard(cell, 0u, test ? count : 0u, v0, v1, v2);
-#endif
         }
+#else
+    // Row by row, as afsm_wide.comp tests its casters: the cells of a grid
+    // row are consecutive in the sample list, so the samples of the row's
+    // cells the caster can meet (afsmRowCells) are one range of slots, two
+    // texel fetches a row, and each lane walks its caster's range. The
+    // work counts every cell and every sample of the rectangle, as
+    // afsmComputeWork counts them for the raster path's mirror of this
+    // choice (nearest -1: no cell left out by depth); past the budget
+    // afsm_wide.comp (else the raster path) takes the caster (the rows tested
+    // so far are tested twice). On the 2 M scan at 1024^2 this is about half
+    // the cost of testing cell by cell (the loop over cells and the cell's
+    // depth, count and edge tests were most of afsm_bin's time).
+    const AfsmRowEdges edges = afsmRowEdges(projected, behind, margin);
+    const uint columns = uint(last.x - first.x + 1);
+    for (int y = first.y; y <= last.y && !over; ++y) {
+        const uint row = uint(y) * push.gridSize;
+        const uint rowFirst = afsmCellFirst(row + uint(first.x));
+        const uint rowEnd = afsmCellFirst(row + uint(last.x)) + afsmCellCount(row + uint(last.x));
+        work += columns + (rowEnd - rowFirst);
+        over = work > PENUMBRA_AFSM_COMPUTE_BUDGET;
+        int lo = first.x, hi = last.x;
+        afsmRowCells(edges, y, lo, hi);
+        const uint begin = lo <= hi ? afsmCellFirst(row + uint(lo)) : 0u;
+        const uint end = lo <= hi && !over ? afsmCellFirst(row + uint(hi)) + afsmCellCount(row + uint(hi)) : 0u;
+        if (AFSM_PARALLEL)
+            afsmTestSlotsParallel(begin, end, w0, w1, w2, f.shear.z);
+        else
+            afsmTestSlotsHard(begin, end, v0, v1, v2);
+    }
+#endif
 #ifndef PENUMBRA_AFSM_SOFT
     // The casters the loop above did not test to the end: afsm_wide.comp's.
     if (wideList != 0ul && casts && !r.empty && !noneBeyond && (!take || over))

@@ -80,7 +80,7 @@ void main()
     AfsmDepthBound depth;
     const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
     AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, margin, cells, behind, depth);
-    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, depth.nearest, true))
+    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, -1.0, true)) // afsm_bin.comp counts every sample (nearest -1)
         return;
     ivec2 firstCell, lastCell;
     afsmRectCellRange(r, push.gridSize, firstCell, lastCell);

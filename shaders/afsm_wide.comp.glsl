@@ -84,28 +84,10 @@ layout(push_constant) uniform AfsmWidePush {
     uint pad;
 } push;
 
-// The range [lo, hi] of cell columns x whose centre x + 0.5 satisfies
-// n.x (x + 0.5) <= c, narrowed; n.x = 0: all or none. The quotient is moved
-// out by a thousandth of a cell against its rounding.
-void afsmNarrowRow(float nx, float c, inout int lo, inout int hi)
-{
-    const float bound = c / nx;
-    if (nx > 0.0)
-        hi = min(hi, int(floor(bound - 0.5 + 1e-3)));
-    else if (nx < 0.0)
-        lo = max(lo, int(ceil(bound - 0.5 - 1e-3)));
-    else if (c < 0.0)
-        hi = lo - 1;
-}
-
-// A caster's setup: its cells' rectangle [first, last] and its edges' half-planes (afsmCellMayMeetTriangle's:
-// each moved out by the cell square's extent along its normal and the margin; edges false for a caster seen
-// edge-on or reaching behind the eye: the rectangle alone).
+// A caster's setup: its cells' rectangle [first, last] and its rows' edges (afsm_casters.glsli: afsmRowEdges).
 struct WideSetup {
-    ivec4 cells;    // first.xy, last.xy
-    vec4 normals01; // normal 0, normal 1
-    vec4 normal2Edges; // normal 2, edges (1 or 0), unused
-    vec3 reach;     // per edge: n . (x + 0.5, y + 0.5) <= reach
+    ivec4 cells; // first.xy, last.xy
+    AfsmRowEdges edges;
 };
 
 WideSetup wideSetup(vec3 v0, vec3 v1, vec3 v2, float margin)
@@ -116,28 +98,14 @@ WideSetup wideSetup(vec3 v0, vec3 v1, vec3 v2, float margin)
     const AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, margin, v, behind, depth);
     ivec2 first, last;
     afsmRectCellRange(r, push.gridSize, first, last);
-    const float area = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[1].y - v[0].y) * (v[2].x - v[0].x);
-    const bool edges = !behind && area != 0.0;
-    const float orientation = area > 0.0 ? 1.0 : -1.0;
-    vec2 normal[3];
-    float reach[3];
-    for (int i = 0; i < 3; ++i) {
-        const vec2 a = v[i], b = v[(i + 1) % 3];
-        normal[i] = orientation * vec2(b.y - a.y, a.x - b.x);
-        reach[i] = 0.5 * (abs(normal[i].x) + abs(normal[i].y)) + margin * length(normal[i]) + dot(normal[i], a);
-    }
-    return WideSetup(ivec4(first, r.empty ? first - 1 : last), vec4(normal[0], normal[1]), vec4(normal[2], edges ? 1.0 : 0.0, 0.0),
-                     vec3(reach[0], reach[1], reach[2]));
+    return WideSetup(ivec4(first, r.empty ? first - 1 : last), afsmRowEdges(v, behind, margin));
 }
 
 // Tests one caster (the same values in every lane) against the samples of its rows; counts the loop
 // iterations and stops once they pass push.iterations (over).
-void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, vec4 normals01, vec4 normal2Edges, vec3 reach, inout uint iterations,
-                inout bool over)
+void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, AfsmRowEdges edges, inout uint iterations, inout bool over)
 {
     const uint lane = gl_SubgroupInvocationID, width = gl_SubgroupSize;
-    const vec2 normal[3] = vec2[](normals01.xy, normals01.zw, normal2Edges.xy);
-    const bool edges = normal2Edges.z != 0.0;
     const ivec2 first = cells.xy, last = cells.zw;
     const AfsmParallel f = afsmUnpackParallel(AFSM_PARALLEL ? parallel : uvec4(0u));
     const vec3 w0 = afsmShearPoint(f, v0), w1 = afsmShearPoint(f, v1), w2 = afsmShearPoint(f, v2);
@@ -148,9 +116,7 @@ void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, vec4 normals01, vec4 nor
     for (int rows = first.y; rows <= last.y && !over; rows += int(width)) {
         const int y = rows + int(lane);
         int lo = first.x, hi = last.x;
-        if (edges)
-            for (int i = 0; i < 3; ++i) // n . (x + 0.5, y + 0.5) <= reach
-                afsmNarrowRow(normal[i].x, reach[i] - normal[i].y * (float(y) + 0.5), lo, hi);
+        afsmRowCells(edges, y, lo, hi);
         const uint row = uint(min(y, last.y)) * push.gridSize;
         const bool cells = y <= last.y && lo <= hi;
         const uint rowBegin = cells ? afsmCellFirst(row + uint(lo)) : 0u;
@@ -220,8 +186,9 @@ void main()
             const vec3 v0 = subgroupShuffle(caster.v0Cluster.xyz, k), v1 = subgroupShuffle(caster.v1.xyz, k), v2 = subgroupShuffle(caster.v2.xyz, k);
             const uint cluster = subgroupShuffle(floatBitsToUint(caster.v0Cluster.w), k);
             ++iterations;
-            testCaster(v0, v1, v2, subgroupShuffle(setup.cells, k), subgroupShuffle(setup.normals01, k),
-                       subgroupShuffle(setup.normal2Edges, k), subgroupShuffle(setup.reach, k), iterations, over);
+            const AfsmRowEdges edges = AfsmRowEdges(subgroupShuffle(setup.edges.normals01, k), subgroupShuffle(setup.edges.normal2Edges, k),
+                                                    subgroupShuffle(setup.edges.reach, k));
+            testCaster(v0, v1, v2, subgroupShuffle(setup.cells, k), edges, iterations, over);
             if (over && subgroupElect()) {
                 const uint alone = atomicAdd(list.alone, 1u);
                 if (alone < push.capacity - listed)
@@ -235,8 +202,7 @@ void main()
         if (index < min(list.alone, push.capacity - listed)) {
             const AfsmWideCaster caster = casters.casters[push.capacity - 1u - index];
             const WideSetup setup = wideSetup(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, margin);
-            testCaster(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, setup.cells, setup.normals01, setup.normal2Edges, setup.reach,
-                       iterations, over);
+            testCaster(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, setup.cells, setup.edges, iterations, over);
             if (over && subgroupElect())
                 afsmWideMark(list, floatBitsToUint(caster.v0Cluster.w));
         }
