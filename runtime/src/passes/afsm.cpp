@@ -68,7 +68,9 @@ uint64_t afsmBinIterations(uint32_t leafTriangles, uint32_t leafBytes)
     // Per caster (afsm_bin.comp.glsl, binCaster): the cells' samples within the budget, which counts 1 + n (soft:
     // 1 + n (1 + quads)) for a cell of n samples while the loops take 1 + n (soft: 1 + n (2 + quads)): at most 3/2
     // of it, at one quad; the rows and columns of a rectangle of at most 16 cells (17 + 32); a loop of 4 per cell's
-    // edge test (afsmCellMayMeetTriangle); 16 for the rectangle's own loops over the vertices.
+    // edge test (afsmCellMayMeetTriangle); 16 for the rectangle's own loops over the vertices. Hard shadows go row
+    // by row: the budget counts a row's cells and samples while the loops take one per row, three per row's edges
+    // (afsmRowCells) and one per sample, which this bounds as well.
     const uint64_t perCaster = uint64_t(PENUMBRA_AFSM_COMPUTE_BUDGET) * 3 / 2 + 49 + 16 * 4 + 16;
     const uint64_t leaves = 4;
     return 16 + leaves * (uint64_t(leafBytes) + 1 + uint64_t(leafTriangles) * perCaster);
