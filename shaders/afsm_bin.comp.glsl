@@ -51,6 +51,12 @@ layout(constant_id = 0) const uint kGeometryBudget = 0u;
 // 1: hard shadows of a directional light, sheared slots (afsm.glsli: AfsmParallel); afsm_casters.glsli's AFSM_PARALLEL.
 layout(constant_id = 1) const uint kParallel = 0u;
 #define AFSM_PARALLEL (kParallel != 0u)
+// 1: the model is read through texel buffers (GpuGeometry::texelsComplete, in core): on lavapipe a texel fetch
+// is a gather, a strip byte's or a vertex's load by device address a loop over the lanes (the 2 M scan at
+// 1024^2: afsm_bin 244-263 -> 209 CPU ms, the 1 M interior 141-157 -> 127-129); 0: by device address.
+layout(constant_id = 2) const uint kTexelAccess = 0u;
+// 1: the vertices' texel view is R16_UINT, three texels a vertex (GpuGeometry::vertexTexelsSplit).
+layout(constant_id = 3) const uint kSplitVertexTexels = 0u;
 
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
@@ -71,9 +77,15 @@ layout(set = 0, binding = 8, std430) readonly buffer Params {
 };
 layout(set = 0, binding = 9, std430) readonly buffer ClosedBits { uint closedBits[]; }; // bit per cluster: kClusterClosed
 layout(set = 0, binding = 10) uniform usamplerBuffer slotTexels;                      // RGBA32UI over the slots (afsm_casters.glsli: afsmRaySlotAt)
+// The model through uniform texel buffers (GpuGeometry::texels; bvh_texels.glsli), read when kTexelAccess.
+layout(set = 0, binding = 11) uniform usamplerBuffer modelNodes;
+layout(set = 0, binding = 12) uniform usamplerBuffer modelClusters;
+layout(set = 0, binding = 13) uniform usamplerBuffer modelVertices;
+layout(set = 0, binding = 14) uniform usamplerBuffer modelStrips;
 
 #include "afsm_casters.glsli"
 #include "afsm_wide.glsli"
+#include "bvh_texels.glsli"
 
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer ClusterMask { uint bits[]; };
 // kGeometryBudget: per node, its record's first 16-byte texel in the pool, or cluster | PENUMBRA_NODE_ABSENT
@@ -243,7 +255,9 @@ void main()
             const uint texel = present ? word : 0u;
             node = WideNode(unpackWords(records.nodes[texel]), unpackWords(records.nodes[texel + 1u]), unpackWords(records.nodes[texel + 2u]),
                             unpackWords(records.nodes[texel + 3u]));
-        } else
+        } else if (kTexelAccess != 0u)
+            node = nodeTexels(index);
+        else
             node = loadNode(NodeChunks(table, table.nodeChunks[0], table.nodeChunkShift), index);
         const uint cluster = present ? nodeCluster(node) : PENUMBRA_NO_CLUSTER;
         bool inView = cluster != PENUMBRA_NO_CLUSTER && (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u;
@@ -256,21 +270,36 @@ void main()
     }
     barrier();
     const uint leafCount = passingCount;
-    GeometryChunks chunks = geometryChunksOf(push.modelTable, table);
+    GeometryChunks chunks = kTexelAccess != 0u ? GeometryChunks(0ul) : geometryChunksOf(push.modelTable, table);
     for (uint j = lane; j < leafCount; j += PENUMBRA_AFSM_BIN_GROUP) {
         const uvec2 leaf = passingLeaves[j];
-        ClusterInfo cluster = loadCluster(table, leaf.x);
-        LeafStrips strips = openLeaf(table, chunks, cluster, leaf.y);
+        const ClusterInfo cluster = kTexelAccess != 0u ? clusterTexels(leaf.x) : loadCluster(table, leaf.x);
+        LeafStrips strips;
+        uint count = leaf.y >> 16;
+        const uint firstByte = uint(cluster.firstIndex) + (leaf.y & 0xFFFFu); // kTexelAccess: the leaf's first strip byte
+        if (kTexelAccess == 0u) {
+            strips = openLeaf(table, chunks, cluster, leaf.y);
+            count = strips.count;
+        }
         uint i0 = 0u, i1 = 0u;
         vec3 p0 = vec3(0.0), p1 = vec3(0.0);
         uint position = 0u; // bytes of the current strip so far
-        for (uint k = 0u; k < strips.count; ++k) {
-            uint i2 = uint(strips.strips.bytes[k]);
+        for (uint k = 0u; k < count; ++k) {
+            uint i2;
+            if (kTexelAccess != 0u)
+                i2 = stripByte(texelFetch(modelStrips, int((firstByte + k) >> 4u)), firstByte + k);
+            else
+                i2 = uint(strips.strips.bytes[k]);
             if (i2 == 0xFFu) {
                 position = 0u;
                 continue;
             }
-            vec3 p2 = decodeVertex(loadVertex(strips.vertices, i2), cluster.boxMin, cluster.step);
+            uvec3 q;
+            if (kTexelAccess != 0u)
+                q = vertexTexel(uint(cluster.firstVertex) + i2);
+            else
+                q = loadVertex(strips.vertices, i2);
+            vec3 p2 = decodeVertex(q, cluster.boxMin, cluster.step);
             if (position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
                 bool odd = ((position - 2u) & 1u) != 0u;
                 binCaster(leaf.x, odd ? p1 : p0, odd ? p0 : p1, p2);

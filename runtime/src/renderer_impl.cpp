@@ -138,6 +138,7 @@ void Renderer::Impl::setGeometry(GpuGeometry uploaded)
         trace.bindModel(device, geometry);
         thinTriangles.bindModel(device, geometry);
     }
+    afsm.bindModel(device, geometry); // no texel views for the reference encoding: its casters are rasterized
 }
 
 void Renderer::Impl::submitAndWait(VkCommandBuffer cmd, const std::string& passes)

@@ -34,7 +34,7 @@ std::vector<VkDescriptorType> castersBindingTypes()
 std::vector<VkDescriptorType> binBindingTypes()
 {
     using namespace vk;
-    return {kUniform, kTexels, kTexels, kStorage, kStorage, kTexels, kStorage, kStorage, kStorage, kStorage, kTexels};
+    return {kUniform, kTexels, kTexels, kStorage, kStorage, kTexels, kStorage, kStorage, kStorage, kStorage, kTexels, kTexels, kTexels, kTexels, kTexels};
 }
 
 // A perspective frustum from eye along forward with a square field of view
@@ -302,6 +302,8 @@ void AfsmPass::destroy(vk::Device& device)
     maskWords = maskPixels = clusterMaskWords = wideWords = wideCapacity = 0;
     closedModel = insideModel = nullptr;
     closedCount = 0;
+    modelTexels = {};
+    modelTexelsComplete = modelVertexTexelsSplit = targetsBound = false;
 }
 
 void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
@@ -316,23 +318,47 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
     samples.write(device, bindings);
     samplesSoft.write(device, bindings);
     scan.write(device, {vk::storageBuffer(t.cellFirst->buffer), vk::storageBuffer(t.blockSums->buffer)});
-    const std::vector<vk::Binding> common = {vk::uniformBuffer(t.pixels.frame), vk::texelBuffer(t.cellFirstTexels),
-                                             vk::texelBuffer(t.cellCountTexels), vk::storageBuffer(t.shadowed->buffer),
-                                             vk::storageBuffer(t.far->buffer), vk::texelBuffer(t.cellDepthTexels),
-                                             vk::storageBuffer(t.slotShadowed->buffer), vk::storageBuffer(t.cellAlive->buffer)};
-    std::vector<vk::Binding> binBindings = common;
-    binBindings.push_back(vk::storageBuffer(params.buffer));
-    binBindings.push_back(vk::storageBuffer(closedBits.buffer));
-    binBindings.push_back(vk::texelBuffer(t.slotTexels));
-    bin.write(device, binBindings);
-    binSoft.write(device, binBindings);
-    wide.write(device, binBindings);
-    std::vector<vk::Binding> casterBindings = common;
+    targetsBound = true;
+    writeBinSets(device);
+    std::vector<vk::Binding> casterBindings = castersCommonBindings();
     casterBindings.push_back(vk::storageBuffer(closedBits.buffer));
     casterBindings.push_back(vk::texelBuffer(t.slotTexels));
     if (castersSet)
         vk::writeSet(device, castersSet, casterBindings);
     writeParams();
+}
+
+void AfsmPass::bindModel(vk::Device& device, const GpuGeometry& geometry)
+{
+    modelTexels = geometry.encoding == GeometryEncoding::Compressed ? geometry.texels : GpuGeometry::TexelViews{};
+    modelTexelsComplete = geometry.texelsComplete;
+    modelVertexTexelsSplit = geometry.vertexTexelsSplit;
+    writeBinSets(device);
+}
+
+// The bindings the casters' sets (raster path) and the compute path's begin with: AfsmCastersBinding's and
+// AfsmBinBinding's first eight.
+std::vector<vk::Binding> AfsmPass::castersCommonBindings() const
+{
+    const AfsmTargets& t = targets;
+    return {vk::uniformBuffer(t.pixels.frame), vk::texelBuffer(t.cellFirstTexels),
+            vk::texelBuffer(t.cellCountTexels), vk::storageBuffer(t.shadowed->buffer),
+            vk::storageBuffer(t.far->buffer), vk::texelBuffer(t.cellDepthTexels),
+            vk::storageBuffer(t.slotShadowed->buffer), vk::storageBuffer(t.cellAlive->buffer)};
+}
+
+// The compute path's sets (afsm_bin, afsm_wide: one layout), once both the targets and a model are bound.
+void AfsmPass::writeBinSets(vk::Device& device) const
+{
+    if (!targetsBound || !modelTexels.nodes)
+        return;
+    std::vector<vk::Binding> bindings = castersCommonBindings();
+    bindings.insert(bindings.end(), {vk::storageBuffer(params.buffer), vk::storageBuffer(closedBits.buffer), vk::texelBuffer(targets.slotTexels),
+                                     vk::texelBuffer(modelTexels.nodes), vk::texelBuffer(modelTexels.clusters),
+                                     vk::texelBuffer(modelTexels.vertices), vk::texelBuffer(modelTexels.strips)});
+    bin.write(device, bindings);
+    binSoft.write(device, bindings);
+    wide.write(device, bindings);
 }
 
 void AfsmPass::writeParams() const
@@ -533,6 +559,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
         fail("afsm", "this device lacks geometry shaders or fragment-shader stores (needed to rasterize the casters)");
     const uint32_t grid = layerGrid(layer.soft);
     const uint32_t parallel = layer.parallel && !layer.soft ? 1u : 0u; // sheared slots (afsm_bin's and afsm_wide's kParallel)
+    const uint32_t split = modelVertexTexelsSplit ? 1u : 0u;          // afsm_bin's kSplitVertexTexels
     // The compute path: the small casters of the view's clusters (compressed model only).
     const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits();
     computeUsed = compute;
@@ -598,13 +625,13 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                 paged->makeResident(paged->ranges[j]);
                 push.clusterBegin = paged->ranges[j].front();
                 push.clusterEnd = paged->ranges[j].back() + 1;
-                kernel.bind(cmd, vk::Specialization{1u, parallel});
+                kernel.bind(cmd, vk::Specialization{1u, parallel, 0u, split});
                 kernel.push(cmd, push);
                 vkCmdDispatch(cmd, groups.x, groups.y, 1);
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             }
         } else {
-            kernel.bind(cmd, vk::Specialization{0u, parallel});
+            kernel.bind(cmd, vk::Specialization{0u, parallel, modelTexelsComplete ? 1u : 0u, split});
             kernel.push(cmd, push);
             vkCmdDispatch(cmd, groups.x, groups.y, 1);
         }

@@ -49,7 +49,7 @@ enum AfsmCastersBinding : uint32_t {
 };
 enum AfsmBinBinding : uint32_t {
     kAfsmBinFrame, kAfsmBinCellFirst, kAfsmBinCellCount, kAfsmBinShadowed, kAfsmBinFar, kAfsmBinCellDepth, kAfsmBinSlotShadowed, kAfsmBinCellAlive, kAfsmBinParams,
-    kAfsmBinClosedBits, kAfsmBinSlotTexels, kAfsmBinBindingCount
+    kAfsmBinClosedBits, kAfsmBinSlotTexels, kAfsmBinModelNodes, kAfsmBinModelClusters, kAfsmBinModelVertices, kAfsmBinModelStrips, kAfsmBinBindingCount
 };
 
 struct AfsmSamplesPush {
@@ -290,6 +290,9 @@ class AfsmPass {
     void create(vk::Device& device);
     void destroy(vk::Device& device);
     void bind(vk::Device& device, const AfsmTargets& targets);
+    // The model's texel views (GpuGeometry::texels) for the compute path's decoding (afsm_bin.comp's
+    // kTexelAccess), after each upload of a compressed model.
+    void bindModel(vk::Device& device, const GpuGeometry& geometry);
     // Soft shadows: the table for this light shape (rectangle, or disk for
     // disks and spheres) and sample count, built into cmd when it is new, and
     // the masks and per-slot data for the bound image; then the soft passes
@@ -416,6 +419,11 @@ class AfsmPass {
     std::vector<uint32_t> wideMarked; // the layer's marked clusters, ascending (the raster path draws them)
     uint32_t wideWords = 0;
     uint64_t wideAddress = 0;
+    GpuGeometry::TexelViews modelTexels{}; // bindModel's
+    bool modelTexelsComplete = false, modelVertexTexelsSplit = false;
+    bool targetsBound = false;
+    void writeBinSets(vk::Device& device) const;
+    std::vector<vk::Binding> castersCommonBindings() const;
     uint32_t wideCasters = 0, wideRasterLayers = 0; // since the last takeWideStats
     bool wideOn = true;
     // PENUMBRA_AFSM_WIDE_CAPACITY and _ITERATIONS, or (tests: the raster path's fallback) the environment's.
