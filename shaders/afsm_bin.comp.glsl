@@ -181,9 +181,9 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
         const uint begin = lo <= hi ? afsmCellFirst(row + uint(lo)) : 0u;
         const uint end = lo <= hi && !over ? afsmCellFirst(row + uint(hi)) + afsmCellCount(row + uint(hi)) : 0u;
         if (AFSM_PARALLEL)
-            afsmTestSlotsParallel(begin, end, w0, w1, w2, f.shear.z);
+            afsmTestSlotsParallel(begin, end, 1u, w0, w1, w2, f.shear.z);
         else
-            afsmTestSlotsHard(begin, end, v0, v1, v2);
+            afsmTestSlotsHard(begin, end, 1u, v0, v1, v2);
     }
 #endif
 #ifndef PENUMBRA_AFSM_SOFT

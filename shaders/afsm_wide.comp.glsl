@@ -23,10 +23,10 @@
 // cell, so the samples tested include every sample the caster shadows; each
 // is tested exactly (afsmSlotHits, the tracer's watertight test; a
 // directional light's sheared slots: afsmParallelHits). A hit sets the
-// pixel's flag alone: slotShadowed is the raster path's (afsm_casters.glsli:
-// afsmShadowSlot), and leaving it unset keeps the raster path's cell counts
-// exact (afsm_rows on the interior and the plant at 640^2 about 12% less
-// than setting both).
+// pixel's flag alone (afsm_casters.glsli: afsmShadowSlot, AFSM_UNCOUNTED):
+// slotShadowed is the raster path's, and leaving it unset keeps the raster
+// path's cell counts exact (afsm_rows on the interior and the plant at 640^2
+// about 12% less than setting both).
 //
 // Bounded: the list holds at most push.capacity casters. The casters a
 // subgroup reaches past its loop budget (lavapipe's loop limit,
@@ -54,6 +54,7 @@
 #include "shadow_ray.glsli"
 #include "penumbra/light_sampling.h"
 #define AFSM_SLOTS 1
+#define AFSM_UNCOUNTED 1 // afsm_casters.glsli: afsmShadowSlot
 #include "afsm.glsli"
 
 layout(local_size_x = PENUMBRA_AFSM_WIDE_GROUP) in;
@@ -135,18 +136,11 @@ void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, AfsmRowEdges edges, inou
             const uint begin = subgroupShuffle(rowBegin, j), end = subgroupShuffle(rowEnd, j);
             iterations += 2u + (end - begin + width - 1u) / width;
             over = iterations > push.iterations;
+            const uint from = over ? end : begin + lane;
             if (AFSM_PARALLEL)
-                for (uint slot = begin + lane; slot < end && !over; slot += width) {
-                    const uvec4 s = texelFetch(slotTexels, int(slot));
-                    if (afsmParallelHits(uintBitsToFloat(s.xyz), f.shear.z, w0, w1, w2))
-                        shadowed[s.w >> 2u] = 1u;
-                }
+                afsmTestSlotsParallel(from, end, width, w0, w1, w2, f.shear.z);
             else
-                for (uint slot = begin + lane; slot < end && !over; slot += width) {
-                    const AfsmRaySlot s = afsmRaySlotAt(slot);
-                    if (afsmSlotHits(s, v0, v1, v2))
-                        shadowed[afsmSlotPixel(s)] = 1u;
-                }
+                afsmTestSlotsHard(from, end, width, v0, v1, v2);
         }
     }
 }
