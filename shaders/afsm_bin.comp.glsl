@@ -7,9 +7,10 @@
 // however few cells it covers; most casters of a large model cover a few
 // cells. So each caster whose grown rectangle (afsm_casters.glsli) spans at
 // most PENUMBRA_AFSM_COMPUTE_CELLS cells and whose cells hold little work is
-// tested here, cell by cell, exactly as the fragment shader would
-// (afsmTestCellHard, afsmTestCellSoft); the raster path (afsm_casters.geom,
-// afsm_soft.geom) draws the others. Leaves are decoded as the thin-triangle
+// tested here with the fragment shader's per-sample tests: hard casters row
+// by row (afsmTestSlotsHard, afsmTestSlotsParallel), soft ones cell by cell
+// (afsmTestCellSoft); the row pass (afsm_wide.comp, hard shadows) and the
+// raster path (afsm_casters.geom, afsm_soft.geom) take the others. Leaves are decoded as the thin-triangle
 // pass decodes them (thin_triangles.comp.glsl: one invocation per leaf, the
 // tracer's strip walk), those of clusters outside the view skipped.
 // Under a geometry budget (kGeometryBudget, geometry_pages.h) the frame
@@ -128,7 +129,6 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
     AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, margin, projected, behind, depth);
     float nearest = depth.nearest;
-    uint perSample = 1u;
     // A directional light's sheared slots: the caster's vertices sheared once, not once per cell.
     const AfsmParallel f = afsmUnpackParallel(AFSM_PARALLEL ? parallel : uvec4(0u));
     const vec3 w0 = afsmShearPoint(f, v0), w1 = afsmShearPoint(f, v1), w2 = afsmShearPoint(f, v2);
@@ -165,9 +165,9 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     // afsmComputeWork counts them for the raster path's mirror of this
     // choice (nearest -1: no cell left out by depth); past the budget
     // afsm_wide.comp (else the raster path) takes the caster (the rows tested
-    // so far are tested twice). On the 2 M scan at 1024^2 this is about half
-    // the cost of testing cell by cell (the loop over cells and the cell's
-    // depth, count and edge tests were most of afsm_bin's time).
+    // so far are tested twice). On the 2 M scan at 1024^2 the cell-by-cell
+    // loop (a cell's count, depth and edge tests, then its samples) was about
+    // half of afsm_bin; by rows afsm_bin went 300 -> 261 CPU ms.
     const AfsmRowEdges edges = afsmRowEdges(projected, behind, margin);
     const uint columns = uint(last.x - first.x + 1);
     for (int y = first.y; y <= last.y && !over; ++y) {

@@ -330,8 +330,9 @@ void AfsmPass::bind(vk::Device& device, const AfsmTargets& t)
 
 void AfsmPass::bindModel(vk::Device& device, const GpuGeometry& geometry)
 {
-    modelTexels = geometry.encoding == GeometryEncoding::Compressed ? geometry.texels : GpuGeometry::TexelViews{};
-    modelTexelsComplete = geometry.texelsComplete;
+    const bool compressed = geometry.encoding == GeometryEncoding::Compressed;
+    modelTexels = compressed ? geometry.texels : GpuGeometry::TexelViews{};
+    modelTexelsComplete = compressed && geometry.texelsComplete;
     modelVertexTexelsSplit = geometry.vertexTexelsSplit;
     writeBinSets(device);
 }
@@ -561,7 +562,9 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     const uint32_t parallel = layer.parallel && !layer.soft ? 1u : 0u; // sheared slots (afsm_bin's and afsm_wide's kParallel)
     const uint32_t split = modelVertexTexelsSplit ? 1u : 0u;          // afsm_bin's kSplitVertexTexels
     // The compute path: the small casters of the view's clusters (compressed model only).
-    const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits();
+    // (modelTexels: bindModel wrote the compute path's sets.)
+    const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits() &&
+                         modelTexels.nodes != VK_NULL_HANDLE;
     computeUsed = compute;
     // afsm_wide.comp takes the hard casters the compute path leaves.
     const bool useWide = compute && wideOn && !layer.soft && afterRows;

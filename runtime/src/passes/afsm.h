@@ -291,7 +291,7 @@ class AfsmPass {
     void destroy(vk::Device& device);
     void bind(vk::Device& device, const AfsmTargets& targets);
     // The model's texel views (GpuGeometry::texels) for the compute path's decoding (afsm_bin.comp's
-    // kTexelAccess), after each upload of a compressed model.
+    // kTexelAccess), after each upload of a model (the uncompressed reference has none: no compute path).
     void bindModel(vk::Device& device, const GpuGeometry& geometry);
     // Soft shadows: the table for this light shape (rectangle, or disk for
     // disks and spheres) and sample count, built into cmd when it is new, and
