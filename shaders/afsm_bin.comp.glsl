@@ -64,7 +64,7 @@ layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;  // R32UI: first slot per cell (afsm_casters.glsli: afsmCellFirst)
 layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;  // R32UI: samples per cell (afsmCellCount)
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
-layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; uint cellMost; uint crowded[4]; uvec4 parallel; }; // afsm_samples.comp.glsl
+layout(set = 0, binding = 4, std430) readonly buffer Far { AFSM_FAR_FIELDS; }; // afsm_samples.comp.glsl
 layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
@@ -159,27 +159,25 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
 #else
     // Row by row, as afsm_wide.comp tests its casters: the cells of a grid
     // row are consecutive in the sample list, so the samples of the row's
-    // cells the caster can meet (afsmRowCells) are one range of slots, two
-    // texel fetches a row, and each lane walks its caster's range. The
-    // work counts every cell and every sample of the rectangle, as
-    // afsmComputeWork counts them for the raster path's mirror of this
-    // choice (nearest -1: no cell left out by depth); past the budget
-    // afsm_wide.comp (else the raster path) takes the caster (the rows tested
-    // so far are tested twice). On the 2 M scan at 1024^2 the cell-by-cell
+    // cells the caster can meet (afsmRowCells) are one range of slots
+    // (afsmRowSlots: three texel fetches a row), and each lane walks its
+    // caster's range. The work counts each row's cells and the samples of
+    // its range, never more than afsmComputeWork counts for the raster
+    // path's mirror of this choice (every cell and sample of the rectangle:
+    // nearest -1); past the budget afsm_wide.comp (else the raster path)
+    // takes the caster (the rows tested so far are tested twice). On the 2 M scan at 1024^2 the cell-by-cell
     // loop (a cell's count, depth and edge tests, then its samples) was about
     // half of afsm_bin; by rows afsm_bin went 300 -> 261 CPU ms.
     const AfsmRowEdges edges = afsmRowEdges(projected, behind, margin);
     const uint columns = uint(last.x - first.x + 1);
     for (int y = first.y; y <= last.y && !over; ++y) {
         const uint row = uint(y) * push.gridSize;
-        const uint rowFirst = afsmCellFirst(row + uint(first.x));
-        const uint rowEnd = afsmCellFirst(row + uint(last.x)) + afsmCellCount(row + uint(last.x));
-        work += columns + (rowEnd - rowFirst);
-        over = work > PENUMBRA_AFSM_COMPUTE_BUDGET;
         int lo = first.x, hi = last.x;
         afsmRowCells(edges, y, lo, hi);
-        const uint begin = lo <= hi ? afsmCellFirst(row + uint(lo)) : 0u;
-        const uint end = lo <= hi && !over ? afsmCellFirst(row + uint(hi)) + afsmCellCount(row + uint(hi)) : 0u;
+        const uvec2 slots = afsmRowSlots(row, lo, hi);
+        work += columns + (slots.y - slots.x);
+        over = work > PENUMBRA_AFSM_COMPUTE_BUDGET;
+        const uint begin = slots.x, end = over ? slots.x : slots.y;
         if (AFSM_PARALLEL)
             afsmTestSlotsParallel(begin, end, 1u, w0, w1, w2, f.shear.z);
         else

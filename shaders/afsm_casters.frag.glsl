@@ -38,7 +38,7 @@ layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;  // R32UI: 
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
 // Hard shadows of a directional light: the layer's shear, and in parallel.w bit 8 whether the slots are sheared
 // (afsm_samples.comp.glsl; afsm.glsli: AfsmParallel).
-layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; uint cellMost; uint crowded[4]; uvec4 parallel; };
+layout(set = 0, binding = 4, std430) readonly buffer Far { AFSM_FAR_FIELDS; };
 #define AFSM_PARALLEL ((parallel.w & 0x100u) != 0u)
 layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel

@@ -37,7 +37,7 @@
 // C++: runtime/src/passes/afsm.h (AfsmCastersBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;  // R32UI: samples per cell (afsmCellCount)
-layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; uint cellMost; uint crowded[4]; }; // afsm_samples.comp.glsl
+layout(set = 0, binding = 4, std430) readonly buffer Far { AFSM_FAR_FIELDS; }; // afsm_samples.comp.glsl
 layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;  // R32UI: per cell, its farthest sample depth (afsmCellDepth)
 layout(set = 0, binding = 8, std430) readonly buffer ClosedBits { uint closedBits[]; };  // bit per cluster: kClusterClosed
 #define AFSM_RECTANGLES_ONLY 1
@@ -80,7 +80,7 @@ void main()
     AfsmDepthBound depth;
     const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
     AfsmRect r = afsmHardRect(push.viewProj, worldPosition[0], worldPosition[1], worldPosition[2], push.gridSize, margin, cells, behind, depth);
-    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, -1.0, true)) // afsm_bin.comp counts every sample (nearest -1)
+    if (r.empty || afsmComputeTakes(r, push.gridSize, push.computeCells, 1u, -1.0, true)) // every sample of the rectangle (nearest -1): afsm_bin.comp counts no more
         return;
     ivec2 firstCell, lastCell;
     afsmRectCellRange(r, push.gridSize, firstCell, lastCell);

@@ -50,7 +50,7 @@ layout(set = 0, binding = 8, std430) buffer Shadowed { uint shadowed[]; };     /
 // The layer's farthest sample's clip.w (float bits), its most samples in a cell, and its crowded cells' rectangle
 // (min x, min y, max x, max y; cleared to ~0, ~0, 0, 0). C++: afsm.h (AfsmFar).
 // Hard shadows of a directional light: the layer's permutation and shear (afsm.glsli: AfsmParallel), written by the list.
-layout(set = 0, binding = 9, std430) buffer Far { uint farBits; uint cellMost; uint crowded[4]; uvec4 parallel; };
+layout(set = 0, binding = 9, std430) buffer Far { AFSM_FAR_FIELDS; };
 layout(set = 0, binding = 10, std430) buffer CellDepth { uint cellDepth[]; };  // per cell: its farthest sample depth (float bits)
 layout(set = 0, binding = 11, std430) buffer SlotShadowed { uint slotShadowed[]; }; // per slot: shadowed[] of its pixel (cleared by AfsmPass before the list)
 layout(set = 0, binding = 12, std430) buffer CellAlive { uint cellAlive[]; };     // per cell: samples not yet shadowed (AfsmPass copies the counts after the list)

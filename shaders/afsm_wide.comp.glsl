@@ -69,7 +69,7 @@ layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 1) uniform usamplerBuffer cellFirstTexels;
 layout(set = 0, binding = 2) uniform usamplerBuffer cellCountTexels;
 layout(set = 0, binding = 3, std430) buffer Shadowed { uint shadowed[]; };
-layout(set = 0, binding = 4, std430) readonly buffer Far { uint farBits; uint cellMost; uint crowded[4]; uvec4 parallel; }; // afsm_samples.comp.glsl
+layout(set = 0, binding = 4, std430) readonly buffer Far { AFSM_FAR_FIELDS; }; // afsm_samples.comp.glsl
 layout(set = 0, binding = 5) uniform usamplerBuffer cellDepthTexels;
 layout(set = 0, binding = 6, std430) buffer SlotShadowed { uint slotShadowed[]; };
 layout(set = 0, binding = 7, std430) buffer CellAlive { uint cellAlive[]; };
@@ -124,9 +124,8 @@ void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, AfsmRowEdges edges, inou
         int lo = first.x, hi = last.x;
         afsmRowCells(edges, y, lo, hi);
         const uint row = uint(min(y, last.y)) * push.gridSize;
-        const bool cells = y <= last.y && lo <= hi;
-        const uint rowBegin = cells ? afsmCellFirst(row + uint(lo)) : 0u;
-        const uint rowEnd = cells ? afsmCellFirst(row + uint(hi)) + afsmCellCount(row + uint(hi)) : 0u;
+        const uvec2 slots = afsmRowSlots(row, lo, y <= last.y ? hi : lo - 1);
+        const uint rowBegin = slots.x, rowEnd = slots.y;
         iterations += 5u; // the rows' loop and their edges
         // The rows holding samples, one after another (a ballot's words: one on lavapipe and NVIDIA).
         const uvec4 holding = subgroupBallot(rowEnd > rowBegin);
