@@ -17,9 +17,13 @@
 // script dispatches it once per range of the view's clusters whose pages fit
 // the pool, that range resident: the nodes are read through the node table
 // from their records in the pool, and only the range's clusters
-// ([clusterBegin, clusterEnd) of the view's) are binned, so every caster
+// ([rangeBegin, rangeEnd) of the view's) are binned, so every caster
 // cluster is binned once over the ranges (its tests OR into the samples'
-// flags and masks, in any order).
+// flags and masks, in any order). In core, a directional light's hard
+// shadows may take two passes (AfsmPass::recordCasters' two-pass choice):
+// the leaves nearest the light first, then, after the cells' depths were
+// counted again over the samples still lit (recordRefresh), the others with
+// their rows narrowed to the cells still holding such a sample (afsmTrimRow).
 // Built twice: hard shadows, and soft shadows with PENUMBRA_AFSM_SOFT
 // (afsm_bin.comp.soft).
 #version 460
@@ -47,7 +51,7 @@
 layout(local_size_x = PENUMBRA_AFSM_BIN_GROUP) in;
 
 // 1: paged geometry (geometry_pages.h): nodes through the node table, clusters of
-// [clusterBegin, clusterEnd) only; 0 (no budget): compiled out.
+// [rangeBegin, rangeEnd) only; 0 (no budget): compiled out.
 layout(constant_id = 0) const uint kGeometryBudget = 0u;
 // 1: hard shadows of a directional light, sheared slots (afsm.glsli: AfsmParallel); afsm_casters.glsli's AFSM_PARALLEL.
 layout(constant_id = 1) const uint kParallel = 0u;
@@ -58,6 +62,10 @@ layout(constant_id = 1) const uint kParallel = 0u;
 layout(constant_id = 2) const uint kTexelAccess = 0u;
 // 1: the vertices' texel view is R16_UINT, three texels a vertex (GpuGeometry::vertexTexelsSplit).
 layout(constant_id = 3) const uint kSplitVertexTexels = 0u;
+// 1: hard shadows, the second of two passes: each row narrowed to its cells holding a sample beyond the caster
+// (afsmTrimRow). A constant, not a flag: the first pass's and the single pass's loops stay as they were (a
+// branch not taken there still cost the plant's afsm_bin and afsm_rows 5-8% at 1024^2).
+layout(constant_id = 4) const uint kTrimRows = 0u;
 
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
@@ -103,8 +111,8 @@ layout(push_constant) uniform AfsmBinPush {
     uint gridSize;
     float originOffset;
     float computeCells;   // PENUMBRA_AFSM_COMPUTE_CELLS
-    uint clusterBegin;    // kGeometryBudget: the range of clusters binned by this dispatch
-    uint clusterEnd;
+    uint rangeBegin;      // kGeometryBudget: the clusters [rangeBegin, rangeEnd) binned by this dispatch; in core: the
+    uint rangeEnd;        // leaves whose box's nearest depth lies in [rangeBegin, rangeEnd) (float bits; the two passes)
     uint closedBackFaces; // closed clusters cast only light-back-facing triangles (afsm_casters.glsli)
     uint64_t nodeTable;   // kGeometryBudget: NodeTable's device address
     uint64_t nodeRecords; // kGeometryBudget: the pool's (node records, 16-byte texels: NodeArray)
@@ -174,6 +182,8 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
         const uint row = uint(y) * push.gridSize;
         int lo = first.x, hi = last.x;
         afsmRowCells(edges, y, lo, hi);
+        if (kTrimRows != 0u)
+            afsmTrimRow(row, nearest, lo, hi);
         const uvec2 slots = afsmRowSlots(row, lo, hi);
         work += columns + (slots.y - slots.x);
         over = work > PENUMBRA_AFSM_COMPUTE_BUDGET;
@@ -191,37 +201,50 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
 #endif
 }
 
-// Hard shadows: whether no sample of the blocks under a leaf's box lies
-// beyond the box's nearest corner (afsmBlocksBehind), so that none of its
-// triangles can shadow one: its box's projection, grown as afsmHardRect grows
-// a caster's, holds theirs, and its nearest corner is no farther than their
-// nearest vertices. Not for a box reaching behind a perspective grid's eye,
-// nor for soft shadows (a caster's influence region reaches past its
-// projection).
-bool afsmLeafBehind(WideNode node, vec3 steps, uint slot)
+// Hard shadows: a leaf's box on the grid, grown as afsmHardRect grows a
+// caster's (so that it holds its triangles' rectangles), and the depth of
+// its nearest corner, no farther than their nearest vertices; false when the
+// box reaches behind a perspective grid's eye. A directional light's grid is
+// orthographic: each clip coordinate is affine in the point, so its range
+// over the box is the centre's value plus or minus the half extents'
+// absolute weights (three dot products instead of eight corners).
+bool afsmLeafRect(WideNode node, vec3 steps, uint slot, out AfsmRect r, out float nearest)
 {
-#ifdef PENUMBRA_AFSM_SOFT
-    return false;
-#else
     vec3 boxMin, boxMax;
     decodeChildBox(node, steps, slot, boxMin, boxMax);
-    AfsmRect r = AfsmRect(vec2(3.0e38), vec2(-3.0e38), false, false);
-    float nearest = 1.0;
     bool front = true; // every corner in front of the eye
-    for (int i = 0; i < 8; ++i) {
-        const vec3 corner = vec3((i & 1) != 0 ? boxMax.x : boxMin.x, (i & 2) != 0 ? boxMax.y : boxMin.y, (i & 4) != 0 ? boxMax.z : boxMin.z);
-        const vec4 clip = push.viewProj * vec4(corner, 1.0);
-        front = front && clip.w > 1e-20;
-        const float w = max(clip.w, 1e-20);
-        nearest = min(nearest, clip.z / w);
-        r.lo = min(r.lo, clip.xy / w);
-        r.hi = max(r.hi, clip.xy / w);
+    if (AFSM_PARALLEL) {
+        const vec4 mid = push.viewProj * vec4(0.5 * (boxMin + boxMax), 1.0);
+        const mat3 m = mat3(push.viewProj);
+        const vec3 reach = mat3(abs(m[0]), abs(m[1]), abs(m[2])) * (0.5 * (boxMax - boxMin));
+        r = AfsmRect(mid.xy - reach.xy, mid.xy + reach.xy, false, false);
+        nearest = mid.z - reach.z;
+    } else {
+        r = AfsmRect(vec2(3.0e38), vec2(-3.0e38), false, false);
+        nearest = 1.0;
+        for (int i = 0; i < 8; ++i) {
+            const vec3 corner = vec3((i & 1) != 0 ? boxMax.x : boxMin.x, (i & 2) != 0 ? boxMax.y : boxMin.y, (i & 4) != 0 ? boxMax.z : boxMin.z);
+            const vec4 clip = push.viewProj * vec4(corner, 1.0);
+            front = front && clip.w > 1e-20;
+            const float w = max(clip.w, 1e-20);
+            nearest = min(nearest, clip.z / w);
+            r.lo = min(r.lo, clip.xy / w);
+            r.hi = max(r.hi, clip.xy / w);
+        }
     }
     r = afsmGrow(r, push.gridSize, 0.5 + afsmCellMargin(frame.lights[push.lightIndex]) + 1.0 / 64.0);
+    return front;
+}
+
+// Hard shadows: whether no sample of the blocks under a leaf's rectangle
+// (afsmLeafRect) lies beyond its nearest corner (afsmBlocksBehind), so that
+// none of its triangles can shadow one. Not for a box reaching behind a
+// perspective grid's eye (front false).
+bool afsmLeafBehind(AfsmRect r, float nearest, bool front)
+{
     ivec2 first, last;
     afsmRectCellRange(r, push.gridSize, first, last);
     return front && !r.empty && afsmBlocksBehind(first, last, push.gridSize, nearest - 1e-6);
-#endif
 }
 
 shared uvec2 passingLeaves[4 * PENUMBRA_AFSM_BIN_GROUP]; // cluster, leaf reference (start | count << 16)
@@ -260,11 +283,23 @@ void main()
         const uint cluster = present ? nodeCluster(node) : PENUMBRA_NO_CLUSTER;
         bool inView = cluster != PENUMBRA_NO_CLUSTER && (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u;
         if (kGeometryBudget != 0u)
-            inView = inView && cluster >= push.clusterBegin && cluster < push.clusterEnd;
+            inView = inView && cluster >= push.rangeBegin && cluster < push.rangeEnd;
         const vec3 steps = nodeSteps(node);
-        for (uint slot = 0u; slot < 4u; ++slot)
-            if (inView && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF && !afsmLeafBehind(node, steps, slot))
+        for (uint slot = 0u; slot < 4u; ++slot) {
+            bool take = inView && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF;
+#ifndef PENUMBRA_AFSM_SOFT // soft shadows: every leaf of the view (an influence region reaches past the box's projection)
+            AfsmRect r;
+            float nearest;
+            const bool front = afsmLeafRect(node, steps, slot, r, nearest);
+            // In core: this pass's leaves only, by their nearest depth (AfsmPass::CasterLayer::nearFrom); the
+            // blocks are read only where the leaf is still taken (a loop no lane runs is skipped).
+            take = take && (kGeometryBudget != 0u || (nearest >= uintBitsToFloat(push.rangeBegin) && nearest < uintBitsToFloat(push.rangeEnd)));
+            if (take)
+                take = !afsmLeafBehind(r, nearest, front);
+#endif
+            if (take)
                 passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);
+        }
     }
     barrier();
     const uint leafCount = passingCount;

@@ -19,6 +19,9 @@
 //    counts into offsets, the sample writes its ray and pixel index
 //    (AfsmRaySlot, afsm.glsli) into its cell's range of the flat list of
 //    slots (cellFill counts the cell's slots taken);
+//  PENUMBRA_AFSM_REFRESH (hard shadows, after a first pass of casters): the
+//    cells' and blocks' farthest depths again (cleared by AfsmPass), over the
+//    samples no caster has shadowed yet; nothing else changes;
 //  PENUMBRA_AFSM_RESOLVE: after every layer's casters (afsm_casters), the
 //    light's visibility: 0 where a caster blocked the sample's ray or the
 //    surface faces away, 1 elsewhere; -1 for background. Clears the marks
@@ -168,7 +171,12 @@ uvec2 samplePixel()
     }
 #endif
     uvec2 counts = uvec2(0u);
-    if (kMode == PENUMBRA_AFSM_COUNT) {
+    if (kMode == PENUMBRA_AFSM_REFRESH) {
+        if (listed && shadowed[index] == 0u) { // as the count below
+            atomicMax(cellDepth[cell], floatBitsToUint(clamp(depth, 0.0, 1.0)));
+            atomicMax(cellDepth[afsmBlockDepthIndex(cellXY >> 3u, push.gridSize)], floatBitsToUint(clamp(depth, 0.0, 1.0)));
+        }
+    } else if (kMode == PENUMBRA_AFSM_COUNT) {
         if (listed) {
             uint before = atomicAdd(cellCount[cell], 1u);
             if (before == push.sliceSamples) { // the cell's first sample past one slice: once per crowded cell

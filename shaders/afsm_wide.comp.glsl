@@ -40,7 +40,8 @@
 // kPhase (PENUMBRA_AFSM_WIDE_*): the first pass's indirect dispatch from the
 // list's length; the first pass; the second pass's dispatch; the second pass
 // (the casters the first reached past a subgroup's loop budget, one caster
-// per subgroup with a budget of its own).
+// per subgroup with a budget of its own); and, apart from those, the pixels
+// shadowed so far (AfsmPass's two-pass choice, recordCasters).
 #version 460
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
@@ -48,6 +49,7 @@
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_shuffle : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 
 #include "config.h"
 #include "shadow_common.glsli"
@@ -63,6 +65,8 @@ layout(constant_id = 0) const uint kPhase = PENUMBRA_AFSM_WIDE_TEST;
 // texel a sample (interior and plant at 640^2: afsm_rows about 30% less).
 layout(constant_id = 1) const uint kParallel = 0u;
 #define AFSM_PARALLEL (kParallel != 0u)
+// 1: the second of two passes, rows narrowed to the cells still holding a sample beyond the caster (afsm_bin.comp's kTrimRows).
+layout(constant_id = 2) const uint kTrimRows = 0u;
 
 // C++: runtime/src/passes/afsm.h (AfsmBinBinding: the compute path's set).
 layout(set = 0, binding = 0, std140) uniform Frame { FrameData frame; };
@@ -94,6 +98,7 @@ layout(push_constant) uniform AfsmWidePush {
 struct WideSetup {
     ivec4 cells; // first.xy, last.xy
     AfsmRowEdges edges;
+    float nearest; // its nearest depth (afsmTrimRow)
 };
 
 WideSetup wideSetup(vec3 v0, vec3 v1, vec3 v2, float margin)
@@ -104,12 +109,12 @@ WideSetup wideSetup(vec3 v0, vec3 v1, vec3 v2, float margin)
     const AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, margin, v, behind, depth);
     ivec2 first, last;
     afsmRectCellRange(r, push.gridSize, first, last);
-    return WideSetup(ivec4(first, r.empty ? first - 1 : last), afsmRowEdges(v, behind, margin));
+    return WideSetup(ivec4(first, r.empty ? first - 1 : last), afsmRowEdges(v, behind, margin), depth.nearest);
 }
 
 // Tests one caster (the same values in every lane) against the samples of its rows; counts the loop
 // iterations and stops once they pass push.iterations (over).
-void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, AfsmRowEdges edges, inout uint iterations, inout bool over)
+void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, AfsmRowEdges edges, float nearest, inout uint iterations, inout bool over)
 {
     const uint lane = gl_SubgroupInvocationID, width = gl_SubgroupSize;
     const ivec2 first = cells.xy, last = cells.zw;
@@ -124,6 +129,8 @@ void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, AfsmRowEdges edges, inou
         int lo = first.x, hi = last.x;
         afsmRowCells(edges, y, lo, hi);
         const uint row = uint(min(y, last.y)) * push.gridSize;
+        if (kTrimRows != 0u && y <= last.y)
+            afsmTrimRow(row, nearest, lo, hi);
         const uvec2 slots = afsmRowSlots(row, lo, y <= last.y ? hi : lo - 1);
         const uint rowBegin = slots.x, rowEnd = slots.y;
         iterations += 5u; // the rows' loop and their edges
@@ -182,7 +189,8 @@ void main()
             ++iterations;
             const AfsmRowEdges edges = AfsmRowEdges(subgroupShuffle(setup.edges.normals01, k), subgroupShuffle(setup.edges.normal2Edges, k),
                                                     subgroupShuffle(setup.edges.reach, k));
-            testCaster(v0, v1, v2, subgroupShuffle(setup.cells, k), edges, iterations, over);
+            const float nearest = kTrimRows != 0u ? subgroupShuffle(setup.nearest, k) : 0.0;
+            testCaster(v0, v1, v2, subgroupShuffle(setup.cells, k), edges, nearest, iterations, over);
             if (over && subgroupElect()) {
                 const uint alone = atomicAdd(list.alone, 1u);
                 if (alone < push.capacity - listed)
@@ -191,12 +199,21 @@ void main()
                     afsmWideMark(list, cluster);
             }
         }
+    } else if (kPhase == PENUMBRA_AFSM_WIDE_COUNT_SHADOWED) {
+        // Four pixels' flags an invocation, one atomic a subgroup (AfsmPass reads the sum back).
+        const uint first = 4u * gl_GlobalInvocationID.x, pixels = uint(shadowed.length());
+        uint count = 0u;
+        for (uint k = 0u; k < 4u; ++k)
+            count += first + k < pixels && shadowed[first + k] != 0u ? 1u : 0u;
+        count = subgroupAdd(count);
+        if (subgroupElect() && count != 0u)
+            atomicAdd(list.shadowedPixels, count);
     } else { // PENUMBRA_AFSM_WIDE_TEST_ALONE: one caster per subgroup, its own loop budget; past it, the raster path's
         const uint index = group * gl_NumSubgroups + gl_SubgroupID;
         if (index < min(list.alone, push.capacity - listed)) {
             const AfsmWideCaster caster = casters.casters[push.capacity - 1u - index];
             const WideSetup setup = wideSetup(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, margin);
-            testCaster(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, setup.cells, setup.edges, iterations, over);
+            testCaster(caster.v0Cluster.xyz, caster.v1.xyz, caster.v2.xyz, setup.cells, setup.edges, setup.nearest, iterations, over);
             if (over && subgroupElect())
                 afsmWideMark(list, floatBitsToUint(caster.v0Cluster.w));
         }

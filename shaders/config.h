@@ -43,6 +43,7 @@
 #define PENUMBRA_AFSM_WIDE_TEST 1u            // ... the first pass (one caster per invocation, tested by its subgroup),
 #define PENUMBRA_AFSM_WIDE_ALONE_DISPATCH 2u  // ... the second pass's dispatch,
 #define PENUMBRA_AFSM_WIDE_TEST_ALONE 3u      // ... the second pass (one caster per subgroup)
+#define PENUMBRA_AFSM_WIDE_COUNT_SHADOWED 4u  // ... the pixels shadowed so far (AfsmWideHeader::shadowedPixels)
                                          // (lavapipe silently ends an invocation's loops after 65535 in all); a cell with more
                                          // samples is tested in slices, one more draw per slice (afsm.h: afsmSliceSamples)
 #define PENUMBRA_RH_GROUP_SIZE 64       // rh_traverse.comp, rh_build.comp: records or nodes per workgroup
@@ -95,6 +96,7 @@
 #define PENUMBRA_AFSM_COUNT 0u           // count the samples per grid cell
 #define PENUMBRA_AFSM_LIST 1u            // list them per cell (after the prefix sum)
 #define PENUMBRA_AFSM_RESOLVE 2u         // the light's visibility from the samples' shadow flags (soft: their masks)
+#define PENUMBRA_AFSM_REFRESH 3u         // hard shadows: the cells' farthest depths again, over the samples no caster has shadowed yet
 // afsm_table.comp.glsl phases.
 #define PENUMBRA_AFSM_TABLE_SAMPLES 0u   // the light samples' 2-D positions (penumbra/light_sampling.h)
 #define PENUMBRA_AFSM_TABLE_MASKS 1u     // per (angle, distance) entry, the bitmask of the samples in front of the line

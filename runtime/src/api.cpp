@@ -454,7 +454,7 @@ std::string summaryLine(const FrameStats& stats)
         line += buffer;
     }
     if (stats.shadows == ShadowMethod::AliasFree)
-        line += " | closed clusters " + std::to_string(stats.afsmClosedClusters) + ": " + stats.afsmClosedCasting + " | most samples in a cell " + std::to_string(stats.afsmCellMost) + ", slice draws " + std::to_string(stats.afsmSliceDraws) + ", compute path " + (stats.afsmComputePath ? "on" : "off") + ", row-wise casters " + std::to_string(stats.afsmWideCasters) + " (raster path in " + std::to_string(stats.afsmWideRasterLayers) + " layers)";
+        line += " | closed clusters " + std::to_string(stats.afsmClosedClusters) + ": " + stats.afsmClosedCasting + " | most samples in a cell " + std::to_string(stats.afsmCellMost) + ", slice draws " + std::to_string(stats.afsmSliceDraws) + ", compute path " + (stats.afsmComputePath ? "on" : "off") + ", row-wise casters " + std::to_string(stats.afsmWideCasters) + " (raster path in " + std::to_string(stats.afsmWideRasterLayers) + " layers), two passes in " + std::to_string(stats.afsmTwoPassLayers) + " layers (" + std::to_string(stats.afsmRefreshedLayers) + " refreshed)";
     if (stats.geometryBudgetBytes) {
         std::snprintf(buffer, sizeof(buffer),
                       " | budget %.1f of %.1f MiB | model on device %.1f MiB | resident peak %.1f MiB | pages uploaded %llu | streamed %.1f MiB | parking rounds %u",
@@ -504,7 +504,7 @@ std::string statsJson(const FrameStats& stats)
         json["rh"] = {{"casters", stats.rhCasters}, {"cone_tests", stats.nodesVisited}, {"ray_tests", stats.triangleTests},
                       {"batches", stats.rhBatches}, {"rounds", stats.rhRounds}, {"peak_pair_bytes", stats.rhPeakPairBytes}};
     if (stats.shadows == ShadowMethod::AliasFree)
-        json["afsm"] = {{"closed_clusters", stats.afsmClosedClusters}, {"closed_casting", stats.afsmClosedCasting}, {"cell_most", stats.afsmCellMost}, {"slice_draws", stats.afsmSliceDraws}, {"compute_path", stats.afsmComputePath}, {"row_casters", stats.afsmWideCasters}, {"raster_layers", stats.afsmWideRasterLayers}};
+        json["afsm"] = {{"closed_clusters", stats.afsmClosedClusters}, {"closed_casting", stats.afsmClosedCasting}, {"cell_most", stats.afsmCellMost}, {"slice_draws", stats.afsmSliceDraws}, {"compute_path", stats.afsmComputePath}, {"row_casters", stats.afsmWideCasters}, {"raster_layers", stats.afsmWideRasterLayers}, {"two_pass_layers", stats.afsmTwoPassLayers}, {"refreshed_layers", stats.afsmRefreshedLayers}};
     if (stats.geometryBudgetBytes)
         json["geometry_budget"] = {{"budget_bytes", stats.geometryBudgetBytes},     {"geometry_bytes", stats.geometryBytes},
                                    {"resident_peak_bytes", stats.residentPeakBytes}, {"pages_uploaded", stats.pagesUploaded},

@@ -585,6 +585,12 @@ std::vector<uint32_t> Culling::finalDrawn(vk::Device& device, uint32_t view) con
     return drawn;
 }
 
+void Culling::resetViewTimestamps(VkCommandBuffer cmd, uint32_t view) const
+{
+    if (view < plans.size())
+        vkCmdResetQueryPool(cmd, timestampPool, 2 * view, 2);
+}
+
 void Culling::markView(VkCommandBuffer cmd, uint32_t view, bool end) const
 {
     if (view < plans.size())

@@ -171,6 +171,10 @@ struct Culling {
     // timestamp before (end = false) or after its draws, so its stats are
     // complete. Every planned view gets both, through recordView or this.
     void markView(VkCommandBuffer cmd, uint32_t view, bool end) const;
+    // Before a view's timestamps are written a second time in a frame (a
+    // pass that draws or marks the view twice; outside rendering): resets
+    // them, so that the second pair stands.
+    void resetViewTimestamps(VkCommandBuffer cmd, uint32_t view) const;
 
     struct Entry {
         uint32_t cluster;

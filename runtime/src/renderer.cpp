@@ -819,14 +819,35 @@ struct Renderer::Impl::FrameScript {
                 timer.mark(cmd, PassId::AfsmSamples);
                 const uint32_t most = afsmCellMost(false);
                 const passes::AfsmPass::PagedCasters paged = afsmPagedCasters(light, lightFirstView[light] + layer);
-                r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(),
-                                     {lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false,
-                                      afsmBackFaces, most, parallel},
-                                     [this] { timer.mark(cmd, PassId::AfsmBin); }, &paged, [this] {
-                                         timer.mark(cmd, PassId::AfsmRows);
-                                         r.submitAndWait(cmd, timer.passesSinceLastSubmit());
-                                         beginCommands();
-                                     });
+                const auto afterBin = [this] { timer.mark(cmd, PassId::AfsmBin); };
+                const auto afterRows = [this] {
+                    timer.mark(cmd, PassId::AfsmRows);
+                    r.submitAndWait(cmd, timer.passesSinceLastSubmit());
+                    beginCommands();
+                };
+                passes::AfsmPass::CasterLayer casters{lightFirstView[light] + layer, 6 * light + layer, l.viewProj[layer], light, rayOffset, false,
+                                                      afsmBackFaces, most, parallel};
+                // A directional light's casters in two passes (AfsmPass::twoPassSplit): those nearest the light,
+                // which shadow most where a roof covers the view; then, if they shadowed enough of it, the cells'
+                // depths again over the samples still lit, and the rest against those.
+                const float split = r.afsm.twoPassSplit();
+                if (parallel && split > 0.0f && r.afsm.rowPassUsed(r.shadowCulling, r.geometry, r.trace.modelTableAddress()) &&
+                    r.afsm.nearCoverPays(r.shadowCulling, lightFirstView[light] + layer, l.viewProj[layer])) {
+                    passes::AfsmPass::CasterLayer nearest = casters;
+                    nearest.nearTo = split;
+                    nearest.countShadowed = true;
+                    r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(), nearest, afterBin, &paged,
+                                         afterRows);
+                    timer.mark(cmd, PassId::AfsmCasters);
+                    r.shadowCulling.resetViewTimestamps(cmd, casters.view); // the second pass marks the view again
+                    casters.nearFrom = split;
+                    casters.trimRows = r.afsm.refreshPays(r.afsm.shadowedPixels());
+                    if (casters.trimRows) {
+                        r.afsm.recordRefresh(cmd, light, layer, l.viewProj[layer], rayOffset);
+                        timer.mark(cmd, PassId::AfsmSamples);
+                    }
+                }
+                r.afsm.recordCasters(cmd, r.device, r.shadowCulling, r.geometry, r.trace.modelTableAddress(), casters, afterBin, &paged, afterRows);
                 timer.mark(cmd, PassId::AfsmCasters);
             }
             return;
@@ -1028,7 +1049,7 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
         out.afsmClosedClusters = afsmClosedClusters;
         out.afsmCellMost = uint32_t(counters[PENUMBRA_STAT_AFSM_CELL_MOST]);
         out.afsmSliceDraws = r.afsm.takeSliceDraws();
-        r.afsm.takeWideStats(out.afsmWideCasters, out.afsmWideRasterLayers);
+        r.afsm.takeWideStats(out.afsmWideCasters, out.afsmWideRasterLayers, out.afsmTwoPassLayers, out.afsmRefreshedLayers);
         out.afsmComputePath = r.afsm.computePathUsed();
         out.afsmClosedCasting = !afsmClosedClusters ? "none closed"
                                 : afsmBackFaces     ? "back faces"

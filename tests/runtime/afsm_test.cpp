@@ -105,7 +105,11 @@ TEST(AliasFreeShadowMaps, SuiteScenesMatchTheOracle)
 // past its loop budget) are left to the raster path, which then draws only
 // theirs. Every route gives the same image, bit for bit: the row pass on its
 // own, the raster path on its own (PENUMBRA_AFSM_WIDE=0), and the two
-// together (a list of 64 casters; a budget of 12 iterations a caster).
+// together (a list of 64 casters; a budget of 12 iterations a caster). So do
+// the two passes of a directional light's casters (the nearest first, then
+// the rest with the cells' depths counted again over the samples still lit,
+// rows trimmed to them): off, and forced on with a split at mid-depth and a
+// refresh whatever the first pass shadowed (with the list full, too).
 TEST(AliasFreeShadowMaps, RowPassAndRasterPathGiveTheSameImage)
 {
     for (const char* name : {"interior", "city"}) {
@@ -113,11 +117,11 @@ TEST(AliasFreeShadowMaps, RowPassAndRasterPathGiveTheSameImage)
         options.triangles = 60'000;
         const Scene scene = generateScene(name, options);
         const CompressedModel model = buildCompressedModel(scene.mesh, PreprocessOptions{});
-        auto render = [&](const char* variable, const char* value) {
-            if (variable)
+        auto render = [&](std::vector<std::pair<const char*, const char*>> variables) {
+            for (const auto& [variable, value] : variables)
                 setenv(variable, value, 1); // read when the renderer is made
             Renderer renderer;
-            if (variable)
+            for (const auto& [variable, value] : variables)
                 unsetenv(variable);
             renderer.loadModel(model);
             renderer.setCamera(scene.cameras[0]);
@@ -129,10 +133,14 @@ TEST(AliasFreeShadowMaps, RowPassAndRasterPathGiveTheSameImage)
             EXPECT_EQ(renderer.validationMessageCount(), 0u);
             return frame;
         };
-        const Frame rows = render(nullptr, nullptr);
-        const Frame raster = render("PENUMBRA_AFSM_WIDE", "0");
-        const Frame full = render("PENUMBRA_AFSM_WIDE_CAPACITY", "64");
-        const Frame budget = render("PENUMBRA_AFSM_WIDE_ITERATIONS", "12");
+        const Frame rows = render({{"PENUMBRA_AFSM_TWO_PASS", "0"}});
+        const Frame raster = render({{"PENUMBRA_AFSM_WIDE", "0"}});
+        const Frame full = render({{"PENUMBRA_AFSM_WIDE_CAPACITY", "64"}, {"PENUMBRA_AFSM_TWO_PASS", "0"}});
+        const Frame budget = render({{"PENUMBRA_AFSM_WIDE_ITERATIONS", "12"}, {"PENUMBRA_AFSM_TWO_PASS", "0"}});
+        const std::pair<const char*, const char*> split{"PENUMBRA_AFSM_NEAR_DEPTH", "0.5"}, always{"PENUMBRA_AFSM_REFRESH_SHARE", "0"};
+        const Frame twoPass = render({split, always});
+        const Frame twoPassFull = render({split, always, {"PENUMBRA_AFSM_WIDE_CAPACITY", "64"}});
+        const Frame byDefault = render({});
         std::printf("[ afsm     ] %s: %u casters row by row, %u with the raster path off\n", name, rows.stats.afsmWideCasters,
                     raster.stats.afsmWideCasters);
         EXPECT_GT(rows.stats.afsmWideCasters, 0u) << name;
@@ -140,12 +148,21 @@ TEST(AliasFreeShadowMaps, RowPassAndRasterPathGiveTheSameImage)
         EXPECT_EQ(raster.stats.afsmWideCasters, 0u) << name;
         EXPECT_EQ(full.stats.afsmWideRasterLayers, 1u) << name;
         EXPECT_EQ(budget.stats.afsmWideRasterLayers, 1u) << name;
-        for (const Frame* other : {&raster, &full, &budget}) {
+        EXPECT_EQ(rows.stats.afsmTwoPassLayers, 0u) << name;
+        EXPECT_EQ(twoPass.stats.afsmTwoPassLayers, 1u) << name;
+        EXPECT_EQ(twoPass.stats.afsmRefreshedLayers, 1u) << name;
+        EXPECT_GE(twoPassFull.stats.afsmWideRasterLayers, 1u) << name;
+        std::printf("[ afsm     ] %s: by default %u layer(s) in two passes, %u refreshed\n", name, byDefault.stats.afsmTwoPassLayers,
+                    byDefault.stats.afsmRefreshedLayers);
+        const std::pair<const Frame*, const char*> others[] = {{&raster, "raster path alone"}, {&full, "list full"}, {&budget, "loop budget"},
+                                                               {&twoPass, "two passes"},       {&twoPassFull, "two passes, list full"},
+                                                               {&byDefault, "default"}};
+        for (const auto& [other, what] : others) {
             ASSERT_EQ(other->visibility.size(), rows.visibility.size());
             size_t differing = 0;
             for (size_t i = 0; i < rows.visibility.size(); ++i)
                 differing += rows.visibility[i] != other->visibility[i];
-            EXPECT_EQ(differing, 0u) << name << ": " << (other == &raster ? "raster path alone" : other == &full ? "list full" : "loop budget");
+            EXPECT_EQ(differing, 0u) << name << ": " << what;
         }
     }
 }

@@ -253,6 +253,13 @@ struct FrameStats {
     // clusters to it (its list full, or a caster past its loop budget).
     uint32_t afsmWideCasters = 0;
     uint32_t afsmWideRasterLayers = 0;
+    // afsm, a directional light's hard shadows: the layers whose casters went
+    // in two passes (those nearest the light first: PENUMBRA_AFSM_NEAR_DEPTH),
+    // and of those, the layers whose second pass went after the cells' depths
+    // were counted again over the samples still lit (the first pass shadowed
+    // at least PENUMBRA_AFSM_REFRESH_SHARE of the pixels).
+    uint32_t afsmTwoPassLayers = 0;
+    uint32_t afsmRefreshedLayers = 0;
     // afsm: whether the small casters were binned in compute (afsm_bin.comp):
     // not when the model's largest leaf could take one invocation past that
     // loop limit (passes::afsmBinIterations), nor for the uncompressed model;

@@ -259,6 +259,13 @@ void AfsmPass::create(vk::Device& device)
         wideCapacityLimit = std::clamp(uint32_t(std::strtoul(env, nullptr, 10)), 1u, uint32_t(PENUMBRA_AFSM_WIDE_CAPACITY));
     if (const char* env = std::getenv("PENUMBRA_AFSM_WIDE_ITERATIONS"))
         wideIterations = std::clamp(uint32_t(std::strtoul(env, nullptr, 10)), 1u, uint32_t(PENUMBRA_AFSM_WIDE_ITERATIONS));
+    // And the two passes of a directional light's hard casters: off, or split and refreshed elsewhere.
+    if (const char* env = std::getenv("PENUMBRA_AFSM_TWO_PASS"))
+        twoPass = std::string(env) != "0";
+    if (const char* env = std::getenv("PENUMBRA_AFSM_NEAR_DEPTH"))
+        nearDepth = std::clamp(std::strtof(env, nullptr), 0.0f, 1.0f);
+    if (const char* env = std::getenv("PENUMBRA_AFSM_REFRESH_SHARE"))
+        refreshShare = std::clamp(std::strtod(env, nullptr), 0.0, 1.0);
     params = createBuffer(device, sizeof(AfsmParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload);
     cellMostReadback = createBuffer(device, 16, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUse::Readback);
     closedBits = createBuffer(device, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryUse::Upload, Addressable::Yes);
@@ -550,6 +557,48 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
                    kDepthTests, VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT);
 }
 
+bool AfsmPass::computePathOn(const Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable) const
+{
+    // (modelTexels: bindModel wrote the compute path's sets.)
+    return geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits() &&
+           modelTexels.nodes != VK_NULL_HANDLE;
+}
+
+bool AfsmPass::rowPassUsed(const Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable) const
+{
+    return !geometry.paged() && wideOn && computePathOn(culling, geometry, modelTable);
+}
+
+bool AfsmPass::nearCoverPays(const Culling& culling, uint32_t view, const glm::mat4& viewProj) const
+{
+    const CullModel& model = *culling.model;
+    // The grid is orthographic (a directional light's): each clip coordinate is affine in the point, its range over
+    // a box the centre's value plus or minus the half extents' absolute weights (afsm_bin.comp: afsmLeafRect).
+    const glm::mat3 weights(glm::abs(glm::vec3(viewProj[0])), glm::abs(glm::vec3(viewProj[1])), glm::abs(glm::vec3(viewProj[2])));
+    double covered = 0.0; // of the grid's [-1, 1]^2
+    for (uint32_t c : culling.viewClusters(view)) {
+        const glm::vec3 centre = glm::vec3(viewProj * glm::vec4(0.5f * (model.clusterMin[c] + model.clusterMax[c]), 1.0f));
+        const glm::vec3 reach = weights * (0.5f * (model.clusterMax[c] - model.clusterMin[c]));
+        const glm::vec2 lo = glm::max(glm::vec2(centre - reach), glm::vec2(-1.0f)), hi = glm::min(glm::vec2(centre + reach), glm::vec2(1.0f));
+        if (centre.z - reach.z < nearDepth && hi.x > lo.x && hi.y > lo.y)
+            covered += double(hi.x - lo.x) * double(hi.y - lo.y);
+    }
+    return covered >= refreshShare * 4.0;
+}
+
+void AfsmPass::recordRefresh(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, const glm::mat4& viewProj, float originOffset)
+{
+    ++refreshedLayers;
+    const uint32_t grid = layerGrid(false);
+    // The first pass's tests read the depths (afsmBlocksBehind).
+    vk::memoryBarrier(cmd, kCompute | kFragment, kStorageRead | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, kClear, kTransferWrite);
+    vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(grid * grid + afsmBlockCount(grid)) * 4, 0);
+    vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
+    dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_REFRESH, layer, viewProj, false, originOffset, false), false);
+    // The depth image of the raster path keeps the first counts: farther, so still conservative.
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kFragment | kGeometry, kStorageRW | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
+}
+
 void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry,
                              VkDeviceAddress modelTable, const CasterLayer& layer, const std::function<void()>& afterCompute,
                              const PagedCasters* paged, const std::function<void()>& afterRows)
@@ -561,10 +610,10 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
     const uint32_t grid = layerGrid(layer.soft);
     const uint32_t parallel = layer.parallel && !layer.soft ? 1u : 0u; // sheared slots (afsm_bin's and afsm_wide's kParallel)
     const uint32_t split = modelVertexTexelsSplit ? 1u : 0u;          // afsm_bin's kSplitVertexTexels
+    const uint32_t trim = layer.trimRows && !layer.soft ? 1u : 0u;    // afsm_bin's and afsm_wide's kTrimRows
     // The compute path: the small casters of the view's clusters (compressed model only).
     // (modelTexels: bindModel wrote the compute path's sets.)
-    const bool compute = geometry.encoding == GeometryEncoding::Compressed && modelTable && culling.model && geometry.nodeCount && computePathFits() &&
-                         modelTexels.nodes != VK_NULL_HANDLE;
+    const bool compute = computePathOn(culling, geometry, modelTable);
     computeUsed = compute;
     // afsm_wide.comp takes the hard casters the compute path leaves.
     const bool useWide = compute && wideOn && !layer.soft && afterRows;
@@ -592,7 +641,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                                         vk::MemoryUse::DeviceLocal, vk::Addressable::Yes);
             wideAddress = vk::bufferAddress(device, wideList);
             vk::destroyBuffer(device, wideReadback);
-            wideReadback = vk::createBuffer(device, 8 + VkDeviceSize(wideWords) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
+            wideReadback = vk::createBuffer(device, 12 + VkDeviceSize(wideWords) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::Readback);
             writeParams();
         }
         std::vector<uint32_t> bits(clusterMaskWords, 0u);
@@ -612,6 +661,8 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                          layer.closedBackFaces ? 1u : 0u,
                          0,
                          0};
+        std::memcpy(&push.rangeBegin, &layer.nearFrom, 4); // in core: this pass's leaves (paged: the ranges below)
+        std::memcpy(&push.rangeEnd, &layer.nearTo, 4);
         if (useWide) { // an empty list, no cluster marked
             vkCmdFillBuffer(cmd, wideList.buffer, 0, wideCastersOffset(), 0);
             vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
@@ -626,15 +677,15 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                 if (paged->ranges[j].empty())
                     continue;
                 paged->makeResident(paged->ranges[j]);
-                push.clusterBegin = paged->ranges[j].front();
-                push.clusterEnd = paged->ranges[j].back() + 1;
-                kernel.bind(cmd, vk::Specialization{1u, parallel, 0u, split});
+                push.rangeBegin = paged->ranges[j].front();
+                push.rangeEnd = paged->ranges[j].back() + 1;
+                kernel.bind(cmd, vk::Specialization{1u, parallel, 0u, split, 0u});
                 kernel.push(cmd, push);
                 vkCmdDispatch(cmd, groups.x, groups.y, 1);
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             }
         } else {
-            kernel.bind(cmd, vk::Specialization{0u, parallel, modelTexelsComplete ? 1u : 0u, split});
+            kernel.bind(cmd, vk::Specialization{0u, parallel, modelTexelsComplete ? 1u : 0u, split, trim});
             kernel.push(cmd, push);
             vkCmdDispatch(cmd, groups.x, groups.y, 1);
         }
@@ -652,17 +703,24 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
                 vkCmdDispatch(cmd, 1, 1, 1);
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | kCompute,
                                   VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | kStorageRW);
-                wide.bind(cmd, vk::Specialization{uint32_t(test), parallel});
+                wide.bind(cmd, vk::Specialization{uint32_t(test), parallel, trim});
                 wide.push(cmd, widePush);
                 vkCmdDispatchIndirect(cmd, wideList.buffer, dispatch);
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
             }
+            if (layer.countShadowed) { // the pixels shadowed so far: four an invocation
+                ++twoPassLayers;
+                wide.bind(cmd, vk::Specialization{uint32_t(PENUMBRA_AFSM_WIDE_COUNT_SHADOWED), parallel});
+                wide.push(cmd, widePush);
+                vkCmdDispatch(cmd, groupCount(groupCount(targets.width * targets.height, 4), PENUMBRA_AFSM_WIDE_GROUP), 1, 1);
+            }
             // Whether it left clusters to the raster path: read back once the commands ran (afterRows).
             vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCopy, kTransferRead);
-            const VkBufferCopy regions[3] = {{offsetof(AfsmWideHeader, count), 0, 4},
+            const VkBufferCopy regions[4] = {{offsetof(AfsmWideHeader, count), 0, 4},
                                              {offsetof(AfsmWideHeader, marked), 4, 4},
-                                             {sizeof(AfsmWideHeader), 8, VkDeviceSize(wideWords) * 4}};
-            vkCmdCopyBuffer(cmd, wideList.buffer, wideReadback.buffer, 3, regions);
+                                             {offsetof(AfsmWideHeader, shadowedPixels), 8, 4},
+                                             {sizeof(AfsmWideHeader), 12, VkDeviceSize(wideWords) * 4}};
+            vkCmdCopyBuffer(cmd, wideList.buffer, wideReadback.buffer, 4, regions);
             vk::memoryBarrier(cmd, kCopy, kTransferWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
         }
         vk::memoryBarrier(cmd, kCompute, kStorageWrite, kFragment | kGeometry, kStorageRW);
@@ -675,6 +733,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
         afterRows();
         const uint32_t* header = static_cast<const uint32_t*>(wideReadback.mapped);
         wideCasters += header[0];
+        lastShadowed = header[2];
         if (header[1] == 0) {
             culling.markView(cmd, layer.view, false); // the view's timestamps, as its draws would have written
             culling.markView(cmd, layer.view, true);
@@ -682,7 +741,7 @@ void AfsmPass::recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& c
         }
         ++wideRasterLayers;
         // The marked clusters (in core: drawn alone, below; paged: the whole view, the geometry shader keeping theirs).
-        const uint32_t* bits = header + 2;
+        const uint32_t* bits = header + 3;
         for (uint32_t word = 0; word < wideWords && !geometry.paged(); ++word)
             for (uint32_t b = bits[word]; b; b &= b - 1)
                 wideMarked.push_back(32 * word + uint32_t(std::countr_zero(b)));
@@ -767,11 +826,13 @@ uint32_t AfsmPass::cellMost() const
     return *static_cast<const uint32_t*>(cellMostReadback.mapped);
 }
 
-void AfsmPass::takeWideStats(uint32_t& casters, uint32_t& rasterLayers)
+void AfsmPass::takeWideStats(uint32_t& casters, uint32_t& rasterLayers, uint32_t& twoPass, uint32_t& refreshed)
 {
     casters = wideCasters;
     rasterLayers = wideRasterLayers;
-    wideCasters = wideRasterLayers = 0;
+    twoPass = twoPassLayers;
+    refreshed = refreshedLayers;
+    wideCasters = wideRasterLayers = twoPassLayers = refreshedLayers = 0;
 }
 
 uint32_t AfsmPass::takeSliceDraws()

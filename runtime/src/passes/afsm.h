@@ -121,8 +121,8 @@ struct AfsmBinPush {
     uint32_t gridSize;
     float originOffset;
     float computeCells;
-    uint32_t clusterBegin, clusterEnd; // paged geometry: the clusters this dispatch bins
-    uint32_t closedBackFaces;          // closed clusters cast only light-back-facing triangles
+    uint32_t rangeBegin, rangeEnd; // paged geometry: the clusters this dispatch bins; in core: its leaves' nearest depths (float bits)
+    uint32_t closedBackFaces;      // closed clusters cast only light-back-facing triangles
     uint64_t nodeTable;   // paged geometry: GpuGeometry::nodeTable's device address
     uint64_t nodeRecords; // paged geometry: the pool's (the node records)
 };
@@ -144,7 +144,8 @@ struct AfsmWideHeader {
     uint32_t dispatch[3]; // the tests' indirect dispatch
     uint32_t marked;      // 1: some cluster is marked (its casters left to the raster path)
     uint32_t alone;       // casters the first pass handed to the second (one caster per subgroup)
-    uint32_t pad0[2];
+    uint32_t shadowedPixels; // the pixels shadowed so far (afsm_wide.comp: PENUMBRA_AFSM_WIDE_COUNT_SHADOWED)
+    uint32_t pad0;
     uint32_t aloneDispatch[3]; // the second pass's indirect dispatch
     uint32_t pad1;
 };
@@ -334,6 +335,13 @@ class AfsmPass {
         bool closedBackFaces = false; // closed clusters cast only light-back-facing triangles
         uint32_t cellMost = 0;        // the layer's most samples in one cell (cellMost; 0: none crowded, mayCrowd false)
         bool parallel = false;        // hard shadows of a directional light: sheared slots (recordSamples' parallel)
+        // Two passes (in core, with the compute path and the row pass; see twoPassSplit): only the leaves whose
+        // box's nearest depth lies in [nearFrom, nearTo); trimRows: each row narrowed to the cells still holding a
+        // sample beyond the caster (after recordRefresh); countShadowed: shadowedPixels() counts the pixels
+        // shadowed once the layer's casters ran (needs afterRows).
+        float nearFrom = -3.0e38f, nearTo = 3.0e38f;
+        bool trimRows = false;
+        bool countShadowed = false;
     };
     // Paged geometry (geometry_pages.h): the compute path bins the view's
     // clusters in ranges whose pages fit the pool together (ascending, as
@@ -356,6 +364,33 @@ class AfsmPass {
     void recordCasters(VkCommandBuffer cmd, vk::Device& device, Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable,
                        const CasterLayer& layer, const std::function<void()>& afterCompute, const PagedCasters* paged = nullptr,
                        const std::function<void()>& afterRows = {});
+    // Whether recordCasters would take the layer's hard casters in compute,
+    // the row pass included (so that two passes split them by depth): in
+    // core, compressed, with afterRows given.
+    bool rowPassUsed(const Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable) const;
+    // The two-pass split of a directional light's hard casters: the nearest
+    // depth dividing the first pass's leaves from the second's
+    // (PENUMBRA_AFSM_NEAR_DEPTH), and the share of the bound image's pixels
+    // the first must shadow for the second to go after a refresh
+    // (PENUMBRA_AFSM_REFRESH_SHARE); 0 when off (PENUMBRA_AFSM_TWO_PASS=0).
+    float twoPassSplit() const { return twoPass ? nearDepth : 0.0f; }
+    bool refreshPays(uint32_t shadowed) const { return double(shadowed) >= refreshShare * double(targets.width) * double(targets.height); }
+    // Whether a first pass may pay: the view's clusters whose box's nearest
+    // corner lies before the split cover at least that share of the grid
+    // (their boxes' rectangles, clipped to it, summed; from the cluster
+    // bounds, on the host). Where none lies that near (the city under its
+    // sun), a first pass would cost a scan of the nodes and a round trip for
+    // nothing. A first pass that then shadows too little (the scan, the
+    // plant: a ground plane's near corner, nothing above the samples) leaves
+    // the second untrimmed; it cost them 2-4% of afsm_bin at 1024^2.
+    bool nearCoverPays(const Culling& culling, uint32_t view, const glm::mat4& viewProj) const;
+    // The pixels shadowed after the last recordCasters with countShadowed (read back by afterRows).
+    uint32_t shadowedPixels() const { return lastShadowed; }
+    // Between the two passes: the cells' and blocks' farthest depths counted
+    // again over the samples not yet shadowed (afsm_samples.comp:
+    // PENUMBRA_AFSM_REFRESH), so that the second pass's leaves, casters and
+    // rows skip what the first already shadowed. Hard shadows only.
+    void recordRefresh(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, const glm::mat4& viewProj, float originOffset);
     // Whether a cell of the bound image's grid could hold more than
     // afsmSliceSamples (soft: of the prepared sample count): then the
     // frame reads the layer's cellMost back before its casters.
@@ -368,8 +403,9 @@ class AfsmPass {
     uint32_t takeSliceDraws();
     // Since the last call: the casters afsm_wide.comp listed, and the layers
     // whose raster path still drew (some cluster marked), when recordCasters
-    // was given `submit`.
-    void takeWideStats(uint32_t& casters, uint32_t& rasterLayers);
+    // was given `submit`; the layers cast in two passes (countShadowed), and
+    // those refreshed between them (recordRefresh).
+    void takeWideStats(uint32_t& casters, uint32_t& rasterLayers, uint32_t& twoPass, uint32_t& refreshed);
     // Whether the last recordCasters binned casters in compute.
     bool computePathUsed() const { return computeUsed; }
     // The grid of a layer: afsmGridSize for the bound image (the targets hold the larger, soft one).
@@ -378,6 +414,7 @@ class AfsmPass {
     void recordResolve(VkCommandBuffer cmd, uint32_t lightIndex, float originOffset, bool soft) const;
 
   private:
+    bool computePathOn(const Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable) const;
     void dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft, bool parallel = false) const;
     AfsmSamplesPush samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
                                 bool soft) const;
@@ -415,7 +452,11 @@ class AfsmPass {
     // afsm_wide.comp's list (afsm_wide.glsli: AfsmWideList): head, overflow bits for wideWords * 32 clusters,
     // then PENUMBRA_AFSM_WIDE_CAPACITY casters; wideOn: used (PENUMBRA_AFSM_WIDE=0 turns it off).
     vk::Buffer wideList;
-    vk::Buffer wideReadback; // host-visible: the layer's AfsmWideHeader count and marked, then its overflow bits
+    vk::Buffer wideReadback; // host-visible: the layer's AfsmWideHeader count, marked and shadowedPixels, then its overflow bits
+    uint32_t lastShadowed = 0;
+    bool twoPass = true;        // PENUMBRA_AFSM_TWO_PASS
+    float nearDepth = 0.2f;     // PENUMBRA_AFSM_NEAR_DEPTH
+    double refreshShare = 0.25; // PENUMBRA_AFSM_REFRESH_SHARE
     std::vector<uint32_t> wideMarked; // the layer's marked clusters, ascending (the raster path draws them)
     uint32_t wideWords = 0;
     uint64_t wideAddress = 0;
@@ -424,7 +465,7 @@ class AfsmPass {
     bool targetsBound = false;
     void writeBinSets(vk::Device& device) const;
     std::vector<vk::Binding> castersCommonBindings() const;
-    uint32_t wideCasters = 0, wideRasterLayers = 0; // since the last takeWideStats
+    uint32_t wideCasters = 0, wideRasterLayers = 0, twoPassLayers = 0, refreshedLayers = 0; // since the last takeWideStats
     bool wideOn = true;
     // PENUMBRA_AFSM_WIDE_CAPACITY and _ITERATIONS, or (tests: the raster path's fallback) the environment's.
     uint32_t wideCapacityLimit = PENUMBRA_AFSM_WIDE_CAPACITY, wideIterations = PENUMBRA_AFSM_WIDE_ITERATIONS;
