@@ -2,9 +2,11 @@
 #extension GL_GOOGLE_include_directive : require
 // Exclusive prefix sum of the alias-free shadow map's per-cell sample counts
 // (afsm_samples.comp.glsl), in place, turning them into each cell's first
-// slot of the flat sample list. Three dispatches (push.phase):
+// slot of the flat sample list, and the total after the last cell (so that
+// cells [a, b]'s slots are [first(a), first(b + 1)): afsm_casters.glsli,
+// afsmRowSlots). Three dispatches (push.phase):
 //  0: each workgroup scans AFSM_SCAN_BLOCK counts and writes its total to blockSums;
-//  1: one workgroup scans the block totals (at most AFSM_SCAN_BLOCK of them);
+//  1: one workgroup scans the block totals (at most AFSM_SCAN_BLOCK of them) and writes the total;
 //  2: each block adds its total's prefix.
 
 #include "config.h"
@@ -18,7 +20,7 @@ layout(set = 0, binding = 0, std430) buffer Counts { uint counts[]; };
 layout(set = 0, binding = 1, std430) buffer BlockSums { uint blockSums[]; };
 
 layout(push_constant) uniform AfsmScanPush {
-    uint count;  // cells
+    uint count;  // cells (counts holds one more value: the total)
     uint phase;
 } push;
 
@@ -76,4 +78,6 @@ void main()
     }
     if (push.phase == 0u && gl_LocalInvocationIndex == 0u)
         blockSums[group] = total;
+    if (push.phase == 1u && gl_LocalInvocationIndex == 0u)
+        counts[push.count] = total; // every block's total: the samples listed
 }

@@ -180,7 +180,8 @@ bool FrameTargets::ensureAfsm(vk::Device& device, uint32_t gridSize)
     const VkDeviceSize cells = VkDeviceSize(gridSize) * gridSize, pixels = VkDeviceSize(width) * height;
     // The casters read these three through texel views (afsm_casters.glsli).
     const VkBufferUsageFlags texels = VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
-    afsmCellFirst = vk::createBuffer(device, cells * 4, kStorageDst | texels, vk::MemoryUse::DeviceLocal);
+    // One more value after the cells' first slots: the total (afsm_scan.comp.glsl).
+    afsmCellFirst = vk::createBuffer(device, (cells + 1) * 4, kStorageDst | texels, vk::MemoryUse::DeviceLocal);
     afsmCellCount = vk::createBuffer(device, cells * 4, kStorageDst | texels | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
     // Also the source of the per-cell depth grid (afsmDepth), copied after the count pass; then per block of 8x8
     // cells, its farthest sample depth (afsm_casters.glsli: afsmBlocksBehind).

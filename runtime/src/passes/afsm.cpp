@@ -516,7 +516,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     const uint32_t grid = layerGrid(soft), cells = grid * grid;
     // The previous layer's casters read the lists, and its copy read the cells' depths.
     vk::memoryBarrier(cmd, kFragment | kGeometry | kCompute | kCopy, kStorageRead | kTransferRead, kClear, kTransferWrite);
-    vkCmdFillBuffer(cmd, targets.cellFirst->buffer, 0, VkDeviceSize(cells) * 4, 0);
+    vkCmdFillBuffer(cmd, targets.cellFirst->buffer, 0, VkDeviceSize(cells + 1) * 4, 0);
     vkCmdFillBuffer(cmd, targets.cellCount->buffer, 0, VkDeviceSize(cells) * 4, 0);
     vkCmdFillBuffer(cmd, targets.far->buffer, 0, offsetof(AfsmFar, crowded), 0);
     vkCmdFillBuffer(cmd, targets.far->buffer, offsetof(AfsmFar, crowded), 2 * sizeof(uint32_t), ~0u); // the crowded cells' minima

@@ -181,7 +181,7 @@ static_assert(sizeof(AfsmTablePush) == 24);
 
 struct AfsmTargets {
     PixelTargets pixels;
-    const vk::Buffer* cellFirst = nullptr;
+    const vk::Buffer* cellFirst = nullptr; // per cell: its samples, then (afsm_scan) its first slot; one more value: the total
     const vk::Buffer* cellCount = nullptr;
     const vk::Buffer* blockSums = nullptr;
     const vk::Buffer* slots = nullptr; // per slot (a pixel's worth): AfsmRaySlot or AfsmSlot (48 bytes), addressable
