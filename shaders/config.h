@@ -97,6 +97,7 @@
 #define PENUMBRA_AFSM_LIST 1u            // list them per cell (after the prefix sum)
 #define PENUMBRA_AFSM_RESOLVE 2u         // the light's visibility from the samples' shadow flags (soft: their masks)
 #define PENUMBRA_AFSM_REFRESH 3u         // hard shadows: the cells' farthest depths again, over the samples no caster has shadowed yet
+#define PENUMBRA_AFSM_BLOCKS 4u          // each block of 8x8 cells: its farthest sample depth, from its cells' (after the count or the refresh)
 // afsm_table.comp.glsl phases.
 #define PENUMBRA_AFSM_TABLE_SAMPLES 0u   // the light samples' 2-D positions (penumbra/light_sampling.h)
 #define PENUMBRA_AFSM_TABLE_MASKS 1u     // per (angle, distance) entry, the bitmask of the samples in front of the line

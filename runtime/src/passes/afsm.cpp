@@ -510,6 +510,17 @@ void AfsmPass::dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, 
     vkCmdDispatch(cmd, groupCount(targets.width, PENUMBRA_SHADE_GROUP_SIZE), groupCount(targets.height, PENUMBRA_SHADE_GROUP_SIZE), 1);
 }
 
+void AfsmPass::dispatchBlocks(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft) const
+{
+    // One invocation per block of 8x8 cells (afsm_samples.comp.glsl: blockDepth), then a barrier for what reads them.
+    const vk::ComputeKernel& kernel = soft ? samplesSoft : samples;
+    kernel.bind(cmd, vk::Specialization{PENUMBRA_AFSM_BLOCKS, 0u});
+    kernel.push(cmd, push);
+    const uint32_t blocks = (push.gridSize + 7) / 8;
+    vkCmdDispatch(cmd, groupCount(blocks, PENUMBRA_SHADE_GROUP_SIZE), groupCount(blocks, PENUMBRA_SHADE_GROUP_SIZE), 1);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+}
+
 void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
                              bool soft, bool parallel) const
 {
@@ -527,6 +538,7 @@ void AfsmPass::recordSamples(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_COUNT, layer, viewProj, cube, originOffset, soft), soft);
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+    dispatchBlocks(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_BLOCKS, layer, viewProj, cube, originOffset, soft), soft);
 
     // Counts to offsets: block scans, the blocks' totals, then each block's prefix added.
     const uint32_t blocks = groupCount(cells, kScanBlock);
@@ -595,6 +607,8 @@ void AfsmPass::recordRefresh(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t 
     vkCmdFillBuffer(cmd, targets.cellDepth->buffer, 0, VkDeviceSize(grid * grid + afsmBlockCount(grid)) * 4, 0);
     vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
     dispatchPixels(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_REFRESH, layer, viewProj, false, originOffset, false), false);
+    vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+    dispatchBlocks(cmd, samplesPush(lightIndex, PENUMBRA_AFSM_BLOCKS, layer, viewProj, false, originOffset, false), false);
     // The depth image of the raster path keeps the first counts: farther, so still conservative.
     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kFragment | kGeometry, kStorageRW | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
 }

@@ -416,6 +416,7 @@ class AfsmPass {
   private:
     bool computePathOn(const Culling& culling, const GpuGeometry& geometry, VkDeviceAddress modelTable) const;
     void dispatchPixels(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft, bool parallel = false) const;
+    void dispatchBlocks(VkCommandBuffer cmd, const AfsmSamplesPush& push, bool soft) const;
     AfsmSamplesPush samplesPush(uint32_t lightIndex, uint32_t mode, uint32_t layer, const glm::mat4& viewProj, bool cube, float originOffset,
                                 bool soft) const;
     vk::ComputeKernel samples, samplesSoft, scan, table, bin, binSoft, wide;
