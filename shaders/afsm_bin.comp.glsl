@@ -189,9 +189,9 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
         over = work > PENUMBRA_AFSM_COMPUTE_BUDGET;
         const uint begin = slots.x, end = over ? slots.x : slots.y;
         if (AFSM_PARALLEL)
-            afsmTestSlotsParallel(begin, end, 1u, w0, w1, w2, f.shear.z);
+            afsmTestSlotsParallel(0u, begin, end, 1u, w0, w1, w2, f.shear.z);
         else
-            afsmTestSlotsHard(begin, end, 1u, v0, v1, v2);
+            afsmTestSlotsHard(0u, begin, end, 1u, v0, v1, v2);
     }
 #endif
 #ifndef PENUMBRA_AFSM_SOFT

@@ -144,9 +144,9 @@ void testCaster(vec3 v0, vec3 v1, vec3 v2, ivec4 cells, AfsmRowEdges edges, floa
             over = iterations > push.iterations;
             const uint from = over ? end : begin + lane;
             if (AFSM_PARALLEL)
-                afsmTestSlotsParallel(from, end, width, w0, w1, w2, f.shear.z);
+                afsmTestSlotsParallel(0u, from, end, width, w0, w1, w2, f.shear.z);
             else
-                afsmTestSlotsHard(from, end, width, v0, v1, v2);
+                afsmTestSlotsHard(0u, from, end, width, v0, v1, v2);
         }
     }
 }
