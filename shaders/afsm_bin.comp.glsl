@@ -121,11 +121,13 @@ layout(push_constant) uniform AfsmBinPush {
 // No early return: a caster that takes no cells gets an empty cell range, a cell with nothing to
 // test an empty sample range, and the budget ends the loops by their condition (lavapipe runs the
 // code after an early return under an execution mask).
-void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
+// closed: the caster's cluster is closed and casts its light-back-facing
+// triangles only (afsmCasts; read once per node, not per caster). A
+// directional light's hard casters are sheared by f (the layer's, read once).
+void binCaster(uint cluster, bool closed, LightData light, AfsmParallel f, vec3 v0, vec3 v1, vec3 v2)
 {
-    const bool casts = afsmCasts(frame.lights[push.lightIndex], cluster, push.closedBackFaces != 0u, v0, v1, v2);
+    const bool casts = !closed || !afsmFacesWholeLight(light, v0, v1, v2);
 #ifdef PENUMBRA_AFSM_SOFT
-    LightData light = frame.lights[push.lightIndex];
     float nearest;
     AfsmRect r = afsmSoftRect(push.viewProj, light, uintBitsToFloat(farBits), v0, v1, v2, push.gridSize, nearest);
     uint perSample = 1u + afsmQuads(softSamples);
@@ -134,11 +136,10 @@ void binCaster(uint cluster, vec3 v0, vec3 v1, vec3 v2)
     vec2 projected[3];
     bool behind;
     AfsmDepthBound depth;
-    const float margin = afsmCellMargin(frame.lights[push.lightIndex]);
+    const float margin = afsmCellMargin(light);
     AfsmRect r = afsmHardRect(push.viewProj, v0, v1, v2, push.gridSize, margin, projected, behind, depth);
     float nearest = depth.nearest;
     // A directional light's sheared slots: the caster's vertices sheared once, not once per cell.
-    const AfsmParallel f = afsmUnpackParallel(AFSM_PARALLEL ? parallel : uvec4(0u));
     const vec3 w0 = afsmShearPoint(f, v0), w1 = afsmShearPoint(f, v1), w2 = afsmShearPoint(f, v2);
 #endif
     const bool take = casts && !r.empty && afsmRectCells(r, push.gridSize) <= push.computeCells;
@@ -247,7 +248,8 @@ bool afsmLeafBehind(AfsmRect r, float nearest, bool front)
     return front && !r.empty && afsmBlocksBehind(first, last, push.gridSize, nearest - 1e-6);
 }
 
-shared uvec2 passingLeaves[4 * PENUMBRA_AFSM_BIN_GROUP]; // cluster, leaf reference (start | count << 16)
+shared uvec2 passingLeaves[4 * PENUMBRA_AFSM_BIN_GROUP]; // cluster | kClosedLeaf, leaf reference (start | count << 16)
+const uint kClosedLeaf = 0x80000000u; // the leaf's cluster is closed and casts back faces only (afsmCasts)
 shared uint passingCount;
 
 // As thin_triangles.comp.glsl (format version 4): each workgroup takes
@@ -284,6 +286,8 @@ void main()
         bool inView = cluster != PENUMBRA_NO_CLUSTER && (ClusterMask(push.clusterMask).bits[cluster >> 5u] & (1u << (cluster & 31u))) != 0u;
         if (kGeometryBudget != 0u)
             inView = inView && cluster >= push.rangeBegin && cluster < push.rangeEnd;
+        // Its leaves' casters cast their light-back-facing triangles only (afsmCasts): one read a node.
+        const bool closed = inView && push.closedBackFaces != 0u && afsmClusterClosed(cluster);
         const vec3 steps = nodeSteps(node);
         for (uint slot = 0u; slot < 4u; ++slot) {
             bool take = inView && childKindOf(node, slot) == PENUMBRA_CHILD_LEAF;
@@ -298,31 +302,72 @@ void main()
                 take = !afsmLeafBehind(r, nearest, front);
 #endif
             if (take)
-                passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster, node.w3[slot]);
+                passingLeaves[atomicAdd(passingCount, 1u)] = uvec2(cluster | (closed ? kClosedLeaf : 0u), node.w3[slot]);
         }
     }
     barrier();
     const uint leafCount = passingCount;
     GeometryChunks chunks = kTexelAccess != 0u ? GeometryChunks(0ul) : geometryChunksOf(push.modelTable, table);
-    for (uint j = lane; j < leafCount; j += PENUMBRA_AFSM_BIN_GROUP) {
-        const uvec2 leaf = passingLeaves[j];
-        const ClusterInfo cluster = kTexelAccess != 0u ? clusterTexels(leaf.x) : loadCluster(table, leaf.x);
-        LeafStrips strips;
-        uint count = leaf.y >> 16;
-        const uint firstByte = uint(cluster.firstIndex) + (leaf.y & 0xFFFFu); // kTexelAccess: the leaf's first strip byte
-        if (kTexelAccess == 0u) {
-            strips = openLeaf(table, chunks, cluster, leaf.y);
-            count = strips.count;
+    const LightData light = frame.lights[push.lightIndex];
+#ifdef PENUMBRA_AFSM_SOFT
+    const AfsmParallel f = afsmUnpackParallel(uvec4(0u));
+#else
+    const AfsmParallel f = afsmUnpackParallel(AFSM_PARALLEL ? parallel : uvec4(0u)); // read once, not per caster
+#endif
+    // Each invocation walks the leaves lane, lane + PENUMBRA_AFSM_BIN_GROUP,
+    // ..., one triangle an iteration: where its leaf ended it opens its next
+    // one, then the inner loop reads strip bytes up to the leaf's next
+    // triangle, so every lane bins a triangle in almost every iteration until
+    // the list runs out. A loop over a leaf's bytes with binCaster inside ran
+    // the caster's code, masked, for every strip byte of the longest leaf of
+    // the 8 lanes (restarts, a strip's first two bytes: strips are about four
+    // triangles long on the scan; the shorter leaves' lanes): the 2 M scan's
+    // afsm_bin at 1024^2 212 -> 158 CPU ms, interior 95 -> 69, plant 153 ->
+    // 114; opening the leaf here rather than in the inner loop (that runs as
+    // long as its longest lane) 154 -> 146. Reading a strip's first three
+    // bytes in one step measured slower (146 -> 158: more code masked in
+    // every step).
+    uint next = lane;          // the next leaf of the list to open
+    bool open = false;         // a leaf is open, its bytes [k, count) still to read
+    uint leafCluster = 0u, firstByte = 0u, count = 0u, k = 0u;
+    ClusterInfo cluster;
+    LeafStrips strips;
+    uint i0 = 0u, i1 = 0u;
+    vec3 p0 = vec3(0.0), p1 = vec3(0.0);
+    uint position = 0u; // bytes of the current strip so far
+    for (;;) {
+        bool formed = false; // a triangle (v0, v1, v2) is ready
+        vec3 v0 = vec3(0.0), v1 = vec3(0.0), v2 = vec3(0.0);
+        // A lane whose leaf ended opens its next one here, once an iteration (not in the byte loop below:
+        // that runs as long as its longest lane).
+        if (!open && next < leafCount) {
+            const uvec2 leaf = passingLeaves[next];
+            next += PENUMBRA_AFSM_BIN_GROUP;
+            leafCluster = leaf.x;
+            cluster = kTexelAccess != 0u ? clusterTexels(leaf.x & ~kClosedLeaf) : loadCluster(table, leaf.x & ~kClosedLeaf);
+            count = leaf.y >> 16;
+            firstByte = uint(cluster.firstIndex) + (leaf.y & 0xFFFFu); // kTexelAccess: the leaf's first strip byte
+            if (kTexelAccess == 0u) {
+                strips = openLeaf(table, chunks, cluster, leaf.y);
+                count = strips.count;
+            }
+            k = 0u;
+            position = 0u;
+            i0 = 0u;
+            i1 = 0u;
+            open = true;
         }
-        uint i0 = 0u, i1 = 0u;
-        vec3 p0 = vec3(0.0), p1 = vec3(0.0);
-        uint position = 0u; // bytes of the current strip so far
-        for (uint k = 0u; k < count; ++k) {
+        while (!formed && open) {
+            if (k == count) {
+                open = false;
+                break;
+            }
             uint i2;
             if (kTexelAccess != 0u)
                 i2 = stripByte(texelFetch(modelStrips, int((firstByte + k) >> 4u)), firstByte + k);
             else
                 i2 = uint(strips.strips.bytes[k]);
+            ++k;
             if (i2 == 0xFFu) {
                 position = 0u;
                 continue;
@@ -332,10 +377,13 @@ void main()
                 q = vertexTexel(uint(cluster.firstVertex) + i2);
             else
                 q = loadVertex(strips.vertices, i2);
-            vec3 p2 = decodeVertex(q, cluster.boxMin, cluster.step);
+            const vec3 p2 = decodeVertex(q, cluster.boxMin, cluster.step);
             if (position >= 2u && i0 != i1 && i1 != i2 && i0 != i2) {
-                bool odd = ((position - 2u) & 1u) != 0u;
-                binCaster(leaf.x, odd ? p1 : p0, odd ? p0 : p1, p2);
+                const bool odd = ((position - 2u) & 1u) != 0u;
+                v0 = odd ? p1 : p0;
+                v1 = odd ? p0 : p1;
+                v2 = p2;
+                formed = true;
             }
             i0 = i1;
             p0 = p1;
@@ -343,5 +391,9 @@ void main()
             p1 = p2;
             ++position;
         }
+        if (!formed && !open && next >= leafCount)
+            break;
+        if (formed)
+            binCaster(leafCluster & ~kClosedLeaf, (leafCluster & kClosedLeaf) != 0u, light, f, v0, v1, v2);
     }
 }
