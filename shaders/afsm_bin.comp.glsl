@@ -122,11 +122,11 @@ layout(push_constant) uniform AfsmBinPush {
 // test an empty sample range, and the budget ends the loops by their condition (lavapipe runs the
 // code after an early return under an execution mask).
 // closed: the caster's cluster is closed and casts its light-back-facing
-// triangles only (afsmCasts; read once per node, not per caster). A
+// triangles only (afsmCastsIn; read once per node, not per caster). A
 // directional light's hard casters are sheared by f (the layer's, read once).
 void binCaster(uint cluster, bool closed, LightData light, AfsmParallel f, vec3 v0, vec3 v1, vec3 v2)
 {
-    const bool casts = !closed || !afsmFacesWholeLight(light, v0, v1, v2);
+    const bool casts = afsmCastsIn(light, closed, v0, v1, v2);
 #ifdef PENUMBRA_AFSM_SOFT
     float nearest;
     AfsmRect r = afsmSoftRect(push.viewProj, light, uintBitsToFloat(farBits), v0, v1, v2, push.gridSize, nearest);
