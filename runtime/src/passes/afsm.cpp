@@ -71,9 +71,14 @@ uint64_t afsmBinIterations(uint32_t leafTriangles, uint32_t leafBytes)
     // edge test (afsmCellMayMeetTriangle); 16 for the rectangle's own loops over the vertices. Hard shadows go row
     // by row: the budget counts a row's cells and samples while the loops take one per row, three per row's edges
     // (afsmRowCells) and one per sample, which this bounds as well.
+    // lavapipe counts the loop iterations of a subgroup (all its loops together, each as long as its longest lane).
+    // An invocation walks up to 4 leaves one triangle a step (main's outer loop: a step per triangle, one more per
+    // leaf and one to end), each step's caster loops as long as its longest lane's; the inner loop reads strip bytes,
+    // at most its 8 lanes' bytes added (each lane's leaves' bytes and a step per leaf's end).
     const uint64_t perCaster = uint64_t(PENUMBRA_AFSM_COMPUTE_BUDGET) * 3 / 2 + 49 + 16 * 4 + 16;
-    const uint64_t leaves = 4;
-    return 16 + leaves * (uint64_t(leafBytes) + 1 + uint64_t(leafTriangles) * perCaster);
+    const uint64_t leaves = 4, lanes = 8;
+    const uint64_t steps = leaves * (uint64_t(leafTriangles) + 1) + 1;
+    return 16 + steps * (1 + perCaster) + lanes * leaves * (uint64_t(leafBytes) + 1);
 }
 
 uint32_t afsmGridSize(uint32_t width, uint32_t height, bool soft)

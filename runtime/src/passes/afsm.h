@@ -212,12 +212,14 @@ constexpr uint32_t afsmBlockCount(uint32_t gridSize)
     return ((gridSize + 7) / 8) * ((gridSize + 7) / 8);
 }
 
-// The most loop iterations one invocation of afsm_bin.comp can take (hard or
+// The most loop iterations a subgroup of afsm_bin.comp can take (hard or
 // soft) with leaves of at most leafTriangles triangles in leafBytes strip
 // bytes: lavapipe silently ends an invocation's loops after 65535 in all
-// (afsm.glsli). An invocation decodes up to 4 leaves (PENUMBRA_AFSM_BIN_GROUP
-// nodes of 4 children each per workgroup), one iteration per strip byte, and
-// bins each triangle with at most PENUMBRA_AFSM_COMPUTE_BUDGET counted work
+// (afsm.glsli), counted for its subgroup (each loop as long as its longest
+// lane). An invocation walks up to 4 leaves (PENUMBRA_AFSM_BIN_GROUP nodes of
+// 4 children each per workgroup) one triangle a step, reading its strip
+// bytes in an inner loop, and bins each triangle with at most
+// PENUMBRA_AFSM_COMPUTE_BUDGET counted work
 // (a cell, or a sample times its loop over the soft masks' quads) plus the
 // loops the count leaves out (the cell rows and columns, each cell's edge
 // tests, the rectangle's construction).
