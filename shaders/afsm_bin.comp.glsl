@@ -56,6 +56,7 @@ layout(constant_id = 0) const uint kGeometryBudget = 0u;
 // 1: hard shadows of a directional light, sheared slots (afsm.glsli: AfsmParallel); afsm_casters.glsli's AFSM_PARALLEL.
 layout(constant_id = 1) const uint kParallel = 0u;
 #define AFSM_PARALLEL (kParallel != 0u)
+#define AFSM_ORTHOGRAPHIC AFSM_PARALLEL // afsm_casters.glsli
 // 1: the model is read through texel buffers (GpuGeometry::texelsComplete, in core): on lavapipe a texel fetch
 // is a gather, a strip byte's or a vertex's load by device address a loop over the lanes (the 2 M scan at
 // 1024^2: afsm_bin 244-263 -> 209 CPU ms, the 1 M interior 141-157 -> 127-129); 0: by device address.

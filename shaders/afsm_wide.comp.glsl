@@ -65,6 +65,7 @@ layout(constant_id = 0) const uint kPhase = PENUMBRA_AFSM_WIDE_TEST;
 // texel a sample (interior and plant at 640^2: afsm_rows about 30% less).
 layout(constant_id = 1) const uint kParallel = 0u;
 #define AFSM_PARALLEL (kParallel != 0u)
+#define AFSM_ORTHOGRAPHIC AFSM_PARALLEL // afsm_casters.glsli
 // 1: the second of two passes, rows narrowed to the cells still holding a sample beyond the caster (afsm_bin.comp's kTrimRows).
 layout(constant_id = 2) const uint kTrimRows = 0u;
 
