@@ -215,7 +215,7 @@ bool afsmLeafRect(WideNode node, vec3 steps, uint slot, out AfsmRect r, out floa
     vec3 boxMin, boxMax;
     decodeChildBox(node, steps, slot, boxMin, boxMax);
     bool front = true; // every corner in front of the eye
-    if (AFSM_PARALLEL) {
+    if (AFSM_ORTHOGRAPHIC) {
         const vec4 mid = push.viewProj * vec4(0.5 * (boxMin + boxMax), 1.0);
         const mat3 m = mat3(push.viewProj);
         const vec3 reach = mat3(abs(m[0]), abs(m[1]), abs(m[2])) * (0.5 * (boxMax - boxMin));
