@@ -266,7 +266,9 @@ void main()
     if (lane == 0u)
         passingCount = 0u;
     barrier();
-    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    // The nodes in interleaved chunks (config.h): the casters lie in some parts of the model.
+    const uint group = interleavedChunk(gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x,
+                                        (push.nodeCount + PENUMBRA_AFSM_BIN_GROUP - 1u) / PENUMBRA_AFSM_BIN_GROUP);
     uint index = group * PENUMBRA_AFSM_BIN_GROUP + lane;
     ModelTable table = ModelTable(push.modelTable);
     if (index < push.nodeCount) {

@@ -15,6 +15,13 @@
 #define PENUMBRA_SKIP_UNLESS(cond) for (bool skipUnless_ = (cond); skipUnless_; skipUnless_ = false)
 #endif
 
+// Workgroup order of the passes whose work is uneven along their chunks (BVH nodes in spatial order:
+// one part of the model holds most slivers or casters): lavapipe gives each of its threads one
+// contiguous share of a dispatch's workgroups (llvmpipe's lp_cs_tpool: groups / threads each), so
+// such a dispatch lasts as long as its busiest share. Consecutive workgroups take chunks from this
+// many stripes of the range in turn (interleavedChunk), so a share of at least this many workgroups
+// holds chunks from the whole range.
+#define PENUMBRA_GROUP_INTERLEAVE 16u
 #define PENUMBRA_MAX_LIGHTS 8            // lights shaded per frame
 #define PENUMBRA_SHADE_GROUP_SIZE 8      // shade.comp and classify.comp workgroups are 8x8 pixels
 #define PENUMBRA_THIN_TRIANGLES_GROUP_SIZE 64 // thin_triangles.comp: BVH nodes per workgroup, strip bytes decoded at once
@@ -172,8 +179,10 @@ using mat4 = glm::mat4;
 using vec4 = glm::vec4;
 using uint = uint32_t;
 #define PENUMBRA_STRUCT(name) struct alignas(16) name
+#define PENUMBRA_SHARED_FUNCTION inline
 #else
 #define PENUMBRA_STRUCT(name) struct name
+#define PENUMBRA_SHARED_FUNCTION
 #endif
 
 // One light as the shade pass sees it (std140 array element).
@@ -207,6 +216,21 @@ PENUMBRA_STRUCT(FrameData)
     vec4 pip;                // x = depth-discontinuity threshold (fraction of the light's depth range), yzw unused
     LightData lights[PENUMBRA_MAX_LIGHTS];
 };
+
+// The chunk of work of workgroup `group` of a dispatch over `chunks` chunks,
+// in interleaved order (PENUMBRA_GROUP_INTERLEAVE): the chunks form I stripes
+// of consecutive chunks (the first chunks mod I stripes one longer), and
+// workgroup g takes chunk g / I of stripe g mod I. A bijection of
+// [0, chunks), with shifts, masks and multiplies only: llvmpipe divides lane
+// by lane. A workgroup past the chunks (the last row of a 2-D layout) keeps
+// its index, past them too. Shared with C++ (tests).
+PENUMBRA_SHARED_FUNCTION uint interleavedChunk(uint group, uint chunks)
+{
+    const uint stripe = group % PENUMBRA_GROUP_INTERLEAVE, offset = group / PENUMBRA_GROUP_INTERLEAVE;
+    const uint shortLength = chunks / PENUMBRA_GROUP_INTERLEAVE, longer = chunks % PENUMBRA_GROUP_INTERLEAVE;
+    const uint chunk = stripe < longer ? stripe * (shortLength + 1u) + offset : longer * (shortLength + 1u) + (stripe - longer) * shortLength + offset;
+    return group < chunks ? chunk : group;
+}
 
 #ifdef __cplusplus
 static_assert(sizeof(LightData) == 6 * 64 + 7 * 16 + 12 * 16, "LightData layout must match std140");

@@ -605,6 +605,8 @@ void main()
         return;
     }
     const uint lane = gl_LocalInvocationIndex;
+    // The nodes in interleaved chunks (config.h): the slivers lie in some parts of the model.
+    group = interleavedChunk(group, (push.nodeCount + PENUMBRA_THIN_TRIANGLES_GROUP_SIZE - 1u) / PENUMBRA_THIN_TRIANGLES_GROUP_SIZE);
     if (lane == 0u)
         passingCount = 0u;
     barrier();

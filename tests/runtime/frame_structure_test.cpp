@@ -1,7 +1,11 @@
 // The frame's structure: push constants checked against the shaders'
-// blocks, and shadow methods as one table (names, parsing, sequences).
+// blocks, shadow methods as one table (names, parsing, sequences), and the
+// workgroup order the node passes share with C++.
 #include <gtest/gtest.h>
 
+#include <vector>
+
+#include "config.h"
 #include "passes/classify.h"
 #include "passes/gbuffer.h"
 #include "passes/penumbra_mask.h"
@@ -32,6 +36,38 @@ TEST(FrameStructure, PushConstantsAreReadFromTheShaders)
             << e.what();
     }
     EXPECT_THROW(vk::shaderPushConstantBytes("no_such_shader.comp"), Error);
+}
+
+// config.h's interleavedChunk, the same source the shaders compile: every chunk
+// of a dispatch goes to exactly one workgroup, and a contiguous share of the
+// workgroups (what one lavapipe thread runs) reaches across the chunks.
+TEST(FrameStructure, InterleavedChunksCoverEveryChunkOnce)
+{
+    for (uint32_t chunks = 1; chunks <= 2000; ++chunks) {
+        std::vector<int> seen(chunks, 0);
+        for (uint32_t group = 0; group < chunks; ++group) {
+            const uint32_t chunk = gpu::interleavedChunk(group, chunks);
+            ASSERT_LT(chunk, chunks) << "group " << group << " of " << chunks;
+            ++seen[chunk];
+        }
+        for (uint32_t chunk = 0; chunk < chunks; ++chunk)
+            ASSERT_EQ(seen[chunk], 1) << "chunk " << chunk << " of " << chunks;
+        if (chunks < 2 * PENUMBRA_GROUP_INTERLEAVE)
+            continue;
+        // Two threads, each with a stripe's worth of groups or more: each half of the groups takes
+        // chunks from both halves of the range.
+        for (uint32_t half = 0; half < 2; ++half) {
+            uint32_t low = 0, high = 0;
+            for (uint32_t group = half * (chunks / 2); group < (half + 1) * (chunks / 2); ++group)
+                (gpu::interleavedChunk(group, chunks) < chunks / 2 ? low : high)++;
+            EXPECT_GT(low, 0u) << chunks;
+            EXPECT_GT(high, 0u) << chunks;
+        }
+    }
+    EXPECT_EQ(gpu::interleavedChunk(5, 10), 5u); // at most PENUMBRA_GROUP_INTERLEAVE chunks: in order
+    EXPECT_EQ(gpu::interleavedChunk(1, 35), 3u); // 35 chunks: stripes of 3, 3, 3 and then of 2
+    EXPECT_EQ(gpu::interleavedChunk(16, 35), 1u);
+    EXPECT_EQ(gpu::interleavedChunk(40, 35), 40u); // past the chunks: no chunk's work
 }
 
 TEST(FrameStructure, ShadowMethodsComeFromOneTable)
