@@ -5,7 +5,8 @@
 // the deepest segments whose records are all processed, pick a chunk of the
 // deepest one left (depth 0: the batch's triangles with the root level's
 // nodes, not stored), open the
-// segment its output goes to, and write rh_traverse's indirect dispatch. A
+// segment its output goes to, and write rh_traverse's indirect dispatches
+// (the inner levels' pipeline or the leaves', the other one empty). A
 // chunk is at most an eighth of the free room of the arena: each record
 // makes at most 4, so the output fits and room is left for the depths below.
 // When nothing is left the batch is done and the dispatch is empty.
@@ -32,6 +33,9 @@ void finish()
     state.dispatchX = 0u;
     state.dispatchY = 1u;
     state.dispatchZ = 1u;
+    state.leafDispatchX = 0u;
+    state.leafDispatchY = 1u;
+    state.leafDispatchZ = 1u;
 }
 
 void main()
@@ -78,7 +82,11 @@ void main()
     }
     state.stepCount = chunk;
     state.steps += 1u;
-    state.dispatchX = (chunk + PENUMBRA_RH_GROUP_SIZE - 1u) / PENUMBRA_RH_GROUP_SIZE;
+    uint groups = (chunk + PENUMBRA_RH_GROUP_SIZE - 1u) / PENUMBRA_RH_GROUP_SIZE;
+    state.dispatchX = level > 0u ? groups : 0u;
     state.dispatchY = 1u;
     state.dispatchZ = 1u;
+    state.leafDispatchX = level > 0u ? 0u : groups;
+    state.leafDispatchY = 1u;
+    state.leafDispatchZ = 1u;
 }

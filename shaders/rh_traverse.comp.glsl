@@ -48,6 +48,10 @@ layout(constant_id = 0) const uint kTexelAccess = 0u;
 // constants of the pipeline: llvmpipe runs both sides of an if (masked), and fewer live values spill less.
 layout(constant_id = 1) const uint kTest = PENUMBRA_RH_TEST_PRECISE;
 layout(constant_id = 2) const uint kEarlyAccept = 1u;
+// 1: the leaves' pipeline (each record's rays get the exact test), 0: the inner levels' (each record's four
+// children get the cone or slab test). rh_step.comp sends each step to one of them: llvmpipe runs an if's
+// body masked even when no lane enters it, so one shader for both paid for the other's code.
+layout(constant_id = 3) const uint kLeaf = 0u;
 layout(set = 0, binding = 11) uniform usamplerBuffer rayTexels;       // RGBA32UI: rayQuads
 layout(set = 0, binding = 12) uniform usamplerBuffer nodeTexels;      // RGBA32UI: nodes, two a node
 layout(set = 0, binding = 13) uniform usamplerBuffer triangleTexelsA; // RGBA32UI: trianglesA, two a triangle
@@ -60,6 +64,12 @@ u64vec4 loadNode(uint index)
         return nodes[index];
     uvec4 a = texelFetch(nodeTexels, int(2u * index)), b = texelFetch(nodeTexels, int(2u * index + 1u));
     return u64vec4(pack64(a.xy), pack64(a.zw), pack64(b.xy), pack64(b.zw));
+}
+
+// A node's last 32-bit word (-1.0 once covered: coveredWord), one texel fetch.
+uint loadNodeLastWord(uint index)
+{
+    return kTexelAccess != 0u ? texelFetch(nodeTexels, int(2u * index + 1u)).w : unpack32(nodes[index].w).y;
 }
 
 u64vec4 loadTriangleA(uint index)
@@ -121,7 +131,7 @@ void main()
     // A record whose node was covered since it was written: every ray below is in shadow.
     PENUMBRA_SKIP_UNLESS(kEarlyAccept != 0u && depth > 0u && live)
     {
-        live = unpack32(loadNode(RH_LEVEL_WORD(stepInfo.levelOffset, level) + node).w).y != floatBitsToUint(-1.0);
+        live = loadNodeLastWord(RH_LEVEL_WORD(stepInfo.levelOffset, level) + node) != floatBitsToUint(-1.0);
     }
 #ifdef PENUMBRA_RH_PARALLEL
     vec3 toLight = -normalize(frame.lights[push.lightIndex].directionRange.xyz);
@@ -132,8 +142,7 @@ void main()
 #endif
     uint tested = 0u, accepted = 0u, passing = 0u, hits = 0u; // passing: bit k for child k
     // Inner node: its four children.
-    PENUMBRA_SKIP_UNLESS(level > 0u)
-    {
+    if (kLeaf == 0u) {
         uint childOffset = RH_LEVEL_WORD(stepInfo.levelOffset, level - 1u);
         uint childCount = RH_LEVEL_WORD(stepInfo.levelCount, level - 1u);
         bool accept = kEarlyAccept != 0u;
@@ -206,8 +215,7 @@ void main()
             records[base++] = pack64(uvec2(triangle, 4u * node + uint(findLSB(m))));
     }
     // Leaf: the exact test of each of its rays not yet in shadow.
-    PENUMBRA_SKIP_UNLESS(level == 0u)
-    {
+    if (kLeaf != 0u) {
         uvec4 pixels = live ? loadRayQuad(node) : uvec4(RH_NO_RAY);
         uint open = 0u;
         for (uint k = 0u; k < 4u; ++k)
@@ -237,7 +245,7 @@ void main()
     if (subgroupElect()) {
         if (subgroupTested != 0u) {
             atomicAdd(state.depthTests[min(depth, PENUMBRA_RH_MAX_LEVELS - 1u)], subgroupTested);
-            if (level == 0u)
+            if (kLeaf != 0u)
                 atomicAdd(state.rayTests, uint64_t(subgroupTested));
             else
                 atomicAdd(state.pairsTested, uint64_t(subgroupTested));

@@ -507,9 +507,12 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
                     step.push(cmd, RhStepPush{kPairCapacity, kTriangleCapacity, {}});
                     vkCmdDispatch(cmd, 1, 1, 1);
                     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kSampledRead | kIndirectRead | kUniformRead);
-                    traverser.bind(cmd, vk::Specialization{texelAccess ? 1u : 0u, options.test, options.earlyAccept ? 1u : 0u});
-                    traverser.push(cmd, RhTraversePush{lightIndex, originOffset, faces, 0});
-                    vkCmdDispatchIndirect(cmd, state.buffer, offsetof(RhState, dispatch));
+                    // The step's records go to the inner levels' pipeline or the leaves' (rh_step.comp empties the other dispatch).
+                    for (uint32_t leaf = 0; leaf < 2; ++leaf) {
+                        traverser.bind(cmd, vk::Specialization{texelAccess ? 1u : 0u, options.test, options.earlyAccept ? 1u : 0u, leaf});
+                        traverser.push(cmd, RhTraversePush{lightIndex, originOffset, faces, 0});
+                        vkCmdDispatchIndirect(cmd, state.buffer, leaf ? offsetof(RhState, leafDispatch) : offsetof(RhState, dispatch));
+                    }
                     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead | kUniformRead);
                 }
                 vk::memoryBarrier(cmd, kCompute, kStorageWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);

@@ -90,6 +90,7 @@ struct RhState {
     uint32_t keyDispatch[3], scanDispatch[3], scanPhase1[3];
     uint32_t countedRays, lightAccepted;
     uint64_t incoherence, coherenceRays;
+    uint32_t leafDispatch[3], stepPad;
     uint32_t faceCount[8], faceShift[8];
     uint32_t builtLevels, alignmentLevel, treePad[2];
     uint32_t peakPairs, overflow, steps, raysListed, sortedLights, framePad0;
@@ -98,9 +99,9 @@ struct RhState {
     uint32_t segBegin[PENUMBRA_RH_MAX_LEVELS], segEnd[PENUMBRA_RH_MAX_LEVELS], cursor[PENUMBRA_RH_MAX_LEVELS];
     uint32_t depthTests[PENUMBRA_RH_MAX_LEVELS];
 };
-static_assert(offsetof(RhState, incoherence) == 96 && offsetof(RhState, faceCount) == 112 && offsetof(RhState, peakPairs) == 192 &&
-              offsetof(RhState, pairsTested) == 216 && offsetof(RhState, levelOffset) == 256 &&
-              sizeof(RhState) == 256 + 6 * 4 * PENUMBRA_RH_MAX_LEVELS);
+static_assert(offsetof(RhState, incoherence) == 96 && offsetof(RhState, leafDispatch) == 112 && offsetof(RhState, faceCount) == 128 &&
+              offsetof(RhState, peakPairs) == 208 && offsetof(RhState, pairsTested) == 232 && offsetof(RhState, levelOffset) == 272 &&
+              sizeof(RhState) == 272 + 6 * 4 * PENUMBRA_RH_MAX_LEVELS);
 
 struct RhTargets {
     VkImageView position = VK_NULL_HANDLE, normal = VK_NULL_HANDLE;
