@@ -509,6 +509,8 @@ void RhPass::recordLight(VkCommandBuffer cmd, uint32_t lightIndex, const Light& 
                     vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute | kIndirect, kStorageRW | kSampledRead | kIndirectRead | kUniformRead);
                     // The step's records go to the inner levels' pipeline or the leaves' (rh_step.comp empties the other dispatch).
                     for (uint32_t leaf = 0; leaf < 2; ++leaf) {
+                        if (leaf) // for the validation layers, which cannot know that one of the two is empty
+                            vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW | kSampledRead | kUniformRead);
                         traverser.bind(cmd, vk::Specialization{texelAccess ? 1u : 0u, options.test, options.earlyAccept ? 1u : 0u, leaf});
                         traverser.push(cmd, RhTraversePush{lightIndex, originOffset, faces, 0});
                         vkCmdDispatchIndirect(cmd, state.buffer, leaf ? offsetof(RhState, leafDispatch) : offsetof(RhState, dispatch));
