@@ -26,16 +26,22 @@ layout(push_constant) uniform RhStepPush {
     uint pad0, pad1;
 } push;
 
+// rh_traverse's two indirect dispatches: `groups` workgroups for the inner levels' pipeline or the leaves'.
+void writeDispatches(uint groups, bool leaf)
+{
+    state.dispatchX = leaf ? 0u : groups;
+    state.dispatchY = 1u;
+    state.dispatchZ = 1u;
+    state.leafDispatchX = leaf ? groups : 0u;
+    state.leafDispatchY = 1u;
+    state.leafDispatchZ = 1u;
+}
+
 void finish()
 {
     state.done = 1u;
     state.stepCount = 0u;
-    state.dispatchX = 0u;
-    state.dispatchY = 1u;
-    state.dispatchZ = 1u;
-    state.leafDispatchX = 0u;
-    state.leafDispatchY = 1u;
-    state.leafDispatchZ = 1u;
+    writeDispatches(0u, false);
 }
 
 void main()
@@ -82,11 +88,5 @@ void main()
     }
     state.stepCount = chunk;
     state.steps += 1u;
-    uint groups = (chunk + PENUMBRA_RH_GROUP_SIZE - 1u) / PENUMBRA_RH_GROUP_SIZE;
-    state.dispatchX = level > 0u ? groups : 0u;
-    state.dispatchY = 1u;
-    state.dispatchZ = 1u;
-    state.leafDispatchX = level > 0u ? 0u : groups;
-    state.leafDispatchY = 1u;
-    state.leafDispatchZ = 1u;
+    writeDispatches((chunk + PENUMBRA_RH_GROUP_SIZE - 1u) / PENUMBRA_RH_GROUP_SIZE, level == 0u);
 }

@@ -215,7 +215,8 @@ constexpr uint32_t afsmBlockCount(uint32_t gridSize)
 // The most loop iterations a subgroup of afsm_bin.comp can take (hard or
 // soft) with leaves of at most leafTriangles triangles in leafBytes strip
 // bytes: lavapipe silently ends a subgroup's loops after 65535 iterations in
-// all, each loop counted as long as its longest lane (afsm.glsli). An invocation walks up to 4 leaves (PENUMBRA_AFSM_BIN_GROUP nodes of
+// all, each loop counted as long as its longest lane (afsm.glsli). An
+// invocation walks up to 4 leaves (PENUMBRA_AFSM_BIN_GROUP nodes of
 // 4 children each per workgroup) one triangle a step, reading its strip
 // bytes in an inner loop, and bins each triangle with at most
 // PENUMBRA_AFSM_COMPUTE_BUDGET counted work
