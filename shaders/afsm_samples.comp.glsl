@@ -129,10 +129,11 @@ uvec2 samplePixel()
     ivec2 size = imageSize(visibilityImage), pixel;
     const bool inside = pixelOfInvocation(size, pixel);
     uint index = uint(pixel.y * size.x + pixel.x);
-    vec4 position = imageLoad(gPosition, pixel);
-    const bool covered = position.w != 0.0;
+    const uvec4 surface = imageLoad(gSurface, pixel);
+    const vec3 position = surfacePosition(surface);
+    const bool covered = surfaceCovered(surface);
     LightData light = frame.lights[push.lightIndex];
-    vec3 n = imageLoad(gNormal, pixel).xyz;
+    vec3 n = surfaceNormal(surface);
     if (kMode == PENUMBRA_AFSM_RESOLVE) {
 #ifdef PENUMBRA_AFSM_SOFT
         // softVisibility clears the pixel's masks: once per pixel, by its own invocation.

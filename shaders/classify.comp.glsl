@@ -43,13 +43,13 @@ void classifyPixel()
     ivec2 imageSizeXY = imageSize(visibilityImage), pixel;
     const bool inside = pixelOfInvocation(imageSizeXY, pixel);
     uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
-    vec4 position = imageLoad(gPosition, pixel);
+    const uvec4 surface = imageLoad(gSurface, pixel);
     // Background pixels take the same path (one store of each output per
     // pixel: lavapipe would run a separate early-out path for every pixel).
-    bool covered = position.w != 0.0;
+    bool covered = surfaceCovered(surface);
     LightData light = frame.lights[push.lightIndex];
-    vec3 p = position.xyz;
-    vec3 n = imageLoad(gNormal, pixel).xyz;
+    vec3 p = surfacePosition(surface);
+    vec3 n = surfaceNormal(surface);
     float distance;
     vec3 L = towardLight(light, p, distance);
     bool lightFacing = covered && dot(n, L) > 0.0;

@@ -89,12 +89,12 @@ void classifyPixel()
     ivec2 imageSizeXY = imageSize(visibilityImage), pixel;
     const bool inside = pixelOfInvocation(imageSizeXY, pixel);
     uint index = uint(pixel.y * imageSizeXY.x + pixel.x);
-    vec4 position = imageLoad(gPosition, pixel);
+    const uvec4 surface = imageLoad(gSurface, pixel);
     // Background: visibility -1, no mark, in every mode.
-    const bool covered = position.w != 0.0;
+    const bool covered = surfaceCovered(surface);
     LightData light = frame.lights[push.lightIndex];
-    vec3 p = position.xyz;
-    vec3 n = imageLoad(gNormal, pixel).xyz;
+    vec3 p = surfacePosition(surface);
+    vec3 n = surfaceNormal(surface);
     vec2 heights = areaLightHeightRange(light, p, n);
     bool reached = covered && heights.y > 0.0 && inFrontOfEmitter(light, p);
     ivec2 size = textureSize(shadowMap, 0).xy;

@@ -1,8 +1,11 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Camera pass: writes world position (w = 1 marks covered pixels) and the
-// geometric normal, flipped to face the camera (models may be open or two-sided),
-// with the packed albedo in its w (an integer below 2^24, exact as a float).
+// Camera pass: writes the surface image (surface.glsli): the world position
+// and the geometric normal, flipped to face the camera (models may be open or
+// two-sided), in one RGBA32UI texel. gbuffer.frag.albedo
+// (PENUMBRA_GBUFFER_ALBEDO) also writes the material colour (the packed
+// albedo, below 2^24) to a second R32UI target: only frames that show colours
+// of a model with more than white (runtime/src/passes/gbuffer.h) pay for it.
 //
 // gbuffer.frag.outside (PENUMBRA_GBUFFER_OUTSIDE): the frames in which afsm's
 // closed clusters cast only their light-back-facing triangles (the camera is
@@ -16,12 +19,15 @@
 // cast then; without it the pixel shows what lies behind, seen from outside.
 
 #include "gbuffer_push.glsli"
+#include "surface.glsli"
 
 layout(location = 0) in vec3 worldPosition;
 layout(location = 1) flat in uint albedo;
 
-layout(location = 0) out vec4 outPosition;
-layout(location = 1) out vec4 outNormal;
+layout(location = 0) out uvec4 outSurface;
+#ifdef PENUMBRA_GBUFFER_ALBEDO
+layout(location = 1) out uint outAlbedo;
+#endif
 
 void main()
 {
@@ -36,6 +42,8 @@ void main()
     n = len > 0.0 ? n / len : normalize(toCamera);
     if (dot(n, toCamera) < 0.0)
         n = -n;
-    outPosition = vec4(worldPosition, 1.0);
-    outNormal = vec4(n, float(albedo & 0xFFFFFFu));
+    outSurface = uvec4(floatBitsToUint(worldPosition), encodeSurfaceNormal(n));
+#ifdef PENUMBRA_GBUFFER_ALBEDO
+    outAlbedo = albedo & 0xFFFFFFu;
+#endif
 }

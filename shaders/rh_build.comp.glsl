@@ -41,8 +41,8 @@
 layout(local_size_x = PENUMBRA_RH_GROUP_SIZE) in;
 
 // C++: runtime/src/passes/rh.h (RhBuildBinding).
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
+#include "surface.glsli"
+layout(set = 0, binding = 0, rgba32ui) uniform readonly uimage2D gSurface; // binding 1, the G-buffer's albedo, is not read
 layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 3, std430) buffer Rays { uvec4 rayQuads[]; }; // the ray list, 4 rays (one leaf) per element
 layout(set = 0, binding = 4, std430) buffer Nodes { u64vec4 nodes[]; };
@@ -179,7 +179,7 @@ void main()
         return;
     }
     uint levels = state.tree.x; // built
-    int width = imageSize(gPosition).x;
+    int width = imageSize(gSurface).x;
     if (kMode == PENUMBRA_RH_BUILD_RESOLVE) {
         // Here `node` is a leaf: its rays are in shadow when it or an ancestor below the traversal's root was covered.
         if (state.levels < 2u || node >= RH_LEVEL_WORD(state.levelCount, 0))
@@ -213,7 +213,8 @@ void main()
                 continue;
             ivec2 pixel = ivec2(int(pixelIndex % uint(width)), int(pixelIndex / uint(width)));
             // The ray's origin, as rhParallelRay computes it.
-            vec3 o = toParallel(f, imageLoad(gPosition, pixel).xyz + imageLoad(gNormal, pixel).xyz * push.originOffset);
+            const uvec4 surface = imageLoad(gSurface, pixel);
+            vec3 o = toParallel(f, surfacePosition(surface) + surfaceNormal(surface) * push.originOffset);
             box = vec4(min(box.xy, o.xy), max(box.zw, o.xy));
             heights = vec2(min(heights.x, o.z), max(heights.y, o.z));
         }
@@ -231,7 +232,7 @@ void main()
             directions[k] = vec3(0.0, 0.0, 1.0);
             if (valid[k]) {
                 ivec2 pixel = ivec2(int(pixelIndex % uint(width)), int(pixelIndex / uint(width)));
-                vec3 d = imageLoad(gPosition, pixel).xyz - light;
+                vec3 d = surfacePosition(imageLoad(gSurface, pixel)) - light;
                 faces |= 1u << cubeFace(d);
                 float l = length(d);
                 longest = max(longest, l);

@@ -49,8 +49,8 @@
 layout(local_size_x = 64) in;
 
 // C++: runtime/src/passes/rh.h (RhRaysBinding).
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
+#include "surface.glsli"
+layout(set = 0, binding = 0, rgba32ui) uniform readonly uimage2D gSurface; // binding 1, the G-buffer's albedo, is not read
 layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 3, std430) writeonly buffer Rays { uint rayPixels[]; };
 #define RH_STATE_BINDING 4
@@ -116,7 +116,7 @@ void main()
 {
     uint local = gl_LocalInvocationIndex;
     ivec2 pixel = ivec2(gl_WorkGroupID.xy * 8u + mortonPixel(local));
-    ivec2 size = imageSize(gPosition);
+    ivec2 size = imageSize(gSurface);
     uint type = uint(frame.lights[push.lightIndex].positionType.w);
     vec3 light = frame.lights[push.lightIndex].positionType.xyz;
     vec3 toLight = -normalize(frame.lights[push.lightIndex].directionRange.xyz);
@@ -125,10 +125,10 @@ void main()
     vec3 p = vec3(0.0), origin = vec3(0.0);
     if (all(lessThan(pixel, size))) {
         index = uint(pixel.y * size.x + pixel.x);
-        vec4 position = imageLoad(gPosition, pixel);
-        if (position.w != 0.0) {
-            p = position.xyz;
-            vec3 n = imageLoad(gNormal, pixel).xyz;
+        const uvec4 surface = imageLoad(gSurface, pixel);
+        if (surfaceCovered(surface)) {
+            p = surfacePosition(surface);
+            vec3 n = surfaceNormal(surface);
             ShadowRay ray;
             listed = type == PENUMBRA_LIGHT_DIRECTIONAL ? rhParallelRay(toLight, p, n, push.originOffset, ray)
                                                         : rhShadowRay(light, p, n, push.originOffset, ray);

@@ -28,8 +28,8 @@
 layout(local_size_x = PENUMBRA_RH_GROUP_SIZE) in;
 
 // C++: runtime/src/passes/rh.h (RhTraverseBinding).
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D gNormal;
+#include "surface.glsli"
+layout(set = 0, binding = 0, rgba32ui) uniform readonly uimage2D gSurface; // binding 1, the G-buffer's albedo, is not read
 layout(set = 0, binding = 2, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 3, std430) readonly buffer Rays { uvec4 rayQuads[]; }; // 4 rays (one leaf) per element
 layout(set = 0, binding = 4, std430) buffer Nodes { u64vec4 nodes[]; };
@@ -223,15 +223,16 @@ void main()
                 open |= 1u << k;
         tested = bitCount(open);
         hits = 0u;
-        int width = imageSize(gPosition).x;
+        int width = imageSize(gSurface).x;
         for (uint m = open; m != 0u; m &= m - 1u) {
             uint pixelIndex = pixels[findLSB(m)];
             ivec2 pixel = ivec2(int(pixelIndex % uint(width)), int(pixelIndex / uint(width)));
             ShadowRay ray;
+            const uvec4 surface = imageLoad(gSurface, pixel);
 #ifdef PENUMBRA_RH_PARALLEL
-            bool lit = rhParallelRay(toLight, imageLoad(gPosition, pixel).xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray);
+            bool lit = rhParallelRay(toLight, surfacePosition(surface), surfaceNormal(surface), push.originOffset, ray);
 #else
-            bool lit = rhShadowRay(light, imageLoad(gPosition, pixel).xyz, imageLoad(gNormal, pixel).xyz, push.originOffset, ray);
+            bool lit = rhShadowRay(light, surfacePosition(surface), surfaceNormal(surface), push.originOffset, ray);
 #endif
             if (lit && hitsTriangle(ray, shearVertex(ray, v0), shearVertex(ray, v1), shearVertex(ray, v2))) {
                 shadowed[pixelIndex] = 1u;

@@ -75,24 +75,23 @@ void main()
     ivec2 size = imageSize(outColor), pixel;
     const bool inside = pixelOfInvocation(size, pixel);
 
-    vec4 position = imageLoad(gPosition, pixel);
-    const bool covered = position.w != 0.0;
+    const uvec4 surface = imageLoad(gSurface, pixel);
+    const bool covered = surfaceCovered(surface);
     if (kCountCovered != 0u) {
         uint coveredPixels = subgroupAdd(covered && inside ? 1u : 0u);
         if (subgroupElect() && coveredPixels != 0u)
             atomicAdd(stats[PENUMBRA_STAT_COVERED], uint64_t(coveredPixels));
     }
-    vec4 normal = imageLoad(gNormal, pixel);
-    vec3 n = normal.xyz;
+    vec3 n = surfaceNormal(surface);
     vec3 albedo = vec3(frame.shading.y);
-    if (frame.shading.z != 0.0) // --colors on: the material's colour packed by gbuffer.frag
-        albedo *= vec3(uvec3(uint(normal.w)) >> uvec3(0u, 8u, 16u) & 255u) / 255.0;
+    if (frame.shading.z != 0.0) // colours shown: the material's colour packed by gbuffer.frag.albedo
+        albedo *= vec3(uvec3(imageLoad(gAlbedo, pixel).r) >> uvec3(0u, 8u, 16u) & 255u) / 255.0;
     // The first light shaded writes ambient (and the background); later ones add to the colour.
     vec3 color = kFirstLight != 0u ? vec3(albedo * frame.shading.x * (0.75 + 0.25 * n.y)) : imageLoad(outColor, pixel).rgb;
 
     const LightData light = frame.lights[push.lightIndex];
     const uint type = kLightType;
-    vec3 p = position.xyz;
+    vec3 p = surfacePosition(surface);
     vec3 toLight;
     float attenuation = 1.0;
     if (type == PENUMBRA_LIGHT_DIRECTIONAL) {

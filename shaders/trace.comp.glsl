@@ -87,8 +87,8 @@ bool traversalLeaf(ShadowRay ray, ClusterInfo cluster, uint leaf, inout TraceCou
 
 layout(local_size_x = PENUMBRA_TRACE_GROUP_SIZE) in;
 
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D positionImage;
-layout(set = 0, binding = 1, rgba32f) uniform readonly image2D normalImage;
+#include "surface.glsli"
+layout(set = 0, binding = 0, rgba32ui) uniform readonly uimage2D surfaceImage; // binding 1, the G-buffer's albedo, is not read
 layout(set = 0, binding = 2, r32f) uniform image2D visibilityImage; // read back by the later sample dispatches
 layout(set = 0, binding = 3, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 4, std430) readonly buffer RayList
@@ -177,12 +177,13 @@ float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, boo
 // 1 lit, 0 shadowed; counts the ray when one is traced.
 float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout TraceCounters counters)
 {
-    uint width = uint(imageSize(positionImage).x);
+    uint width = uint(imageSize(surfaceImage).x);
     ivec2 pixel = ivec2(pixelIndex % width, pixelIndex / width);
-    vec4 position = imageLoad(positionImage, pixel);
-    if (position.w == 0.0)
+    const uvec4 surface = imageLoad(surfaceImage, pixel);
+    if (!surfaceCovered(surface))
         return 1.0; // background: nothing to shadow (compaction never lists it)
-    vec3 normal = imageLoad(normalImage, pixel).xyz;
+    const vec3 position = surfacePosition(surface);
+    vec3 normal = surfaceNormal(surface);
 
     LightData light = frame.lights[push.lightIndex];
     if (kSoft != 0u)

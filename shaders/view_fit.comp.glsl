@@ -47,7 +47,8 @@ layout(constant_id = 4) const int kBlock = PENUMBRA_VIEW_FIT_BLOCK_GPU;
 layout(constant_id = 5) const uint kCountCovered = 0u; // push.covered != 0
 
 // C++: runtime/src/passes/view_fit.h (ViewFitBinding).
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D gPosition;
+#include "surface.glsli"
+layout(set = 0, binding = 0, rgba32ui) uniform readonly uimage2D gSurface;
 layout(set = 0, binding = 1, std140) uniform Frame { FrameData frame; };
 
 layout(buffer_reference, std430) buffer Keys { uint keys[]; };
@@ -79,9 +80,9 @@ bool blockPoint(ivec2 origin, ivec2 size, int i, out vec3 p)
     // Past the image's edge the nearest pixel is read and left out (no early return: on lavapipe
     // it would put the rest of the loop under an execution mask).
     ivec2 pixel = origin + ivec2(i % VIEW_BOUNDS_BLOCK, i / VIEW_BOUNDS_BLOCK);
-    vec4 g = imageLoad(gPosition, min(pixel, size - 1));
-    p = g.xyz;
-    return all(lessThan(pixel, size)) && g.w > 0.0;
+    const uvec4 g = imageLoad(gSurface, min(pixel, size - 1));
+    p = surfacePosition(g);
+    return all(lessThan(pixel, size)) && surfaceCovered(g);
 }
 
 // Bounds keys of map k of light l from the subgroup's lanes' bounds: one
@@ -207,7 +208,7 @@ uint fitAreaLight(uint l, ivec2 origin, ivec2 size, bool count)
 #include "floor.glsli"
 void main()
 {
-    const ivec2 size = imageSize(gPosition);
+    const ivec2 size = imageSize(gSurface);
     const ivec2 origin = ivec2(gl_GlobalInvocationID.xy) * VIEW_BOUNDS_BLOCK;
     float sum = frame.lights[0].viewProj[0][0].x;
     for (int i = 0; i < VIEW_BOUNDS_BLOCK * VIEW_BOUNDS_BLOCK; ++i) {
@@ -222,7 +223,7 @@ void main()
 #else
 void main()
 {
-    const ivec2 size = imageSize(gPosition);
+    const ivec2 size = imageSize(gSurface);
     const ivec2 origin = ivec2(gl_GlobalInvocationID.xy) * VIEW_BOUNDS_BLOCK;
     // The block's points are read again for every light and map: a private
     // array of them, indexed in a loop, costs far more on lavapipe (so does

@@ -136,7 +136,10 @@ void Culling::create(vk::Device& device, const std::vector<VkFormat>& cameraColo
     boxLayout = vk::createPipelineLayout(device, VK_NULL_HANDLE, sizeof(BoxPush), VK_SHADER_STAGE_VERTEX_BIT);
     predicateLayout =
         vk::createPipelineLayout(device, VK_NULL_HANDLE, sizeof(PredicatePush), VK_SHADER_STAGE_COMPUTE_BIT);
-    cameraBoxPipeline = createBoxPipeline(device, boxLayout, cameraColorFormats, depthFormat);
+    for (size_t albedo = 0; albedo < 2; ++albedo)
+        cameraBoxPipelines[albedo] = createBoxPipeline(
+            device, boxLayout, {cameraColorFormats.begin(), cameraColorFormats.begin() + std::min<size_t>(1 + albedo, cameraColorFormats.size())},
+            depthFormat);
     shadowBoxPipeline = createBoxPipeline(device, boxLayout, {}, depthFormat);
     predicatePipeline = vk::createComputePipeline(device, "cull_predicates.comp", predicateLayout, sizeof(PredicatePush));
     timestampPeriodNs = device.properties.limits.timestampPeriod;
@@ -151,7 +154,7 @@ void Culling::destroy(vk::Device& device)
         vkDestroyQueryPool(d, queryPool, nullptr);
     if (timestampPool)
         vkDestroyQueryPool(d, timestampPool, nullptr);
-    for (VkPipeline p : {cameraBoxPipeline, shadowBoxPipeline, predicatePipeline})
+    for (VkPipeline p : {cameraBoxPipelines[0], cameraBoxPipelines[1], shadowBoxPipeline, predicatePipeline})
         if (p)
             vkDestroyPipeline(d, p, nullptr);
     for (VkPipelineLayout l : {boxLayout, predicateLayout})
@@ -159,7 +162,7 @@ void Culling::destroy(vk::Device& device)
             vkDestroyPipelineLayout(d, l, nullptr);
     queryPool = timestampPool = VK_NULL_HANDLE;
     timestampCapacity = 0;
-    cameraBoxPipeline = shadowBoxPipeline = predicatePipeline = VK_NULL_HANDLE;
+    cameraBoxPipelines[0] = cameraBoxPipelines[1] = shadowBoxPipeline = predicatePipeline = VK_NULL_HANDLE;
     boxLayout = predicateLayout = VK_NULL_HANDLE;
     queryCapacity = 0;
 }
@@ -664,7 +667,7 @@ void Culling::recordPhases(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeo
         if (count == 0)
             return;
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
-                          plan.view.camera ? cameraBoxPipeline : shadowBoxPipeline);
+                          plan.view.camera ? cameraBoxPipelines[plan.view.albedo] : shadowBoxPipeline);
         vkCmdPushConstants(cmd, boxLayout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
         for (uint32_t q = first; q < first + count; ++q) {
             vkCmdBeginQuery(cmd, queryPool, q, 0);

@@ -97,9 +97,10 @@ struct CullView {
     std::string name;         // stats name: "camera", "light0", "light0.face3"
     uint32_t slot = 0;        // key of the view's persistent history (camera 0, light i layer l: 1 + 6 i + l)
     glm::mat4 viewProj{1.0f}; // clip = viewProj * world, Vulkan depth 0..1
-    bool camera = false;      // G-buffer target (two colour attachments) and order-preserving second phase
+    bool camera = false;      // G-buffer target (its surface, and its albedo with `albedo`) and order-preserving second phase
     bool occlusion = false;   // occlusion queries allowed (CullMode::All; shadow maps need a non-negative depth bias)
     std::shared_ptr<const ReceiverMask> receivers; // shadow views: the casters beside them are culled (null: none)
+    bool albedo = false;      // camera: the G-buffer's albedo target is drawn too (passes::GBufferPush::albedoAddress)
 };
 
 struct Culling {
@@ -109,8 +110,9 @@ struct Culling {
     using BeginRendering = std::function<void(bool clear)>;
     using EndRendering = std::function<void()>;
 
-    // Creates the box pipelines (camera: colour formats of the G-buffer, writes
-    // masked; shadow: depth only) and the predicate compute pass.
+    // Creates the box pipelines (camera: colour formats of the G-buffer, the
+    // surface's then the albedo's, writes masked, one pipeline for the surface
+    // alone and one for both; shadow: depth only) and the predicate compute pass.
     void create(vk::Device& device, const std::vector<VkFormat>& cameraColorFormats, VkFormat depthFormat);
     void destroy(vk::Device& device);
 
@@ -213,7 +215,7 @@ struct Culling {
     uint32_t queryCount = 0;
     // GPU
     VkPipelineLayout boxLayout = VK_NULL_HANDLE, predicateLayout = VK_NULL_HANDLE;
-    VkPipeline cameraBoxPipeline = VK_NULL_HANDLE, shadowBoxPipeline = VK_NULL_HANDLE,
+    VkPipeline cameraBoxPipelines[2] = {}, shadowBoxPipeline = VK_NULL_HANDLE, // camera: [albedo], the G-buffer's surface (and albedo)
                predicatePipeline = VK_NULL_HANDLE;
     VkQueryPool queryPool = VK_NULL_HANDLE;
     uint32_t queryCapacity = 0;

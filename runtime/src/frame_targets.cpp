@@ -31,11 +31,11 @@ void FrameTargets::create(vk::Device& device)
     VK_CHECK(vkCreateSampler(device.device, &samplerInfo, nullptr, &nearestSampler));
 }
 
-std::vector<vk::Image*> FrameTargets::imageSized() { return {&position, &normal, &depth, &color, &visibility}; }
+std::vector<vk::Image*> FrameTargets::imageSized() { return {&surface, &albedo, &depth, &color, &visibility}; }
 
 std::vector<vk::Buffer*> FrameTargets::imageSizedBuffers()
 {
-    return {&marks, &rayList, &readbackColor, &readbackPosition, &readbackNormal, &readbackVisibility};
+    return {&marks, &rayList, &readbackColor, &readbackSurface, &readbackAlbedo, &readbackVisibility};
 }
 
 std::vector<vk::Buffer*> FrameTargets::mapSizedBuffers()
@@ -113,8 +113,8 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
     if (resized) {
         destroyImageSized(device);
         const VkImageUsageFlags storage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-        position = vk::createImage(device, w, h, 1, kPositionFormat, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | storage);
-        normal = vk::createImage(device, w, h, 1, kNormalFormat, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | storage);
+        surface = vk::createImage(device, w, h, 1, kSurfaceFormat, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | storage);
+        albedo = vk::createImage(device, w, h, 1, kAlbedoFormat, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | storage);
         depth = vk::createImage(device, w, h, 1, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT);
         color = vk::createImage(device, w, h, 1, kColorFormat, storage);
         visibility = vk::createImage(device, w, h, 1, kVisibilityFormat, storage);
@@ -124,8 +124,8 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
                                    vk::MemoryUse::DeviceLocal);
         const VkBufferUsageFlags dst = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
         readbackColor = vk::createBuffer(device, pixels * 8, dst, vk::MemoryUse::Readback); // RGBA16F
-        readbackPosition = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
-        readbackNormal = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
+        readbackSurface = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);
+        readbackAlbedo = vk::createBuffer(device, pixels * 4, dst, vk::MemoryUse::Readback);
         readbackVisibility = vk::createBuffer(device, pixels * 4, dst, vk::MemoryUse::Readback);
         width = w;
         height = h;

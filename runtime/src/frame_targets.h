@@ -13,8 +13,10 @@
 
 namespace penumbra {
 
-constexpr VkFormat kPositionFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
-constexpr VkFormat kNormalFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+// The G-buffer: the surface texel (position and normal, shaders/surface.glsli)
+// and the material colour, written only by frames that show colours.
+constexpr VkFormat kSurfaceFormat = VK_FORMAT_R32G32B32A32_UINT;
+constexpr VkFormat kAlbedoFormat = VK_FORMAT_R32_UINT;
 // The shaded colour: half floats, so that the shade pass (lavapipe writes an
 // image texel one channel and lane at a time) and the read-back move half the
 // bytes; Frame::color gets floats (half_float.h).
@@ -35,10 +37,10 @@ constexpr uint32_t kMaxTimestamps = 256; // per frame
 struct FrameTargets {
     // Sized by the image.
     uint32_t width = 0, height = 0;
-    vk::Image position, normal, depth, color, visibility;
+    vk::Image surface, albedo, depth, color, visibility;
     vk::Buffer marks;   // uint per pixel (compact.comp.glsl)
     vk::Buffer rayList; // PENUMBRA_RAY_LIST_HEADER_UINTS + a pixel index per pixel
-    vk::Buffer readbackColor, readbackPosition, readbackNormal, readbackVisibility;
+    vk::Buffer readbackColor, readbackSurface, readbackAlbedo, readbackVisibility;
     // Sized by the shadow map.
     uint32_t shadowSize = 0, shadowLayers = 0;
     vk::Image shadowMap; // D32, one layer per cube face (SHADER_READ_ONLY between passes)

@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "config.h"
+#include "surface.h"
 
 namespace penumbra {
 
@@ -293,6 +294,7 @@ GpuGeometry uploadCompressed(vk::Device& device, const CompressedModel& model, c
             for (int k = 0; k < 3; ++k)
                 packed |= uint32_t(std::lround(std::clamp(rgb[k], 0.0f, 1.0f) * 255.0f)) << (8 * k);
             albedo[c] = packed;
+            geometry.coloured |= packed != kWhiteAlbedo;
         }
         geometry.albedo = vk::createBufferWithData(device, albedo.data(), albedo.size() * sizeof(uint32_t),
                                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::Addressable::Yes);

@@ -74,6 +74,7 @@ struct GpuGeometry {
     RasterIndices rasterIndices = RasterIndices::Strips; // Strips or Triangles (device.rasterIndices)
     uint64_t rasterIndexBytes = 0;                       // bytes of the chunks' rasterIndices
     vk::Buffer albedo;            // uint per cluster: its material's linear RGB, 8 bits each (gbuffer.vert); compressed only
+    bool coloured = false;        // some cluster's albedo is not white (else the camera writes no albedo target)
     // The BVH (model::Node[]) for the ray tracer, in chunks of 2^nodeChunkShift
     // nodes (node i is in nodeChunks[i >> nodeChunkShift]); compressed only.
     std::vector<vk::Buffer> nodeChunks;

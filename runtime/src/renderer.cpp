@@ -20,6 +20,7 @@
 #include "passes/pass.h"
 #include "renderer_impl.h"
 #include "shadow_methods.h"
+#include "surface.h"
 
 namespace penumbra {
 
@@ -193,16 +194,20 @@ struct Renderer::Impl::FrameScript {
     uint64_t afsmClosedClusters = 0; // afsm: the model's closed clusters
     bool afsmBackFaces = false;      // afsm: they cast only light-back-facing triangles this frame
     bool afsmOffsetClear = true;     // afsm: the rays' offset is at most the default (closedClearance's bound)
+    // The frame shows material colours: RenderSettings::colors, on a model with
+    // more than white. Only then does the camera write its albedo target.
+    const bool colours;
 
     FrameScript(Impl& renderer, const RenderSettings& s)
         : r(renderer), settings(s), spec(shadowMethodSpec(s.shadows)), bounds(r.geometry.bounds),
           rayOffset(s.rayOffset > 0.0f ? s.rayOffset : shadowRayOffset(bounds, r.geometry.maxPositionError)),
-          lights(r.lights.empty() ? std::vector<Light>{defaultLight()} : r.lights), cmd(r.commandBuffer)
+          lights(r.lights.empty() ? std::vector<Light>{defaultLight()} : r.lights), cmd(r.commandBuffer),
+          colours(s.colors && r.geometry.coloured)
     {
         const Camera camera = r.camera ? *r.camera : defaultCamera(bounds);
         view = cameraViewProjection(camera, bounds, float(s.width) / float(s.height));
         data.cameraPosition = glm::vec4(view.eye, 1.0f);
-        data.shading = glm::vec4(s.ambient, s.albedo, s.colors ? 1.0f : 0.0f, 0.0f);
+        data.shading = glm::vec4(s.ambient, s.albedo, colours ? 1.0f : 0.0f, 0.0f);
         data.background = glm::vec4(s.background[0], s.background[1], s.background[2], 1.0f);
         data.pip = glm::vec4(float(PENUMBRA_PIP_DELTA_FRACTION), 0.0f, 0.0f, 0.0f);
         uint32_t maxLayers = 1;
@@ -622,8 +627,8 @@ struct Renderer::Impl::FrameScript {
         }
         vkCmdFillBuffer(cmd, t.stats.buffer, 0, VK_WHOLE_SIZE, 0);
         vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
-        r.gbuffer.record(cmd, r.culling, 0, r.geometry, {&t.position, &t.normal, &t.depth},
-                         {view.viewProj, glm::vec4(view.eye, 1.0f), r.geometry.albedo.buffer ? vk::bufferAddress(r.device, r.geometry.albedo) : 0,
+        r.gbuffer.record(cmd, r.culling, 0, r.geometry, {&t.surface, &t.albedo, &t.depth},
+                         {view.viewProj, glm::vec4(view.eye, 1.0f), colours ? vk::bufferAddress(r.device, r.geometry.albedo) : 0,
                           afsmBackFaces ? r.afsm.closedBitsAddress(r.device) : 0});
         timer.mark(cmd, PassId::Camera);
         for (vk::Image* image : {&t.color, &t.visibility})
@@ -972,8 +977,9 @@ struct Renderer::Impl::FrameScript {
         VkBufferCopy statsRegion{0, 0, PENUMBRA_STAT_COUNT * sizeof(uint64_t)};
         vkCmdCopyBuffer(cmd, t.stats.buffer, t.readbackStats.buffer, 1, &statsRegion);
         if (settings.readbackGBuffer) {
-            copyImage(t.position, t.readbackPosition);
-            copyImage(t.normal, t.readbackNormal);
+            copyImage(t.surface, t.readbackSurface);
+            if (colours)
+                copyImage(t.albedo, t.readbackAlbedo);
             copyImage(t.visibility, t.readbackVisibility);
         }
         vk::memoryBarrier(cmd, kCopy | kCompute, kTransferWrite | kStorageWrite, kHost, VK_ACCESS_2_HOST_READ_BIT);
@@ -994,8 +1000,12 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     frame.color.rgba.resize(pixels * 4);
     halfToFloat(static_cast<const uint16_t*>(t.readbackColor.mapped), frame.color.rgba.data(), pixels * 4); // kColorFormat
     if (settings.readbackGBuffer) {
-        frame.positions.assign(floats(t.readbackPosition), floats(t.readbackPosition) + pixels * 4);
-        frame.normals.assign(floats(t.readbackNormal), floats(t.readbackNormal) + pixels * 4);
+        const auto* surface = static_cast<const uint32_t*>(t.readbackSurface.mapped);
+        const auto* albedo = static_cast<const uint32_t*>(t.readbackAlbedo.mapped);
+        frame.positions.resize(pixels * 4);
+        frame.normals.resize(pixels * 4);
+        for (size_t i = 0; i < pixels; ++i)
+            decodeSurface(surface + 4 * i, colours ? albedo[i] : kWhiteAlbedo, &frame.positions[4 * i], &frame.normals[4 * i]);
         frame.visibility.assign(floats(t.readbackVisibility), floats(t.readbackVisibility) + pixels);
     }
 
@@ -1102,7 +1112,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     const auto cpuStart = std::chrono::steady_clock::now();
     FrameScript frame(*this, settings);
     const bool readBack = frame.viewFitRuns();
-    culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, frame.view.viewProj, true, true}});
+    culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, frame.view.viewProj, true, true, nullptr, frame.colours}});
     if (!readBack)
         frame.planShadowViews();
     if (geometry.paged()) {

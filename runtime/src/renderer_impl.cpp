@@ -22,8 +22,8 @@ void Renderer::Impl::create()
     compact.create(device);
     trace.create(device);
     shade.create(device);
-    culling.create(device, {kPositionFormat, kNormalFormat}, kDepthFormat);
-    shadowCulling.create(device, {kPositionFormat, kNormalFormat}, kDepthFormat);
+    culling.create(device, {kSurfaceFormat, kAlbedoFormat}, kDepthFormat);
+    shadowCulling.create(device, {kSurfaceFormat, kAlbedoFormat}, kDepthFormat);
     targets.create(device);
 
     VkQueryPoolCreateInfo queryInfo{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
@@ -73,21 +73,21 @@ void Renderer::Impl::destroy()
 PixelTargets Renderer::Impl::pixelTargets() const
 {
     const FrameTargets& t = targets;
-    return {t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.marks.buffer, t.stats.buffer};
+    return {t.surface.view, t.albedo.view, t.visibility.view, t.frameUniforms.buffer, t.marks.buffer, t.stats.buffer};
 }
 
 void Renderer::Impl::bindTargets()
 {
     const FrameTargets& t = targets;
     const PixelTargets pixels = pixelTargets();
-    viewFit.bind(device, {t.position.view, t.frameUniforms.buffer});
+    viewFit.bind(device, {t.surface.view, t.frameUniforms.buffer});
     thinTriangles.bind(device, t.thinMap);
     penumbraMask.bind(device, {t.shadowMap.view, t.nearestSampler, t.thinMap.view, t.frameUniforms.buffer, &t.penumbraPyramid,
                                &t.penumbraMask, &t.penumbraReceivers, &t.penumbraJobs, &t.penumbraThinMask, t.penumbraMaxJobs});
     classify.bind(device, {pixels, t.shadowMap.view, t.nearestSampler, t.thinMap.view, &t.penumbraMask, &t.penumbraReceivers,
                            &t.penumbraThinMask});
     compact.bind(device, t.marks.buffer, t.rayList.buffer, t.stats.buffer);
-    trace.bind(device, {t.position.view, t.normal.view, t.visibility.view, t.frameUniforms.buffer, t.rayList.buffer, t.stats.buffer});
+    trace.bind(device, {t.surface.view, t.albedo.view, t.visibility.view, t.frameUniforms.buffer, t.rayList.buffer, t.stats.buffer});
     shade.bind(device, pixels, t.color.view, t.shadowMap.view, t.nearestSampler);
 }
 
@@ -105,7 +105,7 @@ void Renderer::Impl::ensureRhTargets()
 {
     ensureAfsmTargets();
     FrameTargets& t = targets;
-    const RhTargets rhTargets{t.position.view, t.normal.view, t.frameUniforms.buffer, &t.afsmShadowed, t.width, t.height,
+    const RhTargets rhTargets{t.surface.view, t.albedo.view, t.frameUniforms.buffer, &t.afsmShadowed, t.width, t.height,
                               shadowCulling.model ? uint32_t(shadowCulling.model->clusterTriangles.size()) : 0u};
     if (!rh.bound(rhTargets))
         rh.bind(device, rhTargets);

@@ -24,6 +24,7 @@
 #include "penumbra/preprocess.h"
 #include "passes/trace.h"
 #include "resources.h"
+#include "surface.h"
 
 namespace penumbra {
 namespace {
@@ -85,8 +86,8 @@ public:
         tracer.bindModel(device, geometry);
 
         const VkImageUsageFlags usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-        position = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32G32B32A32_SFLOAT, usage);
-        normal = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32G32B32A32_SFLOAT, usage);
+        surface = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32G32B32A32_UINT, usage);
+        albedo = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32_UINT, usage); // bound, not read
         visibility = vk::createImage(device, gbuffer.width, gbuffer.height, 1, VK_FORMAT_R32_SFLOAT, usage);
         const VkDeviceSize pixels = VkDeviceSize(gbuffer.width) * gbuffer.height;
         staging = vk::createBuffer(device, pixels * 16, VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
@@ -107,20 +108,27 @@ public:
         list[2] = list[3] = 1;
         listed = count;
 
-        upload(position, gbuffer.positions);
-        upload(normal, gbuffer.normals);
+        // The G-buffer as the camera pass writes it (surface.h): the normals
+        // read back were decoded from such texels, and encode to them again.
+        std::vector<uint32_t> texels(size_t(pixels) * 4, 0u);
+        for (size_t i = 0; i < pixels; ++i)
+            if (gbuffer.positions[i * 4 + 3] != 0.0f)
+                encodeSurface(&gbuffer.positions[i * 4], &gbuffer.normals[i * 4], &texels[i * 4]);
+        upload(surface, texels.data(), texels.size() * sizeof(uint32_t));
+        const std::vector<uint32_t> white(pixels, kWhiteAlbedo);
+        upload(albedo, white.data(), white.size() * sizeof(uint32_t));
         vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
             vk::transition(cmd, visibility, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE,
                            VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
         });
 
-        tracer.bind(device, {position.view, normal.view, visibility.view, frameUniforms.buffer, rayList.buffer, stats.buffer});
+        tracer.bind(device, {surface.view, albedo.view, visibility.view, frameUniforms.buffer, rayList.buffer, stats.buffer});
     }
 
     ~TraceHarness()
     {
         vkDeviceWaitIdle(device.device);
-        for (vk::Image* image : {&position, &normal, &visibility})
+        for (vk::Image* image : {&surface, &albedo, &visibility})
             vk::destroyImage(device, *image);
         for (vk::Buffer* buffer : {&staging, &frameUniforms, &rayList, &stats})
             vk::destroyBuffer(device, *buffer);
@@ -173,9 +181,9 @@ public:
     vk::Device device;
 
 private:
-    void upload(vk::Image& image, const std::vector<float>& rgba)
+    void upload(vk::Image& image, const void* texels, size_t bytes)
     {
-        std::memcpy(staging.mapped, rgba.data(), rgba.size() * sizeof(float));
+        std::memcpy(staging.mapped, texels, bytes);
         vk::immediateSubmit(device, [&](VkCommandBuffer cmd) {
             vk::transition(cmd, image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_NONE,
                            VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
@@ -191,7 +199,7 @@ private:
     const GBuffer& gbuffer;
     GpuGeometry geometry;
     passes::TracePass tracer;
-    vk::Image position, normal, visibility;
+    vk::Image surface, albedo, visibility;
     vk::Buffer staging, frameUniforms, rayList, stats;
     uint32_t listed = 0;
 };

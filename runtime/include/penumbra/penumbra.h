@@ -294,9 +294,11 @@ struct Frame {
     Image color;
     // With RenderSettings::readbackGBuffer: per pixel world position (xyz, w = 1
     // when covered, 0 for background), the face normal turned toward the
-    // camera (xyz; w = the surface's material colour, linear 8-bit r | g << 8 |
-    // b << 16, 16777215 for white) and visibility of light 0 (1 lit, 0 shadowed,
-    // -1 background).
+    // camera (xyz, as every pass reads it: stored octahedral, 16 bits a
+    // coordinate, about 3e-5 from the exact one; w = the material colour the
+    // frame shows, linear 8-bit r | g << 8 | b << 16, 16777215 for white, and
+    // white everywhere when RenderSettings::colors is off) and visibility of
+    // light 0 (1 lit, 0 shadowed, -1 background).
     std::vector<float> positions;
     std::vector<float> normals;
     std::vector<float> visibility;

@@ -10,8 +10,8 @@
 namespace penumbra::passes {
 
 enum PixelBinding : uint32_t {
-    kPixelPosition,   // rgba32f world position, w = 0 for background (GENERAL)
-    kPixelNormal,     // rgba32f normal turned toward the camera (GENERAL)
+    kPixelSurface,    // rgba32ui surface texel: position and normal, 0 for background (shaders/surface.glsli; GENERAL)
+    kPixelAlbedo,     // r32ui material colour, written when the frame shows colours (GENERAL; shade.comp reads it)
     kPixelVisibility, // r32f visibility of the light being shaded (GENERAL)
     kPixelFrame,      // uniform gpu::FrameData
     kPixelMarks,      // uint per pixel: rays wanted (compact.comp.glsl)
@@ -20,7 +20,7 @@ enum PixelBinding : uint32_t {
 };
 
 struct PixelTargets {
-    VkImageView position = VK_NULL_HANDLE, normal = VK_NULL_HANDLE, visibility = VK_NULL_HANDLE;
+    VkImageView surface = VK_NULL_HANDLE, albedo = VK_NULL_HANDLE, visibility = VK_NULL_HANDLE;
     VkBuffer frame = VK_NULL_HANDLE, marks = VK_NULL_HANDLE, stats = VK_NULL_HANDLE;
 };
 
@@ -31,7 +31,7 @@ inline std::vector<VkDescriptorType> pixelBindingTypes()
 
 inline std::vector<vk::Binding> pixelBindings(const PixelTargets& t)
 {
-    return {vk::storageImage(t.position), vk::storageImage(t.normal), vk::storageImage(t.visibility),
+    return {vk::storageImage(t.surface), vk::storageImage(t.albedo), vk::storageImage(t.visibility),
             vk::uniformBuffer(t.frame),   vk::storageBuffer(t.marks),  vk::storageBuffer(t.stats)};
 }
 

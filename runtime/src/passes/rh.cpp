@@ -175,7 +175,7 @@ void RhPass::destroyTexelViews(vk::Device& device)
 
 bool RhPass::bound(const RhTargets& t) const
 {
-    return state.buffer && t.position == targets.position && t.shadowed == targets.shadowed && t.shadowed->buffer == shadowedBuffer &&
+    return state.buffer && t.surface == targets.surface && t.shadowed == targets.shadowed && t.shadowed->buffer == shadowedBuffer &&
            t.width == targets.width && t.height == targets.height && t.clusters == targets.clusters;
 }
 
@@ -254,18 +254,18 @@ void RhPass::bind(vk::Device& device, const RhTargets& t)
     texelAccess = rayList.size / 16 <= maxTexels && nodes.size / 16 <= maxTexels && trianglesA.size / 16 <= maxTexels &&
                   trianglesB.size / 8 <= maxTexels && records.size / 8 <= maxTexels;
     using namespace vk;
-    rays.write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
+    rays.write(device, {storageImage(t.surface), storageImage(t.albedo), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
                         storageBuffer(state.buffer), storageBuffer(tileCounts.buffer), storageBuffer(keyCounts.buffer),
                         storageBuffer(depthGrid.buffer)});
     scanTiles.write(device, {storageBuffer(tileCounts.buffer)});
     scanKeys.write(device, {storageBuffer(keyCounts.buffer)});
     for (const ComputeKernel* kernel : {&build, &buildParallel})
-        kernel->write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
+        kernel->write(device, {storageImage(t.surface), storageImage(t.albedo), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
                                storageBuffer(nodes.buffer), storageBuffer(state.buffer), storageBuffer(t.shadowed->buffer),
                                storageBuffer(depthGrid.buffer)});
     step.write(device, {storageBuffer(state.buffer)});
     for (const ComputeKernel* kernel : {&traverse, &traverseParallel})
-        kernel->write(device, {storageImage(t.position), storageImage(t.normal), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
+        kernel->write(device, {storageImage(t.surface), storageImage(t.albedo), uniformBuffer(t.frame), storageBuffer(rayList.buffer),
                                storageBuffer(nodes.buffer), storageBuffer(trianglesA.buffer), storageBuffer(trianglesB.buffer),
                                storageBuffer(records.buffer), storageBuffer(t.shadowed->buffer), storageBuffer(state.buffer),
                                uniformBuffer(state.buffer), texelBuffer(rayTexels), texelBuffer(nodeTexels), texelBuffer(triangleTexelsA),

@@ -104,7 +104,8 @@ static_assert(offsetof(RhState, incoherence) == 96 && offsetof(RhState, leafDisp
               sizeof(RhState) == 272 + 6 * 4 * PENUMBRA_RH_MAX_LEVELS);
 
 struct RhTargets {
-    VkImageView position = VK_NULL_HANDLE, normal = VK_NULL_HANDLE;
+    // The G-buffer (surface.glsli); the albedo is not read (the G-buffer keeps bindings 0 and 1 in every pass).
+    VkImageView surface = VK_NULL_HANDLE, albedo = VK_NULL_HANDLE;
     VkBuffer frame = VK_NULL_HANDLE;
     const vk::Buffer* shadowed = nullptr; // afsm's per-pixel shadow flags
     uint32_t width = 0, height = 0;

@@ -112,7 +112,7 @@ void TracePass::writeSet(vk::Device& device) const
     if (!rayList || !texels.nodes)
         return; // both the targets and the model are needed
     const TraceTargets& t = targets;
-    kernel.write(device, {vk::storageImage(t.position), vk::storageImage(t.normal), vk::storageImage(t.visibility),
+    kernel.write(device, {vk::storageImage(t.surface), vk::storageImage(t.albedo), vk::storageImage(t.visibility),
                           vk::uniformBuffer(t.frame), vk::storageBuffer(t.rayList), vk::storageBuffer(t.stats),
                           vk::texelBuffer(texels.nodes), vk::texelBuffer(texels.clusters), vk::texelBuffer(texels.vertices),
                           vk::texelBuffer(texels.strips), vk::texelBuffer(texels.nodeTable)});

@@ -12,14 +12,14 @@
 namespace penumbra::passes {
 
 enum TraceBinding : uint32_t {
-    kTracePosition, kTraceNormal, kTraceVisibility, kTraceFrame, kTraceRayList, kTraceStats,
+    kTraceSurface, kTraceAlbedo, kTraceVisibility, kTraceFrame, kTraceRayList, kTraceStats,
     kTraceNodes, kTraceClusters, kTraceVertices, kTraceStrips, // GpuGeometry::texels
     kTraceBindingCount
 };
 
 struct TraceTargets {
-    VkImageView position = VK_NULL_HANDLE;   // rgba32f G-buffer world position (GENERAL)
-    VkImageView normal = VK_NULL_HANDLE;     // rgba32f G-buffer normal facing the camera (GENERAL)
+    VkImageView surface = VK_NULL_HANDLE;    // rgba32ui G-buffer surface: position and normal facing the camera (surface.glsli; GENERAL)
+    VkImageView albedo = VK_NULL_HANDLE;     // the G-buffer's albedo: not read (the G-buffer keeps bindings 0 and 1 in every pass)
     VkImageView visibility = VK_NULL_HANDLE; // r32f: the tracer writes the visibility of every listed pixel (GENERAL)
     VkBuffer frame = VK_NULL_HANDLE;         // gpu::FrameData (lights)
     VkBuffer rayList = VK_NULL_HANDLE;       // PENUMBRA_RAY_LIST_HEADER_UINTS header + pixel indices

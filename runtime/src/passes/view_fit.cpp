@@ -28,7 +28,7 @@ void ViewFitPass::destroy(vk::Device& device) { kernel.destroy(device); }
 
 void ViewFitPass::bind(vk::Device& device, const ViewFitTargets& t)
 {
-    kernel.write(device, {vk::storageImage(t.position), vk::uniformBuffer(t.frame)});
+    kernel.write(device, {vk::storageImage(t.surface), vk::uniformBuffer(t.frame)});
 }
 
 void ViewFitPass::recordFloor(VkCommandBuffer cmd, const vk::Device& device, const vk::Buffer& viewBounds, uint32_t width,

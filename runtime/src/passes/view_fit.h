@@ -28,7 +28,7 @@ struct ViewFitPush {
 static_assert(sizeof(ViewFitPush) == 32);
 
 struct ViewFitTargets {
-    VkImageView position = VK_NULL_HANDLE; // G-buffer (GENERAL)
+    VkImageView surface = VK_NULL_HANDLE; // G-buffer surface (surface.glsli; GENERAL)
     VkBuffer frame = VK_NULL_HANDLE;       // gpu::FrameData
 };
 
