@@ -36,10 +36,11 @@ void main()
     if (albedo >= (1u << 24u) && !gl_FrontFacing)
         discard;
 #endif
+    // Not normalized: the octahedral encoding divides by the L1 norm anyway.
     vec3 n = cross(dFdx(worldPosition), dFdy(worldPosition));
-    float len = length(n);
     vec3 toCamera = camera.cameraPosition.xyz - worldPosition;
-    n = len > 0.0 ? n / len : normalize(toCamera);
+    if (abs(n.x) + abs(n.y) + abs(n.z) == 0.0)
+        n = toCamera;
     if (dot(n, toCamera) < 0.0)
         n = -n;
     outSurface = uvec4(floatBitsToUint(worldPosition), encodeSurfaceNormal(n));
