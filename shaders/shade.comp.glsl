@@ -49,6 +49,7 @@ layout(push_constant) uniform ShadePush {
 } push;
 
 #ifdef PENUMBRA_FLOOR
+#define PENUMBRA_FLOOR_ALBEDO // the one pass that reads the G-buffer's albedo
 #include "floor.glsli"
 void main()
 {
