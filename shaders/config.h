@@ -211,7 +211,7 @@ PENUMBRA_STRUCT(LightData)
 PENUMBRA_STRUCT(FrameData)
 {
     vec4 cameraPosition;     // xyz camera position, w unused
-    vec4 shading;            // x = ambient, y = albedo, z = 1: times the G-buffer's material colour, w unused
+    vec4 shading;            // x = ambient, y = albedo, z and w unused (the material colour: shade.comp's kColours)
     vec4 background;         // rgb background colour, a = 1
     vec4 pip;                // x = depth-discontinuity threshold (fraction of the light's depth range), yzw unused
     LightData lights[PENUMBRA_MAX_LIGHTS];

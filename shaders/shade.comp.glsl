@@ -21,8 +21,9 @@ layout(constant_id = 0) const uint kLightType = PENUMBRA_LIGHT_POINT; // PENUMBR
 layout(constant_id = 1) const uint kFirstLight = 0u;                  // push.firstLight
 layout(constant_id = 2) const uint kDebugPip = 0u;                    // push.debugPip
 layout(constant_id = 3) const uint kCountCovered = 0u;                // 1: add the covered pixels to PENUMBRA_STAT_COVERED
+layout(constant_id = 4) const uint kColours = 0u;                     // push.colours: read the G-buffer's albedo
 #ifdef PENUMBRA_SHADE_LOOKUP
-layout(constant_id = 4) const uint kStoreVisibility = 1u;             // 1: write the visibility image (read back)
+layout(constant_id = 5) const uint kStoreVisibility = 1u;             // 1: write the visibility image (read back)
 #define PENUMBRA_LIGHT_TYPE kLightType
 #include "shadow_common.glsli"
 #endif
@@ -46,10 +47,11 @@ layout(push_constant) uniform ShadePush {
     uint firstLight;    // 1: initialise colour with ambient/background
     uint debugPip;      // 1: tint marked pixels red (--debug-image pip)
     uint countCovered;  // kCountCovered's value
+    uint colours;       // kColours's value
 } push;
 
 #ifdef PENUMBRA_FLOOR
-#define PENUMBRA_FLOOR_ALBEDO // the one pass that reads the G-buffer's albedo
+#define PENUMBRA_FLOOR_ALBEDO (kColours != 0u) // the one pass that reads the G-buffer's albedo
 #include "floor.glsli"
 void main()
 {
@@ -85,7 +87,7 @@ void main()
     }
     vec3 n = surfaceNormal(surface);
     vec3 albedo = vec3(frame.shading.y);
-    if (frame.shading.z != 0.0) // colours shown: the material's colour packed by gbuffer.frag.albedo
+    if (kColours != 0u) // colours shown: the material's colour packed by gbuffer.frag.albedo
         albedo *= vec3(uvec3(imageLoad(gAlbedo, pixel).r) >> uvec3(0u, 8u, 16u) & 255u) / 255.0;
     // The first light shaded writes ambient (and the background); later ones add to the colour.
     vec3 color = kFirstLight != 0u ? vec3(albedo * frame.shading.x * (0.75 + 0.25 * n.y)) : imageLoad(outColor, pixel).rgb;

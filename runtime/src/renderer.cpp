@@ -207,7 +207,7 @@ struct Renderer::Impl::FrameScript {
         const Camera camera = r.camera ? *r.camera : defaultCamera(bounds);
         view = cameraViewProjection(camera, bounds, float(s.width) / float(s.height));
         data.cameraPosition = glm::vec4(view.eye, 1.0f);
-        data.shading = glm::vec4(s.ambient, s.albedo, colours ? 1.0f : 0.0f, 0.0f);
+        data.shading = glm::vec4(s.ambient, s.albedo, 0.0f, 0.0f);
         data.background = glm::vec4(s.background[0], s.background[1], s.background[2], 1.0f);
         data.pip = glm::vec4(float(PENUMBRA_PIP_DELTA_FRACTION), 0.0f, 0.0f, 0.0f);
         uint32_t maxLayers = 1;
@@ -900,7 +900,7 @@ struct Renderer::Impl::FrameScript {
         case Step::Shade: {
             const bool firstLight = light + 1 == lights.size();
             const ShadePush push{light, firstLight ? 1u : 0u, settings.debugPip && spec.traces() ? 1u : 0u,
-                                 firstLight && !viewFitRuns() ? 1u : 0u};
+                                 firstLight && !viewFitRuns() ? 1u : 0u, colours ? 1u : 0u};
             // kShadeLookup: the visibility from the shadow map, stored only where it is read back (no classify
             // pass wrote the marks, which the light layers read: zero).
             const bool lookup = step.mode == kShadeLookup && !area;

@@ -11,9 +11,9 @@ void GBufferPass::create(vk::Device& device)
     desc.vertexShader = "gbuffer.vert";
     desc.depthFormat = kDepthFormat;
     desc.pushBytes = sizeof(GBufferPush);
+    static const char* const names[2][2] = {{"gbuffer.frag", "gbuffer.frag.albedo"}, {"gbuffer.frag.outside", "gbuffer.frag.outside.albedo"}};
     for (int outside = 0; outside < 2; ++outside)
         for (int albedo = 0; albedo < 2; ++albedo) {
-            static const char* const names[2][2] = {{"gbuffer.frag", "gbuffer.frag.albedo"}, {"gbuffer.frag.outside", "gbuffer.frag.outside.albedo"}};
             desc.fragmentShader = names[outside][albedo];
             desc.colorFormats = albedo ? std::vector<VkFormat>{kSurfaceFormat, kAlbedoFormat} : std::vector<VkFormat>{kSurfaceFormat};
             pipelines[outside][albedo].create(device, desc, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);

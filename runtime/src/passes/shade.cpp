@@ -33,8 +33,8 @@ void ShadePass::record(VkCommandBuffer cmd, const ShadePush& push, uint32_t ligh
                        bool lookupMap, bool storeVisibility) const
 {
     const vk::ComputeKernel& k = lookupMap ? lookup : kernel;
-    k.bind(cmd, lookupMap ? vk::Specialization{lightType, push.firstLight, push.debugPip, push.countCovered, storeVisibility ? 1u : 0u}
-                          : vk::Specialization{lightType, push.firstLight, push.debugPip, push.countCovered},
+    k.bind(cmd, lookupMap ? vk::Specialization{lightType, push.firstLight, push.debugPip, push.countCovered, push.colours, storeVisibility ? 1u : 0u}
+                          : vk::Specialization{lightType, push.firstLight, push.debugPip, push.countCovered, push.colours},
            floor);
     k.push(cmd, push);
     vkCmdDispatch(cmd, groupCount(width, PENUMBRA_SHADE_GROUP_SIZE), groupCount(height, PENUMBRA_SHADE_GROUP_SIZE), 1);

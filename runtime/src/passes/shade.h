@@ -16,8 +16,9 @@ struct ShadePush {
     uint32_t firstLight; // 1: initialise colour with ambient/background
     uint32_t debugPip;   // 1: tint marked pixels red (--debug-image pip)
     uint32_t countCovered; // 1: add the covered pixels to the frame's counter (the first light, when view_fit did not)
+    uint32_t colours;      // 1: the albedo times the G-buffer's material colour (the frame shows colours)
 };
-static_assert(sizeof(ShadePush) == 16);
+static_assert(sizeof(ShadePush) == 20);
 
 class ShadePass {
   public:
@@ -29,7 +30,7 @@ class ShadePass {
     // visibility, marks and the ray list (also read as indirect arguments).
     // floor: the null twin instead (shaders/floor.glsli), after createFloor.
     // lightType: PENUMBRA_LIGHT_* of frame.lights[push.lightIndex]; the pipeline is
-    // specialized for it, push.firstLight, push.debugPip and push.countCovered.
+    // specialized for it, push.firstLight, push.debugPip, push.countCovered and push.colours.
     // lookup: the visibility from the light's shadow map (hard lights, in the
     // shader-read layout), stored in the visibility image only if
     // storeVisibility; otherwise read from it.
