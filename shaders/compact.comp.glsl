@@ -12,7 +12,7 @@
 // workgroup barriers, which are expensive on CPU drivers; four pixels an
 // invocation make a quarter of the reservations, each an atomic on one cache
 // line that lavapipe's threads take turns at). Phase 1 (one invocation) writes the
-// tracer's indirect dispatch size from the final count (2-D above 65535 groups)
+// tracer's two indirect dispatch sizes from the final count (2-D above 65535 groups)
 // and adds the count to the frame's PIP counter (the pixels given rays).
 
 #include "config.h"
@@ -28,6 +28,7 @@ layout(push_constant) uniform CompactPush {
     uint phase;   // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
     uint width;   // of the image (pixelCount = width x height)
     uint height;  // of the image
+    uint roundEntries; // the tracer's list entries per workgroup in rounds (TracePass::entriesPerGroup)
 } push;
 
 // Each workgroup covers a 32x32 block of pixels: 16 tiles of 8x8 (4 x 4),
@@ -71,11 +72,14 @@ void main()
         if (gl_GlobalInvocationID.x != 0u)
             return;
         // 2-D when needed: devices may limit each dimension to 65535 workgroups.
-        uint groups = (rays[0] + PENUMBRA_TRACE_GROUP_SIZE - 1u) / PENUMBRA_TRACE_GROUP_SIZE;
-        uint x = min(groups, 65535u);
-        rays[1] = x;
-        rays[2] = x == 0u ? 1u : (groups + x - 1u) / x;
-        rays[3] = 1u;
+        for (uint i = 0u; i < 2u; ++i) {
+            uint perGroup = i == 0u ? PENUMBRA_TRACE_GROUP_SIZE : push.roundEntries;
+            uint groups = (rays[0] + perGroup - 1u) / perGroup;
+            uint x = min(groups, 65535u);
+            rays[1u + 3u * i] = x;
+            rays[2u + 3u * i] = x == 0u ? 1u : (groups + x - 1u) / x;
+            rays[3u + 3u * i] = 1u;
+        }
         atomicAdd(stats[PENUMBRA_STAT_PIP], uint64_t(rays[0]));
         return;
     }

@@ -26,7 +26,15 @@
 #define PENUMBRA_SHADE_GROUP_SIZE 8      // shade.comp and classify.comp workgroups are 8x8 pixels
 #define PENUMBRA_THIN_TRIANGLES_GROUP_SIZE 64 // thin_triangles.comp: BVH nodes per workgroup, strip bytes decoded at once
 
-#define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: rays per workgroup
+#define PENUMBRA_TRACE_GROUP_SIZE 64     // trace.comp: invocations per workgroup
+#define PENUMBRA_TRACE_RAYS_CPU 16       // trace.comp, hard shadows on a CPU device: list entries per invocation, in rounds
+                                         // of a subgroup's consecutive entries, each round first testing the leaves that
+                                         // blocked the round before (TracePass::raysPerInvocation)
+#define PENUMBRA_TRACE_RAYS_GPU 1        // ... on a GPU: one ray an invocation (the GPU needs the invocations)
+#define PENUMBRA_TRACE_HINT_BACKOFF 2    // ... rounds without hint tests after one whose tests left a ray to traverse
+#define PENUMBRA_TRACE_ROUNDS_PER_DISPATCH 4 // ... those rounds in dispatches of this many: lavapipe ends every loop of an
+                                         // invocation after 65,535 iterations in all, and the 16 rounds of an invocation
+                                         // on the 1 M suite scenes at 1024^2 took up to 7,806 loop iterations
 #define PENUMBRA_TRACE_SAMPLES_PER_DISPATCH 32 // trace.comp: an area light's samples traced per dispatch (lavapipe's loop limit)
 #define PENUMBRA_TRACE_STACK_SIZE 100    // BVH traversal stack entries (3 x model::kMaxBvhDepth + 4: 4-wide nodes)
 #define PENUMBRA_COMPACT_GROUP_SIZE 256  // compact.comp: pixels per workgroup
@@ -81,10 +89,11 @@
 #define PENUMBRA_MAX_SAMPLES 256         // soft shadows: most light samples per pixel
 
 // Ray list written by compaction and read by the tracer (std430):
-// uint count; uint dispatch[3] (indirect dispatch of trace.comp); uint pixels[count]
+// uint count; uint dispatch[3] (indirect dispatch of trace.comp, one entry an invocation);
+// uint roundsDispatch[3] (the same, PENUMBRA_TRACE_RAYS_CPU entries an invocation); uint pad; uint pixels[count]
 // where pixels[i] = y * width + x of a pixel to trace, | PENUMBRA_RAY_ONE_SAMPLE when
 // the pixel was marked PENUMBRA_MARK_ONE_SAMPLE (area lights: trace light sample 0 only).
-#define PENUMBRA_RAY_LIST_HEADER_UINTS 4
+#define PENUMBRA_RAY_LIST_HEADER_UINTS 8
 #define PENUMBRA_MARK_ONE_SAMPLE 2u      // marks[]: outside the penumbra, all light samples agree (1: trace all)
 #define PENUMBRA_RAY_ONE_SAMPLE 0x80000000u
 

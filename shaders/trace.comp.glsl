@@ -10,6 +10,8 @@
 #extension GL_EXT_shader_16bit_storage : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_vote : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_atomic_int64 : require
 
@@ -24,6 +26,9 @@ layout(constant_id = 3) const uint kLightType = PENUMBRA_LIGHT_POINT; // PENUMBR
 // 1: paged geometry (RendererOptions::geometryBudgetBytes, geometry_pages.h): a ray that reaches a
 // cluster that is not resident is parked; 0 (no budget): the check is compiled out.
 layout(constant_id = 4) const uint kGeometryBudget = 0u;
+// List entries per invocation: hard shadows without paging PENUMBRA_TRACE_RAYS_CPU or _GPU by the device type
+// (TracePass::raysPerInvocation), in rounds (traceHardRounds); 1 otherwise.
+layout(constant_id = 5) const uint kRays = 1u;
 layout(set = 0, binding = 6) uniform usamplerBuffer modelNodes;
 layout(set = 0, binding = 7) uniform usamplerBuffer modelClusters;
 layout(set = 0, binding = 8) uniform usamplerBuffer modelVertices;
@@ -94,10 +99,14 @@ layout(set = 0, binding = 3, std140) uniform Frame { FrameData frame; };
 layout(set = 0, binding = 4, std430) readonly buffer RayList
 {
     uint rayCount;
-    uint dispatch[3];
+    uint dispatch[3];       // one entry an invocation
+    uint roundsDispatch[3]; // kRays entries an invocation
+    uint listPad;
     uint rayPixels[];
 };
 layout(set = 0, binding = 5, std430) buffer Stats { uint64_t stats[]; };
+// Hard shadows in rounds: each invocation's hint between its dispatches (traceHardRounds).
+layout(set = 0, binding = 11, std430) buffer Hints { uvec2 hints[]; };
 
 layout(push_constant) uniform Push
 {
@@ -111,7 +120,8 @@ layout(push_constant) uniform Push
     vec4 boundsMax;
     uint sampleBegin;     // area lights: the light samples [sampleBegin, sampleEnd) of this dispatch (see traceSoftVisibility)
     uint sampleEnd;
-    uint pad0, pad1;
+    uint roundBegin;      // hard shadows in rounds: the rounds [roundBegin, roundBegin + PENUMBRA_TRACE_ROUNDS_PER_DISPATCH) of this dispatch
+    uint pad1;
 } push;
 
 void markVisited(uint cluster)
@@ -133,11 +143,12 @@ bool traversalResident(ClusterInfo cluster)
 // unless it hit (any-hit: a hit is exact whatever it skipped).
 bool occluded(ShadowRay ray, inout TraceCounters counters)
 {
+    uvec2 hitLeaf = uvec2(PENUMBRA_NO_CLUSTER, 0u);
     if (kGeometryBudget == 0u)
-        return modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters);
+        return modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters, hitLeaf);
     const bool parkedBefore = gParked;
     gParked = false;
-    const bool hit = modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters);
+    const bool hit = modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters, hitLeaf);
     gParked = parkedBefore || (gParked && !hit);
     return hit;
 }
@@ -174,20 +185,16 @@ float traceSoftVisibility(ivec2 pixel, vec3 p, vec3 normal, LightData light, boo
     return float(visible) / float(traced);
 }
 
-// 1 lit, 0 shadowed; counts the ray when one is traced.
-float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout TraceCounters counters)
+// A hard light's ray for a listed pixel: false when none is needed, with
+// the pixel's visibility (background 1; facing away from the light 0).
+bool hardRay(uint pixelIndex, out ShadowRay ray, out float visibility)
 {
     uint width = uint(imageSize(surfaceImage).x);
     ivec2 pixel = ivec2(pixelIndex % width, pixelIndex / width);
     const uvec4 surface = imageLoad(surfaceImage, pixel);
-    if (!surfaceCovered(surface))
-        return 1.0; // background: nothing to shadow (compaction never lists it)
     const vec3 position = surfacePosition(surface);
     vec3 normal = surfaceNormal(surface);
-
     LightData light = frame.lights[push.lightIndex];
-    if (kSoft != 0u)
-        return traceSoftVisibility(pixel, position.xyz, normal, light, oneSample, rays, counters);
     const uint type = kLightType;
     vec3 direction;
     float tMax;
@@ -200,13 +207,104 @@ float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout Tr
         direction /= max(distance, 1e-30);
         tMax = distance - push.originOffset;
     }
+    ray = makeShadowRay(position.xyz + normal * push.originOffset, direction, tMax);
     // The G-buffer normal faces the camera: a surface seen from its side
     // facing away from the light is unlit (no ray).
-    if (dot(normal, direction) <= 0.0)
-        return 0.0;
+    visibility = !surfaceCovered(surface) ? 1.0 : 0.0;
+    return surfaceCovered(surface) && dot(normal, direction) > 0.0;
+}
+
+// 1 lit, 0 shadowed; counts the ray when one is traced.
+float traceVisibility(uint pixelIndex, bool oneSample, inout uint rays, inout TraceCounters counters)
+{
+    if (kSoft != 0u) {
+        uint width = uint(imageSize(surfaceImage).x);
+        ivec2 pixel = ivec2(pixelIndex % width, pixelIndex / width);
+        const uvec4 surface = imageLoad(surfaceImage, pixel);
+        if (!surfaceCovered(surface))
+            return 1.0; // background: nothing to shadow (compaction never lists it)
+        LightData light = frame.lights[push.lightIndex];
+        return traceSoftVisibility(pixel, surfacePosition(surface), surfaceNormal(surface), light, oneSample, rays, counters);
+    }
+    ShadowRay ray;
+    float visibility;
+    if (!hardRay(pixelIndex, ray, visibility))
+        return visibility;
     ++rays;
-    ShadowRay ray = makeShadowRay(position.xyz + normal * push.originOffset, direction, tMax);
     return occluded(ray, counters) ? 0.0 : 1.0;
+}
+
+void storeVisibility(uint pixelIndex, float visibility)
+{
+    uint width = uint(imageSize(visibilityImage).x);
+    imageStore(visibilityImage, ivec2(pixelIndex % width, pixelIndex / width), vec4(visibility));
+}
+
+// The list entry of round k of this invocation (kRays > 1): a subgroup takes
+// kRays x its size consecutive entries (neighbouring pixels: compaction lists
+// 2x2 quads of 8x8 tiles), its lanes the subgroup's size of consecutive ones
+// each round, so that a SIMD register's rays stay as coherent as with one ray
+// an invocation. Only CPU devices (lavapipe: 8 lanes, workgroups of whole
+// subgroups) get kRays > 1.
+uint roundEntry(uint group, uint k)
+{
+    const uint lane = gl_LocalInvocationIndex % gl_SubgroupSize;
+    return group * PENUMBRA_TRACE_GROUP_SIZE * kRays + (gl_LocalInvocationIndex - lane) * kRays + k * gl_SubgroupSize + lane;
+}
+
+// A hint shuffled from lane ^ mask of the subgroup, when that lane exists.
+uvec2 laneHint(uvec2 hint, uint mask)
+{
+    const uvec2 other = subgroupShuffleXor(hint, mask);
+    return mask < gl_SubgroupSize ? other : uvec2(PENUMBRA_NO_CLUSTER, 0u);
+}
+
+// Hard shadows in rounds (kRays > 1): a shadow ray is most often blocked by
+// what blocked the rays a few pixels away. Each lane keeps the leaf that held
+// its last hit (the hint); a lane without one takes its neighbour's (lane ^
+// 1, ^ 2, ^ 4). When every lane with a ray holds a hint, each tests its
+// hint's leaf first, and only the rays it does not block are traversed: a
+// round whose rays are all blocked by their hints skips the traversal. When
+// some lane has no hint the traversal runs anyway (on a CPU device a SIMD
+// register runs as long as its slowest lane), so no hint is tested. Every
+// lane takes part in every round (the shuffles read every lane).
+// A dispatch runs PENUMBRA_TRACE_ROUNDS_PER_DISPATCH rounds (lavapipe's loop
+// limit); between dispatches an invocation keeps its hint in `hints`.
+void traceHardRounds(uint group, inout uint rays, inout TraceCounters counters)
+{
+    const uint invocation = group * PENUMBRA_TRACE_GROUP_SIZE + gl_LocalInvocationIndex;
+    uvec2 hint = uvec2(PENUMBRA_NO_CLUSTER, 0u);
+    if (push.roundBegin != 0u)
+        hint = hints[invocation];
+    const uint roundEnd = min(push.roundBegin + PENUMBRA_TRACE_ROUNDS_PER_DISPATCH, kRays);
+    uint wait = 0u; // rounds left without hint tests after one that failed
+    for (uint k = push.roundBegin; k < roundEnd; ++k) {
+        const uint index = roundEntry(group, k);
+        const bool listed = index < rayCount;
+        const uint pixelIndex = listed ? rayPixels[index] & ~PENUMBRA_RAY_ONE_SAMPLE : 0u;
+        ShadowRay ray;
+        float visibility;
+        bool pending = hardRay(pixelIndex, ray, visibility) && listed;
+        rays += pending ? 1u : 0u;
+        const uvec2 h1 = laneHint(hint, 1u), h2 = laneHint(hint, 2u), h4 = laneHint(hint, 4u); // every lane takes part
+        hint = hint.x != PENUMBRA_NO_CLUSTER ? hint : h1.x != PENUMBRA_NO_CLUSTER ? h1 : h2.x != PENUMBRA_NO_CLUSTER ? h2 : h4;
+        const bool test = wait == 0u && subgroupAll(!pending || hint.x != PENUMBRA_NO_CLUSTER);
+        if (test && pending) {
+            ++counters.leaves;
+            pending = !traversalLeaf(ray, traversalCluster(hint.x), hint.y, counters);
+            visibility = 0.0;
+        }
+        const bool traverse = subgroupAny(pending);
+        wait = test && traverse ? PENUMBRA_TRACE_HINT_BACKOFF : wait > 0u ? wait - 1u : 0u;
+        if (pending) {
+            hint = uvec2(PENUMBRA_NO_CLUSTER, 0u);
+            visibility = modelOccludes(push.boundsMin.xyz, push.boundsMax.xyz, ray, counters, hint) ? 0.0 : 1.0;
+        }
+        if (listed)
+            storeVisibility(pixelIndex, visibility);
+    }
+    if (roundEnd < kRays)
+        hints[invocation] = hint;
 }
 
 void main()
@@ -218,10 +316,13 @@ void main()
     }
     // Groups may be laid out in 2D when the list exceeds maxComputeWorkGroupCount[0].
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint index = group * PENUMBRA_TRACE_GROUP_SIZE + gl_LocalInvocationIndex;
     uint rays = 0u;
     TraceCounters counters = TraceCounters(0u, 0u, 0u);
-    if (index < rayCount) {
+    // TracePass::record gives kRays > 1 to hard shadows without paging alone.
+    uint index = group * PENUMBRA_TRACE_GROUP_SIZE + gl_LocalInvocationIndex;
+    if (kRays > 1u) {
+        traceHardRounds(group, rays, counters);
+    } else if (index < rayCount) {
         uint entry = rayPixels[index];
         uint pixelIndex = entry & ~PENUMBRA_RAY_ONE_SAMPLE;
         float visibility = traceVisibility(pixelIndex, (entry & PENUMBRA_RAY_ONE_SAMPLE) != 0u, rays, counters);

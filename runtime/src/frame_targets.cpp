@@ -5,6 +5,7 @@
 #include "passes/afsm.h"
 #include "passes/penumbra_mask.h"
 #include "passes/thin_triangles.h"
+#include "passes/trace.h"
 
 namespace penumbra {
 
@@ -35,7 +36,7 @@ std::vector<vk::Image*> FrameTargets::imageSized() { return {&surface, &albedo, 
 
 std::vector<vk::Buffer*> FrameTargets::imageSizedBuffers()
 {
-    return {&marks, &rayList, &readbackColor, &readbackSurface, &readbackAlbedo, &readbackVisibility};
+    return {&marks, &rayList, &traceHints, &readbackColor, &readbackSurface, &readbackAlbedo, &readbackVisibility};
 }
 
 std::vector<vk::Buffer*> FrameTargets::mapSizedBuffers()
@@ -122,6 +123,7 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
         marks = vk::createBuffer(device, pixels * 4, kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
         rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4, kStorageDst | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
                                    vk::MemoryUse::DeviceLocal);
+        traceHints = vk::createBuffer(device, passes::TracePass::hintBytes(pixels), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
         const VkBufferUsageFlags dst = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
         readbackColor = vk::createBuffer(device, pixels * 8, dst, vk::MemoryUse::Readback); // RGBA16F
         readbackSurface = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);

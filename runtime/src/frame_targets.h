@@ -40,6 +40,7 @@ struct FrameTargets {
     vk::Image surface, albedo, depth, color, visibility;
     vk::Buffer marks;   // uint per pixel (compact.comp.glsl)
     vk::Buffer rayList; // PENUMBRA_RAY_LIST_HEADER_UINTS + a pixel index per pixel
+    vk::Buffer traceHints; // TracePass::hintBytes(pixels)
     vk::Buffer readbackColor, readbackSurface, readbackAlbedo, readbackVisibility;
     // Sized by the shadow map.
     uint32_t shadowSize = 0, shadowLayers = 0;

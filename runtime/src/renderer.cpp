@@ -586,12 +586,7 @@ struct Renderer::Impl::FrameScript {
         {
             // The list into the frame's ray list (its header holds the indirect dispatch), then the trace.
             auto* list = static_cast<uint32_t*>(pages.retraceList.mapped);
-            const Groups2D groups = spreadGroups(uint32_t((toTrace.size() + PENUMBRA_TRACE_GROUP_SIZE - 1) / PENUMBRA_TRACE_GROUP_SIZE),
-                                                 r.device.properties.limits.maxComputeWorkGroupCount[0]);
-            list[0] = uint32_t(toTrace.size());
-            list[1] = groups.x;
-            list[2] = groups.y;
-            list[3] = 1;
+            passes::TracePass::writeListHeader(r.device, uint32_t(toTrace.size()), list);
             std::copy(toTrace.begin(), toTrace.end(), list + PENUMBRA_RAY_LIST_HEADER_UINTS);
             pages.clearParking();
             beginCommands();

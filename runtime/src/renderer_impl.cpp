@@ -87,7 +87,8 @@ void Renderer::Impl::bindTargets()
     classify.bind(device, {pixels, t.shadowMap.view, t.nearestSampler, t.thinMap.view, &t.penumbraMask, &t.penumbraReceivers,
                            &t.penumbraThinMask});
     compact.bind(device, t.marks.buffer, t.rayList.buffer, t.stats.buffer);
-    trace.bind(device, {t.surface.view, t.albedo.view, t.visibility.view, t.frameUniforms.buffer, t.rayList.buffer, t.stats.buffer});
+    trace.bind(device, {t.surface.view, t.albedo.view, t.visibility.view, t.frameUniforms.buffer, t.rayList.buffer, t.stats.buffer,
+                        t.traceHints.buffer});
     shade.bind(device, pixels, t.color.view, t.shadowMap.view, t.nearestSampler);
 }
 

@@ -96,6 +96,7 @@ public:
         rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4,
                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, vk::MemoryUse::Upload);
         stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Readback);
+        hints = vk::createBuffer(device, passes::TracePass::hintBytes(pixels), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
 
         // Every covered pixel (light-facing or not: the tracer writes 0 for the others).
         auto* list = static_cast<uint32_t*>(rayList.mapped);
@@ -103,9 +104,7 @@ public:
         for (uint32_t i = 0; i < pixels; ++i)
             if (gbuffer.positions[size_t(i) * 4 + 3] != 0.0f)
                 list[PENUMBRA_RAY_LIST_HEADER_UINTS + count++] = i;
-        list[0] = count;
-        list[1] = (count + PENUMBRA_TRACE_GROUP_SIZE - 1) / PENUMBRA_TRACE_GROUP_SIZE;
-        list[2] = list[3] = 1;
+        passes::TracePass::writeListHeader(device, count, list);
         listed = count;
 
         // The G-buffer as the camera pass writes it (surface.h): the normals
@@ -122,7 +121,7 @@ public:
                            VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
         });
 
-        tracer.bind(device, {surface.view, albedo.view, visibility.view, frameUniforms.buffer, rayList.buffer, stats.buffer});
+        tracer.bind(device, {surface.view, albedo.view, visibility.view, frameUniforms.buffer, rayList.buffer, stats.buffer, hints.buffer});
     }
 
     ~TraceHarness()
@@ -130,7 +129,7 @@ public:
         vkDeviceWaitIdle(device.device);
         for (vk::Image* image : {&surface, &albedo, &visibility})
             vk::destroyImage(device, *image);
-        for (vk::Buffer* buffer : {&staging, &frameUniforms, &rayList, &stats})
+        for (vk::Buffer* buffer : {&staging, &frameUniforms, &rayList, &stats, &hints})
             vk::destroyBuffer(device, *buffer);
         tracer.destroy(device);
         destroyGeometry(device, geometry);
@@ -200,7 +199,7 @@ private:
     GpuGeometry geometry;
     passes::TracePass tracer;
     vk::Image surface, albedo, visibility;
-    vk::Buffer staging, frameUniforms, rayList, stats;
+    vk::Buffer staging, frameUniforms, rayList, stats, hints;
     uint32_t listed = 0;
 };
 

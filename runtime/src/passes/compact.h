@@ -3,6 +3,7 @@
 // dispatch size from its count.
 #pragma once
 
+#include "config.h"
 #include "pipelines.h"
 
 namespace penumbra::passes {
@@ -14,8 +15,9 @@ struct CompactPush {
     uint32_t phase; // PENUMBRA_COMPACT_LIST, PENUMBRA_COMPACT_DISPATCH
     uint32_t width; // of the image
     uint32_t height;
+    uint32_t roundEntries; // the tracer's list entries per workgroup in rounds (TracePass::entriesPerGroup)
 };
-static_assert(sizeof(CompactPush) == 16);
+static_assert(sizeof(CompactPush) == 20);
 
 class CompactPass {
   public:
@@ -23,7 +25,7 @@ class CompactPass {
     void destroy(vk::Device& device);
     void bind(vk::Device& device, VkBuffer marks, VkBuffer rayList, VkBuffer stats);
     // Clears the list's header, lists the marked pixels of pixelCount, writes
-    // the dispatch size and adds the list's length to PENUMBRA_STAT_PIP; ends
+    // the tracer's dispatch sizes (TracePass::writeListHeader) and adds the list's length to PENUMBRA_STAT_PIP; ends
     // with the barrier to the trace (indirect).
     // The list holds the pixels in 8x8 tiles (coherent rays for the tracer's SIMD registers).
     void record(VkCommandBuffer cmd, uint32_t width, uint32_t height) const;
@@ -34,6 +36,7 @@ class CompactPass {
   private:
     vk::ComputeKernel kernel;
     VkBuffer rayList = VK_NULL_HANDLE;
+    uint32_t roundEntries = PENUMBRA_TRACE_GROUP_SIZE; // TracePass::entriesPerGroup
 };
 
 } // namespace penumbra::passes

@@ -4,6 +4,7 @@
 // device address.
 #include "passes/trace.h"
 
+#include <algorithm>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -40,11 +41,30 @@ static_assert(sizeof(ModelTableChunk) == 32);
 
 } // namespace
 
+uint32_t TracePass::raysPerInvocation(const vk::Device& device)
+{
+    return device.properties.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU ? PENUMBRA_TRACE_RAYS_CPU : PENUMBRA_TRACE_RAYS_GPU;
+}
+
+void TracePass::writeListHeader(const vk::Device& device, uint32_t count, uint32_t* header)
+{
+    std::fill(header, header + PENUMBRA_RAY_LIST_HEADER_UINTS, 0u);
+    header[0] = count;
+    const uint32_t perGroup[2] = {PENUMBRA_TRACE_GROUP_SIZE, entriesPerGroup(device)};
+    for (int i = 0; i < 2; ++i) {
+        const Groups2D groups = spreadGroups((count + perGroup[i] - 1) / perGroup[i], device.properties.limits.maxComputeWorkGroupCount[0]);
+        header[1 + 3 * i] = groups.x;
+        header[2 + 3 * i] = groups.y;
+        header[3 + 3 * i] = 1;
+    }
+}
+
 void TracePass::create(vk::Device& device)
 {
     using namespace vk;
+    roundsPerInvocation = raysPerInvocation(device);
     kernel.create(device, "trace.comp",
-                  {kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kTexels, kTexels, kTexels, kTexels, kTexels},
+                  {kStorageImage, kStorageImage, kStorageImage, kUniform, kStorage, kStorage, kTexels, kTexels, kTexels, kTexels, kTexels, kStorage},
                   sizeof(TracePush));
 }
 
@@ -109,13 +129,13 @@ void TracePass::bind(vk::Device& device, const TraceTargets& t)
 
 void TracePass::writeSet(vk::Device& device) const
 {
-    if (!rayList || !texels.nodes)
+    if (!rayList || !targets.hints || !texels.nodes)
         return; // both the targets and the model are needed
     const TraceTargets& t = targets;
     kernel.write(device, {vk::storageImage(t.surface), vk::storageImage(t.albedo), vk::storageImage(t.visibility),
                           vk::uniformBuffer(t.frame), vk::storageBuffer(t.rayList), vk::storageBuffer(t.stats),
                           vk::texelBuffer(texels.nodes), vk::texelBuffer(texels.clusters), vk::texelBuffer(texels.vertices),
-                          vk::texelBuffer(texels.strips), vk::texelBuffer(texels.nodeTable)});
+                          vk::texelBuffer(texels.strips), vk::texelBuffer(texels.nodeTable), vk::storageBuffer(t.hints)});
 }
 
 void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightType, float originOffset, uint32_t samples,
@@ -126,12 +146,24 @@ void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightT
     if (lightIndex >= PENUMBRA_MAX_LIGHTS)
         fail("ray tracer", "light index " + std::to_string(lightIndex) + " out of range (at most " +
                                std::to_string(PENUMBRA_MAX_LIGHTS) + " lights)");
-    const vk::Specialization unlimited{texelsComplete ? 1u : 0u, vertexTexelsSplit ? 1u : 0u, samples != 0 ? 1u : 0u, lightType};
-    kernel.bind(cmd, parking ? vk::Specialization{unlimited.values[0], unlimited.values[1], unlimited.values[2], unlimited.values[3], 1u}
-                             : unlimited);
+    // Hard shadows without paging in rounds (trace.comp.glsl: traceHardRounds), in dispatches of
+    // PENUMBRA_TRACE_ROUNDS_PER_DISPATCH rounds; the rest one ray an invocation.
+    const uint32_t rounds = samples == 0 && !parking ? roundsPerInvocation : 1u;
+    kernel.bind(cmd, vk::Specialization{texelsComplete ? 1u : 0u, vertexTexelsSplit ? 1u : 0u, samples != 0 ? 1u : 0u, lightType,
+                                        parking ? 1u : 0u, rounds});
     TracePush push{tableAddress, lightIndex, originOffset, samples, clusterWords, parking, {}, {}};
     std::copy(boundsMin, boundsMin + 4, push.boundsMin);
     std::copy(boundsMax, boundsMax + 4, push.boundsMax);
+    if (rounds > 1) {
+        for (uint32_t begin = 0; begin < rounds; begin += PENUMBRA_TRACE_ROUNDS_PER_DISPATCH) {
+            push.roundBegin = begin;
+            if (begin != 0)
+                vk::memoryBarrier(cmd, kCompute, kStorageWrite, kCompute, kStorageRW);
+            kernel.push(cmd, push);
+            vkCmdDispatchIndirect(cmd, rayList, 4 * sizeof(uint32_t)); // roundsDispatch[3]
+        }
+        return;
+    }
     // An area light's samples in dispatches of at most PENUMBRA_TRACE_SAMPLES_PER_DISPATCH, each adding
     // its share of the visibility: lavapipe ends every loop of an invocation after 65,535 iterations in
     // all (its loop limiter), and 256 traversals of a large model reach that. Paged geometry keeps one

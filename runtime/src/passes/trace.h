@@ -6,6 +6,7 @@
 // lavapipe and, unchanged, on NVIDIA GPUs (no ray-tracing extensions).
 #pragma once
 
+#include "config.h"
 #include "model_geometry.h"
 #include "pipelines.h"
 
@@ -13,7 +14,8 @@ namespace penumbra::passes {
 
 enum TraceBinding : uint32_t {
     kTraceSurface, kTraceAlbedo, kTraceVisibility, kTraceFrame, kTraceRayList, kTraceStats,
-    kTraceNodes, kTraceClusters, kTraceVertices, kTraceStrips, // GpuGeometry::texels
+    kTraceNodes, kTraceClusters, kTraceVertices, kTraceStrips, kTraceNodeTable, // GpuGeometry::texels
+    kTraceHints,
     kTraceBindingCount
 };
 
@@ -24,6 +26,7 @@ struct TraceTargets {
     VkBuffer frame = VK_NULL_HANDLE;         // gpu::FrameData (lights)
     VkBuffer rayList = VK_NULL_HANDLE;       // PENUMBRA_RAY_LIST_HEADER_UINTS header + pixel indices
     VkBuffer stats = VK_NULL_HANDLE;         // uint64_t[PENUMBRA_STAT_COUNT], accumulated
+    VkBuffer hints = VK_NULL_HANDLE;         // hard shadows in rounds: TracePass::hintBytes(pixels), the tracer's own between dispatches
 };
 
 struct TracePush {
@@ -36,7 +39,8 @@ struct TracePush {
     float boundsMin[4]; // the root node's box
     float boundsMax[4];
     uint32_t sampleBegin = 0, sampleEnd = 0; // area lights: this dispatch's light samples (TracePass::record)
-    uint32_t pad0 = 0, pad1 = 0;
+    uint32_t roundBegin = 0; // hard shadows in rounds: this dispatch's first round
+    uint32_t pad1 = 0;
 };
 static_assert(sizeof(TracePush) == 80);
 
@@ -61,6 +65,15 @@ class TracePass {
                 VkDeviceAddress parking = 0, uint32_t clusterWords = 0) const;
     // Device address of the model table (bvh_traversal.glsli), 0 before bindModel.
     VkDeviceAddress modelTableAddress() const { return tableAddress; }
+    // List entries one invocation traces in rounds on this device, hard shadows (PENUMBRA_TRACE_RAYS_CPU or
+    // _GPU), and those one workgroup then takes: the list header's roundsDispatch counts workgroups of
+    // entriesPerGroup(device) entries, its dispatch workgroups of PENUMBRA_TRACE_GROUP_SIZE (soft shadows, paged geometry).
+    static uint32_t raysPerInvocation(const vk::Device& device);
+    static uint32_t entriesPerGroup(const vk::Device& device) { return PENUMBRA_TRACE_GROUP_SIZE * raysPerInvocation(device); }
+    // Bytes of TraceTargets::hints for a list of up to `pixels` entries.
+    static VkDeviceSize hintBytes(VkDeviceSize pixels) { return (pixels / PENUMBRA_TRACE_RAYS_CPU + PENUMBRA_TRACE_GROUP_SIZE) * 8; }
+    // A ray list's header (PENUMBRA_RAY_LIST_HEADER_UINTS) for count entries, as compaction writes it on the device.
+    static void writeListHeader(const vk::Device& device, uint32_t count, uint32_t* header);
 
   private:
     // Writes the descriptor set once both the targets and the model are known.
@@ -73,6 +86,7 @@ class TracePass {
     GpuGeometry::TexelViews texels;  // the model's texel views, bound in bind()
     bool texelsComplete = false;     // the tracer reads them (else by device address)
     bool vertexTexelsSplit = false;  // GpuGeometry::vertexTexelsSplit
+    uint32_t roundsPerInvocation = 1; // raysPerInvocation(device)
     float boundsMin[4] = {}, boundsMax[4] = {};
     VkBuffer rayList = VK_NULL_HANDLE; // its header holds the indirect dispatch
 };
