@@ -105,8 +105,16 @@ layout(set = 0, binding = 4, std430) readonly buffer RayList
     uint rayPixels[];
 };
 layout(set = 0, binding = 5, std430) buffer Stats { uint64_t stats[]; };
-// Hard shadows in rounds: each invocation's hint between its dispatches (traceHardRounds).
-layout(set = 0, binding = 11, std430) buffer Hints { uvec2 hints[]; };
+// Hard shadows in rounds (traceHardRounds): the rounds whose rays all had hints to test, and those of
+// them whose tests left a ray to traverse (cleared before the first dispatch), then each invocation's
+// hint between its dispatches.
+layout(set = 0, binding = 11, std430) buffer Hints
+{
+    uint hintRounds;
+    uint hintMisses;
+    uint hintPad[2];
+    uvec2 hints[];
+};
 
 layout(push_constant) uniform Push
 {
@@ -276,8 +284,12 @@ void traceHardRounds(uint group, inout uint rays, inout TraceCounters counters)
     uvec2 hint = uvec2(PENUMBRA_NO_CLUSTER, 0u);
     if (push.roundBegin != 0u)
         hint = hints[invocation];
+    // After the first dispatch, the hints are tested only where they have spared the traversal in at
+    // least a quarter of the rounds that tested them so far (scenes whose rays are mostly lit, or
+    // blocked by small triangles, lose the tests).
+    const bool hinting = push.roundBegin == 0u || 4u * (hintRounds - hintMisses) >= hintRounds;
     const uint roundEnd = min(push.roundBegin + PENUMBRA_TRACE_ROUNDS_PER_DISPATCH, kRays);
-    uint wait = 0u; // rounds left without hint tests after one that failed
+    uint wait = hinting ? 0u : kRays; // rounds left without hint tests (after one that failed)
     for (uint k = push.roundBegin; k < roundEnd; ++k) {
         const uint index = roundEntry(group, k);
         const bool listed = index < rayCount;
@@ -288,13 +300,18 @@ void traceHardRounds(uint group, inout uint rays, inout TraceCounters counters)
         rays += pending ? 1u : 0u;
         const uvec2 h1 = laneHint(hint, 1u), h2 = laneHint(hint, 2u), h4 = laneHint(hint, 4u); // every lane takes part
         hint = hint.x != PENUMBRA_NO_CLUSTER ? hint : h1.x != PENUMBRA_NO_CLUSTER ? h1 : h2.x != PENUMBRA_NO_CLUSTER ? h2 : h4;
-        const bool test = wait == 0u && subgroupAll(!pending || hint.x != PENUMBRA_NO_CLUSTER);
+        const bool test = wait == 0u && subgroupAny(pending) && subgroupAll(!pending || hint.x != PENUMBRA_NO_CLUSTER);
         if (test && pending) {
             ++counters.leaves;
             pending = !traversalLeaf(ray, traversalCluster(hint.x), hint.y, counters);
             visibility = 0.0;
         }
         const bool traverse = subgroupAny(pending);
+        if (test && subgroupElect()) {
+            atomicAdd(hintRounds, 1u);
+            if (traverse)
+                atomicAdd(hintMisses, 1u);
+        }
         wait = test && traverse ? PENUMBRA_TRACE_HINT_BACKOFF : wait > 0u ? wait - 1u : 0u;
         if (pending) {
             hint = uvec2(PENUMBRA_NO_CLUSTER, 0u);

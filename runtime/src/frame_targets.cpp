@@ -123,7 +123,7 @@ bool FrameTargets::ensure(vk::Device& device, uint32_t w, uint32_t h, uint32_t m
         marks = vk::createBuffer(device, pixels * 4, kStorageDst | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::DeviceLocal);
         rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4, kStorageDst | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
                                    vk::MemoryUse::DeviceLocal);
-        traceHints = vk::createBuffer(device, passes::TracePass::hintBytes(pixels), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
+        traceHints = vk::createBuffer(device, passes::TracePass::hintBytes(pixels), kStorageDst, vk::MemoryUse::DeviceLocal);
         const VkBufferUsageFlags dst = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
         readbackColor = vk::createBuffer(device, pixels * 8, dst, vk::MemoryUse::Readback); // RGBA16F
         readbackSurface = vk::createBuffer(device, pixels * 16, dst, vk::MemoryUse::Readback);

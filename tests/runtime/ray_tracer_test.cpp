@@ -96,7 +96,8 @@ public:
         rayList = vk::createBuffer(device, (PENUMBRA_RAY_LIST_HEADER_UINTS + pixels) * 4,
                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, vk::MemoryUse::Upload);
         stats = vk::createBuffer(device, PENUMBRA_STAT_COUNT * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::Readback);
-        hints = vk::createBuffer(device, passes::TracePass::hintBytes(pixels), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::DeviceLocal);
+        hints = vk::createBuffer(device, passes::TracePass::hintBytes(pixels), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                 vk::MemoryUse::DeviceLocal);
 
         // Every covered pixel (light-facing or not: the tracer writes 0 for the others).
         auto* list = static_cast<uint32_t*>(rayList.mapped);

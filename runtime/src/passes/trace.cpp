@@ -155,6 +155,9 @@ void TracePass::record(VkCommandBuffer cmd, uint32_t lightIndex, uint32_t lightT
     std::copy(boundsMin, boundsMin + 4, push.boundsMin);
     std::copy(boundsMax, boundsMax + 4, push.boundsMax);
     if (rounds > 1) {
+        vk::memoryBarrier(cmd, kCompute, kStorageRW, kClear, kTransferWrite); // after an earlier trace's use
+        vkCmdFillBuffer(cmd, targets.hints, 0, 16, 0);                        // the hints' counts (trace.comp.glsl: Hints)
+        vk::memoryBarrier(cmd, kClear, kTransferWrite, kCompute, kStorageRW);
         for (uint32_t begin = 0; begin < rounds; begin += PENUMBRA_TRACE_ROUNDS_PER_DISPATCH) {
             push.roundBegin = begin;
             if (begin != 0)

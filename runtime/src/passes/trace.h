@@ -71,7 +71,7 @@ class TracePass {
     static uint32_t raysPerInvocation(const vk::Device& device);
     static uint32_t entriesPerGroup(const vk::Device& device) { return PENUMBRA_TRACE_GROUP_SIZE * raysPerInvocation(device); }
     // Bytes of TraceTargets::hints for a list of up to `pixels` entries.
-    static VkDeviceSize hintBytes(VkDeviceSize pixels) { return (pixels / PENUMBRA_TRACE_RAYS_CPU + PENUMBRA_TRACE_GROUP_SIZE) * 8; }
+    static VkDeviceSize hintBytes(VkDeviceSize pixels) { return 16 + (pixels / PENUMBRA_TRACE_RAYS_CPU + PENUMBRA_TRACE_GROUP_SIZE) * 8; }
     // A ray list's header (PENUMBRA_RAY_LIST_HEADER_UINTS) for count entries, as compaction writes it on the device.
     static void writeListHeader(const vk::Device& device, uint32_t count, uint32_t* header);
 
