@@ -370,14 +370,16 @@ VkPhysicalDevice choosePhysicalDevice(VkInstance instance, const std::string& re
         fail("vulkan", "no Vulkan device found (install mesa-vulkan-drivers for lavapipe)");
 
     // Vulkan 1.3, a graphics+compute queue with timestamps, and the subgroup operations the compute
-    // shaders use (ballot in the penumbra mask, ballot and arithmetic in the thin-triangle pass).
+    // shaders use (ballot in the penumbra mask, ballot and arithmetic in the thin-triangle pass, vote and
+    // shuffle in the tracer's rounds, afsm's row pass and rh's rays).
     auto usable = [](VkPhysicalDevice d) {
         VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
         VkPhysicalDeviceProperties2 p{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
         p.pNext = &subgroup;
         vkGetPhysicalDeviceProperties2(d, &p);
         const VkSubgroupFeatureFlags needed = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT |
-                                              VK_SUBGROUP_FEATURE_ARITHMETIC_BIT;
+                                              VK_SUBGROUP_FEATURE_ARITHMETIC_BIT | VK_SUBGROUP_FEATURE_VOTE_BIT |
+                                              VK_SUBGROUP_FEATURE_SHUFFLE_BIT;
         uint32_t family;
         return p.properties.apiVersion >= VK_API_VERSION_1_3 && (subgroup.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) &&
                (subgroup.supportedOperations & needed) == needed && graphicsComputeFamily(d, family);
