@@ -280,9 +280,12 @@ uvec2 laneHint(uvec2 hint, uint mask)
 // limit); between dispatches an invocation keeps its hint in `hints`.
 void traceHardRounds(uint group, inout uint rays, inout TraceCounters counters)
 {
+    // An invocation holds a hint when its first entry is listed (a 2-D dispatch has groups past the list's end;
+    // TracePass::hintBytes counts the others).
     const uint invocation = group * PENUMBRA_TRACE_GROUP_SIZE + gl_LocalInvocationIndex;
+    const bool holds = roundEntry(group, 0u) < rayCount;
     uvec2 hint = uvec2(PENUMBRA_NO_CLUSTER, 0u);
-    if (push.roundBegin != 0u)
+    if (push.roundBegin != 0u && holds)
         hint = hints[invocation];
     // After the first dispatch, the hints are tested only where they have spared the traversal in at
     // least a quarter of the rounds that tested them so far (scenes whose rays are mostly lit, or
@@ -320,7 +323,7 @@ void traceHardRounds(uint group, inout uint rays, inout TraceCounters counters)
         if (listed)
             storeVisibility(pixelIndex, visibility);
     }
-    if (roundEnd < kRays)
+    if (roundEnd < kRays && holds)
         hints[invocation] = hint;
 }
 

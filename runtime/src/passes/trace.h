@@ -70,7 +70,8 @@ class TracePass {
     // entriesPerGroup(device) entries, its dispatch workgroups of PENUMBRA_TRACE_GROUP_SIZE (soft shadows, paged geometry).
     static uint32_t raysPerInvocation(const vk::Device& device);
     static uint32_t entriesPerGroup(const vk::Device& device) { return PENUMBRA_TRACE_GROUP_SIZE * raysPerInvocation(device); }
-    // Bytes of TraceTargets::hints for a list of up to `pixels` entries.
+    // Bytes of TraceTargets::hints for a list of up to `pixels` entries: two counts, then a hint per invocation
+    // whose first entry is listed (trace.comp.glsl: traceHardRounds).
     static VkDeviceSize hintBytes(VkDeviceSize pixels) { return 16 + (pixels / PENUMBRA_TRACE_RAYS_CPU + PENUMBRA_TRACE_GROUP_SIZE) * 8; }
     // A ray list's header (PENUMBRA_RAY_LIST_HEADER_UINTS) for count entries, as compaction writes it on the device.
     static void writeListHeader(const vk::Device& device, uint32_t count, uint32_t* header);
