@@ -177,7 +177,7 @@ struct Measurement {
     Frame gbuffer;                 // the warm-up frame, with positions, normals and visibility
     std::vector<FrameStats> timed; // the timed frames, without G-buffer readback
     std::vector<FrameStats> floors; // frames with RenderSettings::measureFloors (sm and srt of the methods section)
-    uint32_t settleFrames = 0;     // untimed frames after the warm-up until the culling was steady (warmUp)
+    uint32_t settleFrames = 0;     // untimed frames after the warm-up until the culling was steady and srt had chosen (warmUp)
 };
 
 // The measurement whose G-buffer the oracle traces from (every method's camera pass is the
@@ -219,8 +219,17 @@ Measurement warmUp(Renderer& renderer, RenderSettings settings, ShadowKind kind,
     // scene's first method timed the culling's learning and the next ones its steady state.
     constexpr uint32_t kSettleFrames = 16;
     bool steady = !log || log->steady(m.gbuffer.stats);
+    FrameStats last = m.gbuffer.stats;
     for (uint32_t i = 0; !steady && i < kSettleFrames; ++i) {
-        steady = log->steady(renderShadows(renderer, settings, kind, params).stats);
+        last = renderShadows(renderer, settings, kind, params).stats;
+        steady = log->steady(last);
+        ++m.settleFrames;
+    }
+    // srt chooses frame by frame between its own sequence and a ray for every pixel (selective_choice.h):
+    // untimed frames until it has measured both ways (at the latest its 18th frame), so that the timed
+    // frames show its choice rather than its probe.
+    for (uint32_t i = 0; settings.shadows == ShadowMethod::Selective && settings.srtTraceAllWhenCheaper && !last.srtChosen && i < kSettleFrames + 2; ++i) {
+        last = renderShadows(renderer, settings, kind, params).stats;
         ++m.settleFrames;
     }
     return m;
@@ -329,6 +338,7 @@ class SuiteRunner {
         RenderSettings settings;
         settings.width = settings.height = options.size;
         settings.shadows = method;
+        settings.srtTraceAllWhenCheaper = options.srtAdaptive;
         return settings;
     }
 
@@ -365,7 +375,9 @@ class SuiteRunner {
             if (r.kind == ShadowKind::Soft)
                 std::printf(" | radius %.4g | penumbra %.2f%%", r.lightRadius, r.penumbraFraction * 100.0);
             if (r.settleFrames)
-                std::printf(" | culling steady after %u more frames", r.settleFrames);
+                std::printf(" | steady after %u more frames", r.settleFrames);
+            if (!r.note.empty())
+                std::printf(" | %s", r.note.c_str());
             std::printf("\n");
         }
         std::fflush(stdout);
@@ -407,6 +419,10 @@ class SuiteRunner {
         r.penumbraFraction = kind == ShadowKind::Soft ? penumbraFraction(m.gbuffer, kind) : kNoValue;
         r.floors = floorSummaries(m.floors);
         r.settleFrames = m.settleFrames;
+        const auto tracedAll = std::count_if(m.timed.begin(), m.timed.end(), [](const FrameStats& s) { return s.srtTracedAll; });
+        if (tracedAll)
+            r.note = "every light-facing pixel traced in " + std::to_string(tracedAll) + " of " + std::to_string(m.timed.size()) +
+                     " timed frames (measured cheaper than the map and selective rays: --srt-adaptive); error of srt's own first frame";
         return r;
     }
 

@@ -45,7 +45,7 @@ struct Record {
     std::string note;
     uint32_t width = 0, height = 0;
     uint32_t frames = 0;           // timed frames (after one warm-up, on a GPU half a second of them, and settleFrames)
-    uint32_t settleFrames = 0;     // untimed frames after the warm-up until the culling was steady (0: it already was)
+    uint32_t settleFrames = 0;     // untimed frames after the warm-up until the culling was steady and srt had chosen (0: at once)
     double medianMs = kNoValue;    // GPU ms per frame (oracle: CPU ms), median of the timed frames
     double bestMs = kNoValue;      // best of the timed frames
     double cpuMedianMs = kNoValue; // wall clock per frame: record + submit + wait + readback

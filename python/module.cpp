@@ -313,7 +313,7 @@ PYBIND11_MODULE(penumbra, m)
             "render",
             [](PyRenderer& self, const py::object& size, const std::string& shadows, const std::string& cull, const std::string& shadowFit,
                uint32_t shadowMapSize, uint32_t samples, uint32_t penumbraMaps, uint32_t smMaps, float biasConstant, float biasSlope,
-               float ambient, float albedo, std::array<float, 3> background, bool debugPip, bool gbuffer, bool colors) {
+               float ambient, float albedo, std::array<float, 3> background, bool debugPip, bool gbuffer, bool colors, bool srtAdaptive) {
                 RenderSettings s;
                 std::tie(s.width, s.height) = toSize(size);
                 s.shadows = parseShadowMethod(shadows);
@@ -331,16 +331,19 @@ PYBIND11_MODULE(penumbra, m)
                 s.debugPip = debugPip;
                 s.readbackGBuffer = gbuffer;
                 s.colors = colors;
+                s.srtTraceAllWhenCheaper = srtAdaptive;
                 return self.render(s);
             },
             "Renders a frame: linear RGBA float32 array (height, width, 4), top row first. Keywords as the CLI's options; "
-            "gbuffer=True also fills .gbuffer; colors=False renders every surface grey (the CLI's --colors off)",
+            "gbuffer=True also fills .gbuffer; colors=False renders every surface grey (the CLI's --colors off); "
+            "srt_adaptive=False: srt never traces every pixel in place of its shadow map (the CLI's --srt-adaptive off)",
             py::kw_only(), py::arg("size") = py::make_tuple(d.width, d.height), py::arg("shadows") = "srt",
             py::arg("cull") = cullModeName(d.cull), py::arg("shadow_fit") = "view", py::arg("shadow_map_size") = d.shadowMapSize,
             py::arg("samples") = d.lightSamples, py::arg("penumbra_maps") = d.penumbraMaps, py::arg("sm_maps") = d.softShadowMaps,
             py::arg("bias_constant") = d.depthBiasConstant, py::arg("bias_slope") = d.depthBiasSlope, py::arg("ambient") = d.ambient,
             py::arg("albedo") = d.albedo, py::arg("background") = std::array<float, 3>{d.background[0], d.background[1], d.background[2]},
-            py::arg("debug_pip") = false, py::arg("gbuffer") = false, py::arg("colors") = d.colors)
+            py::arg("debug_pip") = false, py::arg("gbuffer") = false, py::arg("colors") = d.colors,
+            py::arg("srt_adaptive") = d.srtTraceAllWhenCheaper)
         .def_property_readonly("stats", &PyRenderer::stats, "The last frame's statistics (the CLI's --stats JSON) as a dict")
         .def_readonly("gbuffer", &PyRenderer::gbuffer,
                       "After render(gbuffer=True): dict of position (h, w, 4), normal (h, w, 4) and visibility of light 0 "

@@ -64,6 +64,7 @@ struct RenderArgs {
     std::string rhTwoPass = "off";
     std::string rhEarlyAccept = "on";
     std::string rhClosedMeshes = "off";
+    std::string srtAdaptive = "on";
 };
 
 struct BenchArgs {
@@ -79,6 +80,7 @@ struct BenchArgs {
     uint32_t softShadowMaps = 0; // 0: the suite's
     bool quiet = false;
     bool noPlots = false;
+    std::string srtAdaptive = "on";
     std::vector<std::string> methods, sections;
 };
 
@@ -153,6 +155,7 @@ int runRender(const RenderArgs& args)
     settings.rhTwoPass = args.rhTwoPass == "on";
     settings.rhEarlyAccept = args.rhEarlyAccept == "on";
     settings.rhClosedMeshes = args.rhClosedMeshes == "on";
+    settings.srtTraceAllWhenCheaper = args.srtAdaptive == "on";
     settings.cull = parseCullMode(args.cull);
     const RasterIndices rasterIndices = parseRasterIndices(args.rasterIndices);
     settings.fitShadowMapsToView = args.shadowFit == "view";
@@ -293,8 +296,9 @@ int runRender(const RenderArgs& args)
         panel.shadows = ShadowMethod::ShadowMap;
         Image sm = renderer->render(panel).color;
         panel.shadows = ShadowMethod::Selective;
+        panel.srtTraceAllWhenCheaper = false; // the panels show srt's own map and rays
         // The main frame is the srt panel when it is one.
-        srt = settings.shadows == ShadowMethod::Selective && !settings.debugPip ? frame : renderer->render(panel);
+        srt = settings.shadows == ShadowMethod::Selective && !settings.debugPip && !frame.stats.srtTracedAll ? frame : renderer->render(panel);
         panel.debugPip = true;
         Image pip = renderer->render(panel).color;
         strip = concatenate({&sm, &srt.color, &pip});
@@ -337,6 +341,7 @@ int runBench(const BenchArgs& args)
     if (args.softShadowMaps) options.softShadowMaps = args.softShadowMaps;
     options.progress = !args.quiet;
     options.plots = !args.noPlots;
+    options.srtAdaptive = args.srtAdaptive == "on";
     options.methods = args.methods;
     options.sections = args.sections;
     runSuite(options);
@@ -425,6 +430,7 @@ int main(int argc, char** argv)
     renderCommand->add_option("--rh-closed-meshes", render.rhClosedMeshes, "rh: clusters the preprocessor marked closed cast only their light-back-facing triangles (section 3.6; not while the camera is inside a closed mesh the light is outside of); a receiver within one ray offset of a closed surface may lose its shadow (README): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--rh-early-accept", render.rhEarlyAccept, "rh: a cone that a triangle covers shadows all its rays without descending (section 3.3): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--rh-two-pass", render.rhTwoPass, "rh: the large casters first, then the hierarchy rebuilt without the rays they shadowed, then the others (section 3.4): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+    renderCommand->add_option("--srt-adaptive", render.srtAdaptive, "srt, over several frames (--frames): a frame traces every light-facing pixel, without shadow map or classification, where that measured cheaper (probed once the first frames are steady, then now and then); off: always the shadow map and selective rays")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     renderCommand->add_option("--penumbra-maps", render.penumbraMaps, "Area lights, srt: shadow maps whose edges mark the penumbra: 1 (centre) or 5 (centre and corners)")->capture_default_str()->check(CLI::IsMember({1, 5}));
     renderCommand->add_option("--sm-maps", render.smMaps, "Area lights, sm: point-light shadow maps averaged over the light")->capture_default_str()->check(CLI::Range(1, 6));
     renderCommand->add_option("--bias-constant", render.biasConstant, "Shadow-map depth bias, constant factor")->capture_default_str();
@@ -451,6 +457,7 @@ int main(int argc, char** argv)
     benchCommand->add_option("--afsm-samples", bench.afsmSamples, "Soft shadows, afsm: light samples (bits per view sample; default 256)")->check(CLI::Range(128, 1024));
     benchCommand->add_option("--penumbra-maps", bench.penumbraMaps, "Soft shadows: penumbra maps, 1 or 5 (default 1)")->check(CLI::IsMember({1, 5}));
     benchCommand->add_option("--soft-shadow-maps", bench.softShadowMaps, "Soft shadows, sm: shadow maps averaged over the light (default 4)")->check(CLI::Range(1, 6));
+    benchCommand->add_option("--srt-adaptive", bench.srtAdaptive, "srt frames trace every light-facing pixel where that measured cheaper (render's --srt-adaptive): on or off")->capture_default_str()->check(CLI::IsMember({"on", "off"}));
     benchCommand->add_flag("--quiet", bench.quiet, "No progress bar");
     benchCommand->add_flag("--no-plots", bench.noPlots, "Write plot data and gnuplot scripts without running gnuplot");
     benchCommand->add_option("--methods", bench.methods, "Only these GPU methods (the oracle always runs), e.g. --methods sm,srt,frt")

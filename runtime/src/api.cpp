@@ -438,6 +438,10 @@ std::string summaryLine(const FrameStats& stats)
     std::string line = "triangles " + std::to_string(stats.triangles) + " | " + std::to_string(stats.width) + "x" +
                        std::to_string(stats.height) + " | " + stats.device.name + " | lights " + std::to_string(stats.lights) +
                        " | shadows " + shadowMethodName(stats.shadows);
+    if (stats.srtTracedAll)
+        line += stats.srtProbe ? " (every pixel traced: a probe)" : " (every pixel traced: measured cheaper)";
+    else if (stats.srtProbe)
+        line += " (selective: a probe)";
     if (stats.shadows != ShadowMethod::ShadowMap) {
         std::snprintf(buffer, sizeof(buffer), " | PIP %.2f%% | rays %llu | nodes %llu", stats.pipFraction * 100.0,
                       (unsigned long long)stats.rays, (unsigned long long)stats.nodesVisited);
@@ -492,6 +496,11 @@ std::string statsJson(const FrameStats& stats)
     json["covered_pixels"] = stats.coveredPixels;
     json["pip_pixels"] = stats.pipPixels;
     json["pip_fraction"] = stats.pipFraction;
+    if (stats.shadows == ShadowMethod::Selective) {
+        json["srt_traced_all"] = stats.srtTracedAll;
+        json["srt_probe"] = stats.srtProbe;
+        json["srt_chosen"] = stats.srtChosen;
+    }
     json["rays"] = stats.rays;
     json["bvh_nodes_visited"] = stats.nodesVisited;
     json["leaves_visited"] = stats.leavesVisited;

@@ -198,8 +198,9 @@ struct Renderer::Impl::FrameScript {
     // more than white. Only then does the camera write its albedo target.
     const bool colours;
 
-    FrameScript(Impl& renderer, const RenderSettings& s)
-        : r(renderer), settings(s), spec(shadowMethodSpec(s.shadows)), bounds(r.geometry.bounds),
+    // method: the sequences the frame runs (srt's frames that trace every pixel run frt's: SelectiveChoice).
+    FrameScript(Impl& renderer, const RenderSettings& s, ShadowMethod method)
+        : r(renderer), settings(s), spec(shadowMethodSpec(method)), bounds(r.geometry.bounds),
           rayOffset(s.rayOffset > 0.0f ? s.rayOffset : shadowRayOffset(bounds, r.geometry.maxPositionError)),
           lights(r.lights.empty() ? std::vector<Light>{defaultLight()} : r.lights), cmd(r.commandBuffer),
           colours(s.colors && r.geometry.coloured)
@@ -1105,7 +1106,12 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     vk::checkUsable(device);
     validate(settings);
     const auto cpuStart = std::chrono::steady_clock::now();
-    FrameScript frame(*this, settings);
+    // srt: this frame's way, selective or every pixel (selective_choice.h). Frames that time the
+    // floors, show the traced pixels or stream the model always run srt's own sequence.
+    const bool adaptive = settings.shadows == ShadowMethod::Selective && settings.srtTraceAllWhenCheaper && !settings.measureFloors &&
+                          !settings.debugPip && !settings.readbackLightLayers && !geometry.paged();
+    const bool traceAll = adaptive && srtChoice.traceAll(selectiveKey(settings));
+    FrameScript frame(*this, settings, traceAll ? ShadowMethod::FullRayTrace : settings.shadows);
     const bool readBack = frame.viewFitRuns();
     culling.beginFrame(device, settings.cull, settings.adaptiveOcclusion, {{"camera", 0, frame.view.viewProj, true, true, nullptr, frame.colours}});
     if (!readBack)
@@ -1128,7 +1134,42 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
         frame.recordLight(uint32_t(frame.lights.size()) - 1 - step);
     frame.recordReadback();
     submitAndWait(commandBuffer, frame.timer.passesSinceLastSubmit());
-    return frame.finish(cpuStart);
+    Frame out = frame.finish(cpuStart);
+    if (adaptive) {
+        srtChoice.record(out.stats.gpuMs);
+        out.stats.srtTracedAll = traceAll;
+        out.stats.srtProbe = srtChoice.lastWasProbe();
+        out.stats.srtChosen = srtChoice.chosen();
+    }
+    return out;
+}
+
+// What srt's measured costs depend on besides the camera: the model, the lights and the settings that
+// change the work (FNV-1a over their values).
+uint64_t Renderer::Impl::selectiveKey(const RenderSettings& s) const
+{
+    uint64_t hash = 1469598103934665603ull;
+    auto mix = [&hash](const void* data, size_t bytes) {
+        for (size_t i = 0; i < bytes; ++i)
+            hash = (hash ^ static_cast<const uint8_t*>(data)[i]) * 1099511628211ull;
+    };
+    auto mixValue = [&mix](auto value) { mix(&value, sizeof(value)); };
+    mixValue(modelGeneration);
+    for (uint32_t value : {s.width, s.height, s.shadowMapSize, s.lightSamples, s.penumbraMaps, uint32_t(s.cull)})
+        mixValue(value);
+    for (bool value : {s.fitShadowMapsToView, s.cullBesideReceivers, s.adaptiveOcclusion})
+        mixValue(value);
+    for (float value : {s.rayOffset, s.depthBiasConstant, s.depthBiasSlope})
+        mixValue(value);
+    for (const Light& light : lights) {
+        mixValue(uint32_t(light.type));
+        for (const glm::vec3& v : {light.position, light.direction, light.up})
+            for (int k = 0; k < 3; ++k)
+                mixValue(v[k]);
+        for (float value : {light.range, light.innerConeDegrees, light.outerConeDegrees, light.width, light.height, light.radius})
+            mixValue(value);
+    }
+    return hash;
 }
 
 } // namespace penumbra

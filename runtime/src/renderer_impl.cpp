@@ -135,6 +135,7 @@ void Renderer::Impl::setGeometry(GpuGeometry uploaded)
     destroyGeometry(device, geometry);
     destroyGeometry(device, floorGeometry);
     geometry = std::move(uploaded);
+    ++modelGeneration;
     if (geometry.encoding == GeometryEncoding::Compressed) {
         trace.bindModel(device, geometry);
         thinTriangles.bindModel(device, geometry);

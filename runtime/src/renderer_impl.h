@@ -24,6 +24,7 @@
 #include "passes/trace.h"
 #include "passes/view_fit.h"
 #include "penumbra/penumbra.h"
+#include "selective_choice.h"
 
 namespace penumbra {
 
@@ -59,6 +60,9 @@ struct Renderer::Impl {
     VkCommandBuffer commandBuffer = VK_NULL_HANDLE;
     VkFence fence = VK_NULL_HANDLE;
     bool framePending = false; // submitted, and its fence wait failed
+    // srt: whether a frame traces every light-facing pixel (RenderSettings::srtTraceAllWhenCheaper).
+    SelectiveChoice srtChoice;
+    uint64_t modelGeneration = 0; // counts the models loaded (selectiveKey)
 
     explicit Impl(const RendererOptions& options)
         : geometryBudgetBytes(options.geometryBudgetBytes), geometryPageBytes(options.geometryPageBytes)
@@ -91,6 +95,7 @@ struct Renderer::Impl {
     void submitAndWait(VkCommandBuffer cmd, const std::string& passes);
 
     void validate(const RenderSettings& settings) const;
+    uint64_t selectiveKey(const RenderSettings& settings) const;
     struct FrameScript;
     Frame render(const RenderSettings& settings);
 };

@@ -97,6 +97,23 @@ class Render(unittest.TestCase):
         self.assertGreater(stats["covered_pixels"], 0)
         self.assertIn("shade_ms", stats["passes"])
         self.assertEqual(stats["device"]["name"], renderer.device["name"])
+        self.assertFalse(stats["srt_traced_all"])  # a first frame is srt's own
+
+    def test_srt_frames_trace_every_pixel_only_when_allowed(self):
+        renderer = penumbra.Renderer(CITY)
+        renderer.set_camera(CAMERA)
+        renderer.set_lights([SUN])
+        for adaptive in (False, True):
+            ways = []
+            for _ in range(18):
+                renderer.render(size=SIZE, shadows="srt", srt_adaptive=adaptive)
+                ways.append((renderer.stats["srt_traced_all"], renderer.stats["srt_probe"]))
+                if renderer.stats["srt_probe"]:
+                    break
+            if adaptive:  # one probe of a frame that traces every pixel, within the settle frames
+                self.assertEqual(ways[-1], (True, True), ways)
+            else:
+                self.assertNotIn(True, [way for pair in ways for way in pair], ways)
 
 
 class Errors(unittest.TestCase):

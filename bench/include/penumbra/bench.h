@@ -39,6 +39,7 @@ struct SuiteOptions {
     bool progress = true;               // progress bar on stderr when it is a terminal
     bool plots = true;                  // run gnuplot on the generated scripts when it is installed
     bool floors = true;                 // methods section, sm and srt: also N frames with every stage's floor (floors.csv)
+    bool srtAdaptive = true;            // srt frames may trace every pixel where that measured cheaper (RenderSettings::srtTraceAllWhenCheaper)
     std::vector<std::string> methods;   // only these GPU methods ("sm", "srt", ...); empty: all (the oracle always runs)
     std::vector<std::string> sections;  // only these sections: methods, soft, point, rh_variants, scalability (with afsm_triangles), light_size, afsm_samples; empty: all
 };

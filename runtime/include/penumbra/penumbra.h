@@ -175,6 +175,18 @@ struct RenderSettings {
     // PENUMBRA_CULL_MIN_TRIANGLES (65536) triangles is culled by its frustum
     // only. false (tests): queries in every view, every frame.
     bool adaptiveOcclusion = true;
+    // srt: a frame traces every light-facing pixel (frt's sequence: no shadow
+    // map, no classification) where that measured cheaper on this renderer.
+    // The first frames run srt's own sequence; once they are steady one frame
+    // traces every pixel (a probe); then each frame takes the way with the lower
+    // GPU time, the other one probed again 8 frames later (twice as many after
+    // each further probe that loses, at most 256). Both ways are exact where they
+    // trace; every-pixel frames are the oracle's image, srt's differ from it on
+    // the few pixels its classification gets wrong. Frames with measureFloors,
+    // debugPip or readbackLightLayers, and paged geometry, always run srt's own
+    // sequence. FrameStats::srtTracedAll says which way a frame took. false:
+    // always srt's own sequence.
+    bool srtTraceAllWhenCheaper = true;
     // Benchmarks (penumbra bench's floor table): also time each pass's floor
     // in the frame, recorded just before the pass as "<pass>_floor": for
     // view_fit, classify, compact and shade a null twin with the same
@@ -225,6 +237,12 @@ struct FrameStats {
     uint64_t nodesVisited = 0;    // BVH nodes tested by the tracer
     uint64_t leavesVisited = 0;   // strip-range leaves tested
     uint64_t triangleTests = 0;   // ray/triangle tests
+    // srt (RenderSettings::srtTraceAllWhenCheaper): this frame traced every
+    // light-facing pixel; it was a probe of the way not chosen; both ways have
+    // been measured (the choice is made).
+    bool srtTracedAll = false;
+    bool srtProbe = false;
+    bool srtChosen = false;
     // rh: casters sent through the hierarchies, batches of them, submissions
     // of traversal steps, and the most (triangle, node) pair memory in use at once.
     uint64_t rhCasters = 0;

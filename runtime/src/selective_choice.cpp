@@ -1,0 +1,46 @@
+#include "selective_choice.h"
+
+#include <algorithm>
+
+namespace penumbra {
+
+bool SelectiveChoice::traceAll(uint64_t frameKey)
+{
+    if (!started || frameKey != key)
+        *this = SelectiveChoice{};
+    started = true;
+    key = frameKey;
+    ++frame;
+    probe = frame > 2 && (otherMs < 0.0 ? settled || frame > kSettleFrames : sinceProbe >= interval);
+    current = probe ? !all : all;
+    return current;
+}
+
+void SelectiveChoice::record(double gpuMs)
+{
+    if (frame <= 1)
+        return; // the key's first frame: warming up
+    const double chosenCost = chosenCount ? *std::min_element(chosenMs.begin(), chosenMs.begin() + std::min<uint32_t>(chosenCount, 4)) : gpuMs;
+    if (!probe) {
+        // Settled once a frame is no faster (by the margin) than the best before it.
+        settled = settled || (chosenCount > 0 && gpuMs >= chosenCost * (1.0 - kMargin));
+        chosenMs[chosenCount++ % chosenMs.size()] = gpuMs;
+        ++sinceProbe;
+        return;
+    }
+    sinceProbe = 0;
+    const bool firstProbe = otherMs < 0.0;
+    if (gpuMs < chosenCost * (1.0 - kMargin)) {
+        // The probe's way is cheaper: take it; the way left keeps its cost for comparison.
+        all = current;
+        otherMs = chosenCost;
+        chosenMs = {gpuMs};
+        chosenCount = 1;
+        interval = kMinInterval;
+    } else {
+        otherMs = gpuMs;
+        interval = firstProbe ? kMinInterval : std::min(interval * 2, kMaxInterval);
+    }
+}
+
+} // namespace penumbra

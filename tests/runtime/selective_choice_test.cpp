@@ -1,0 +1,132 @@
+// srt's choice between its own sequence and a ray for every pixel
+// (selective_choice.h): the schedule of its probes on given frame times, and
+// on the device, that a frame which traces every pixel is frt's frame.
+#include <gtest/gtest.h>
+
+#include "penumbra/generate.h"
+#include "penumbra/penumbra.h"
+#include "selective_choice.h"
+#include "test_scenes.h"
+
+namespace penumbra {
+namespace {
+
+// Runs one frame: traceAll's answer, then the time the frame took in that way.
+bool frame(SelectiveChoice& choice, double selectiveMs, double allMs, uint64_t key = 1)
+{
+    const bool all = choice.traceAll(key);
+    choice.record(all ? allMs : selectiveMs);
+    return all;
+}
+
+TEST(SelectiveChoice, ProbesOnceSteadyThenTakesTheCheaperWay)
+{
+    SelectiveChoice choice;
+    EXPECT_FALSE(frame(choice, 500, 50)); // the first frame: not timed
+    EXPECT_FALSE(frame(choice, 100, 50));
+    EXPECT_FALSE(frame(choice, 99, 50));  // no longer 5% faster: steady
+    EXPECT_FALSE(choice.chosen());
+    EXPECT_TRUE(frame(choice, 100, 50));  // the probe
+    EXPECT_TRUE(choice.lastWasProbe());
+    EXPECT_TRUE(choice.chosen());
+    EXPECT_TRUE(choice.tracingAll());
+    for (uint32_t i = 0; i < SelectiveChoice::kMinInterval; ++i) {
+        EXPECT_TRUE(frame(choice, 100, 50)) << i;
+        EXPECT_FALSE(choice.lastWasProbe());
+    }
+    EXPECT_FALSE(frame(choice, 100, 50)); // srt's own way probed again, and it lost
+    EXPECT_TRUE(choice.lastWasProbe());
+    EXPECT_TRUE(choice.tracingAll());
+    EXPECT_EQ(choice.probeInterval(), 2 * SelectiveChoice::kMinInterval);
+}
+
+TEST(SelectiveChoice, KeepsSelectiveRaysWhereTracingEveryPixelCostsMore)
+{
+    SelectiveChoice choice;
+    uint32_t probes = 0, frames = 0;
+    for (; frames < 600; ++frames) {
+        const bool all = frame(choice, 100, 300);
+        probes += all ? 1 : 0;
+        EXPECT_EQ(all, choice.lastWasProbe()) << frames;
+    }
+    EXPECT_FALSE(choice.tracingAll());
+    // Probes at frames 4, 13, 30, 63, 128, 257 and 514: each lost, the next one twice as far (the first two 8 apart).
+    EXPECT_EQ(probes, 7u);
+    EXPECT_EQ(choice.probeInterval(), SelectiveChoice::kMaxInterval);
+}
+
+TEST(SelectiveChoice, NeedsTheMarginToSwitchAndStartsOverForANewKey)
+{
+    SelectiveChoice choice;
+    for (int i = 0; i < 3; ++i)
+        frame(choice, 100, 97);
+    EXPECT_TRUE(frame(choice, 100, 97)); // 3% cheaper: not enough
+    EXPECT_FALSE(choice.tracingAll());
+    EXPECT_FALSE(frame(choice, 100, 50, 2)); // new key: its first frames again
+    EXPECT_FALSE(choice.chosen());
+}
+
+TEST(SelectiveChoice, ProbesAtTheLatestAfterTheSettleFrames)
+{
+    SelectiveChoice choice;
+    double ms = 1000;
+    uint32_t frames = 1;
+    while (!frame(choice, ms, 10)) {
+        ms *= 0.9; // still getting faster by 10% a frame: never steady
+        ++frames;
+    }
+    EXPECT_EQ(frames, SelectiveChoice::kSettleFrames + 1);
+}
+
+// On the device: a plant whose shadow map leaves many pixels in doubt. Every
+// frame is exact where it traces; the frame that traces every pixel is frt's
+// frame to the pixel; with the choice off, or when the traced pixels are shown,
+// srt never traces every pixel.
+TEST(SelectiveChoice, AFrameThatTracesEveryPixelIsFrtsFrame)
+{
+    GenerateOptions options;
+    options.triangles = 40'000;
+    Scene scene = generateScene("plant", options);
+    Renderer renderer;
+    renderer.loadModel(scene.mesh);
+    renderer.setCamera(scene.cameras[0]);
+    renderer.setLights({scene.lights[0]});
+    RenderSettings settings;
+    settings.width = settings.height = 160;
+    settings.readbackGBuffer = true;
+    settings.shadows = ShadowMethod::FullRayTrace;
+    const Frame frt = renderer.render(settings);
+    settings.shadows = ShadowMethod::Selective;
+    Frame probe, selective;
+    bool probed = false;
+    for (uint32_t i = 0; i <= SelectiveChoice::kSettleFrames && !probed; ++i) {
+        Frame f = renderer.render(settings);
+        EXPECT_EQ(f.stats.srtTracedAll, f.stats.srtProbe) << "before the first choice, only the probe traces every pixel";
+        probed = f.stats.srtProbe;
+        (probed ? probe : selective) = std::move(f);
+    }
+    ASSERT_TRUE(probed) << "no probe within the settle frames";
+    EXPECT_TRUE(probe.stats.srtChosen);
+    EXPECT_EQ(probe.stats.rays, frt.stats.rays);
+    EXPECT_LT(selective.stats.rays, frt.stats.rays);
+    ASSERT_EQ(probe.visibility.size(), frt.visibility.size());
+    size_t differing = 0;
+    for (size_t i = 0; i < frt.visibility.size(); ++i)
+        differing += probe.visibility[i] != frt.visibility[i] ? 1 : 0;
+    EXPECT_EQ(differing, 0u) << "the probe is frt's frame";
+
+    for (bool debugPip : {false, true}) {
+        RenderSettings fixed = settings;
+        fixed.srtTraceAllWhenCheaper = debugPip;
+        fixed.debugPip = debugPip;
+        fixed.width = fixed.height = 128; // a new key
+        for (uint32_t i = 0; i < SelectiveChoice::kSettleFrames + 2; ++i) {
+            const FrameStats stats = renderer.render(fixed).stats;
+            EXPECT_FALSE(stats.srtTracedAll || stats.srtProbe) << i;
+        }
+    }
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+}
+
+} // namespace
+} // namespace penumbra
