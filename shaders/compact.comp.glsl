@@ -6,12 +6,15 @@
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Stream compaction of marked pixels into a dense ray list: each invocation
 // takes a 2x2 quad of pixels; per subgroup, an exclusive sum gives each
-// invocation the slot of its first marked pixel and the subgroup's total,
-// one elected invocation reserves the subgroup's range with a single
-// atomicAdd, then every invocation writes its marked pixels' slots (no
-// workgroup barriers, which are expensive on CPU drivers; four pixels an
-// invocation make a quarter of the reservations, each an atomic on one cache
-// line that lavapipe's threads take turns at). Phase 1 (one invocation) writes the
+// invocation the slot of its first marked pixel and the subgroup's total;
+// the subgroups' totals, summed in shared memory, give each its place in the
+// workgroup's range, which one invocation reserves with a single atomicAdd;
+// then every invocation writes its marked pixels' slots. One reservation a
+// workgroup (two barriers) rather than one a subgroup: lavapipe's two threads
+// take turns at the atomic, so per subgroup the list alternated between two
+// far parts of the image every few entries, and the tracer's rounds (8
+// consecutive entries a SIMD register) mixed rays from both. Now the list
+// runs through a 32x32 block at a time. Phase 1 (one invocation) writes the
 // tracer's two indirect dispatch sizes from the final count (2-D above 65535 groups)
 // and adds the count to the frame's PIP counter (the pixels given rays).
 
@@ -22,6 +25,10 @@ layout(local_size_x = PENUMBRA_COMPACT_GROUP_SIZE) in;
 layout(set = 0, binding = 0, std430) readonly buffer Marks { uint marks[]; };
 layout(set = 0, binding = 1, std430) buffer RayList { uint rays[]; }; // header, then pixel indices
 layout(set = 0, binding = 2, std430) buffer Stats { uint64_t stats[]; };
+
+// Each subgroup's total, then its first entry in the workgroup's range; the range's start.
+shared uint sSubgroupEntries[PENUMBRA_COMPACT_GROUP_SIZE];
+shared uint sGroupBase;
 
 layout(push_constant) uniform CompactPush {
     uint pixelCount;
@@ -93,12 +100,22 @@ void main()
         count += mark != 0u ? 1u : 0u;
     }
     uint total = subgroupAdd(count);
+    if (subgroupElect())
+        sSubgroupEntries[gl_SubgroupID] = total;
+    barrier();
+    if (gl_LocalInvocationIndex == 0u) {
+        uint sum = 0u;
+        for (uint s = 0u; s < gl_NumSubgroups; ++s) {
+            const uint entries = sSubgroupEntries[s];
+            sSubgroupEntries[s] = sum;
+            sum += entries;
+        }
+        sGroupBase = sum != 0u ? atomicAdd(rays[0], sum) : 0u;
+    }
+    barrier();
     if (total == 0u)
         return;
-    uint base = 0u;
-    if (subgroupElect())
-        base = atomicAdd(rays[0], total);
-    uint slot = PENUMBRA_RAY_LIST_HEADER_UINTS + subgroupBroadcastFirst(base) + subgroupExclusiveAdd(count);
+    uint slot = PENUMBRA_RAY_LIST_HEADER_UINTS + sGroupBase + sSubgroupEntries[gl_SubgroupID] + subgroupExclusiveAdd(count);
     for (uint k = 0u; k < 4u; ++k)
         if (entries[k] != ~0u)
             rays[slot++] = entries[k];
