@@ -226,9 +226,9 @@ Measurement warmUp(Renderer& renderer, RenderSettings settings, ShadowKind kind,
         ++m.settleFrames;
     }
     // srt chooses frame by frame between its own sequence and a ray for every pixel (selective_choice.h):
-    // untimed frames until it has measured both ways (at the latest its 18th frame), so that the timed
+    // untimed frames until it has measured both ways (at the latest its 19th frame), so that the timed
     // frames show its choice rather than its probe.
-    for (uint32_t i = 0; settings.shadows == ShadowMethod::Selective && settings.srtTraceAllWhenCheaper && !last.srtChosen && i < kSettleFrames + 2; ++i) {
+    for (uint32_t i = 0; settings.shadows == ShadowMethod::Selective && settings.srtTraceAllWhenCheaper && !last.srtChosen && i < kSettleFrames + 3; ++i) {
         last = renderShadows(renderer, settings, kind, params).stats;
         ++m.settleFrames;
     }

@@ -20,12 +20,16 @@ void SelectiveChoice::record(double gpuMs)
 {
     if (frame <= 1)
         return; // the key's first frame: warming up
-    const double chosenCost = chosenCount ? *std::min_element(chosenMs.begin(), chosenMs.begin() + std::min<uint32_t>(chosenCount, 4)) : gpuMs;
+    const double chosenCost = chosenCount ? *std::min_element(chosenMs.begin(), chosenMs.begin() + std::min<size_t>(chosenCount, chosenMs.size())) : gpuMs;
     if (!probe) {
         // Settled once a frame is no faster (by the margin) than the best before it.
         settled = settled || (chosenCount > 0 && gpuMs >= chosenCost * (1.0 - kMargin));
         chosenMs[chosenCount++ % chosenMs.size()] = gpuMs;
         ++sinceProbe;
+        return;
+    }
+    if (!otherWarm) {
+        otherWarm = true; // the other way's first frame: it may compile shaders; the next frame probes again
         return;
     }
     sinceProbe = 0;

@@ -9,8 +9,9 @@
 // srt's differs from it on a few pixels more. Which way is cheaper is measured,
 // not guessed: once srt's own frames have settled (after the first frame that
 // is not 5% faster than the best before it: the light views' occlusion
-// culling learns over the first frames; at the latest the 17th), one frame
-// traces every pixel (a probe), and from then on the frames take the way whose
+// culling learns over the first frames; at the latest the 17th), two frames
+// trace every pixel (probes; the first is not timed: lavapipe compiles the
+// shaders a sequence uses in its first frame), and from then on the frames take the way whose
 // measured GPU time is lower, probing the other way again now and then (8
 // frames after a probe; after a probe that lost, other than the first, twice as
 // many frames as before, at most 256).
@@ -34,7 +35,7 @@ class SelectiveChoice {
 
     // Whether the next frame with this key traces every light-facing pixel. A
     // new key starts over (its first frame is not timed: the culling and the
-    // caches are still warming up).
+    // caches are still warming up, and lavapipe compiles shaders on first use).
     bool traceAll(uint64_t key);
     // The frame that traceAll was just asked about took gpuMs.
     void record(double gpuMs);
@@ -60,6 +61,7 @@ class SelectiveChoice {
     std::array<double, 4> chosenMs{};
     uint32_t chosenCount = 0;
     bool settled = false; // the chosen way's frames no longer get faster (before the first probe)
+    bool otherWarm = false; // the first probe ran (it is not timed: its shaders may have been compiled in it)
     double otherMs = -1.0;
 };
 

@@ -26,7 +26,10 @@ TEST(SelectiveChoice, ProbesOnceSteadyThenTakesTheCheaperWay)
     EXPECT_FALSE(frame(choice, 100, 50));
     EXPECT_FALSE(frame(choice, 99, 50));  // no longer 5% faster: steady
     EXPECT_FALSE(choice.chosen());
-    EXPECT_TRUE(frame(choice, 100, 50));  // the probe
+    EXPECT_TRUE(frame(choice, 100, 500)); // the first probe: not timed (its shaders compile)
+    EXPECT_TRUE(choice.lastWasProbe());
+    EXPECT_FALSE(choice.chosen());
+    EXPECT_TRUE(frame(choice, 100, 50));  // the probe that counts
     EXPECT_TRUE(choice.lastWasProbe());
     EXPECT_TRUE(choice.chosen());
     EXPECT_TRUE(choice.tracingAll());
@@ -50,8 +53,9 @@ TEST(SelectiveChoice, KeepsSelectiveRaysWhereTracingEveryPixelCostsMore)
         EXPECT_EQ(all, choice.lastWasProbe()) << frames;
     }
     EXPECT_FALSE(choice.tracingAll());
-    // Probes at frames 4, 13, 30, 63, 128, 257 and 514: each lost, the next one twice as far (the first two 8 apart).
-    EXPECT_EQ(probes, 7u);
+    // Probes at frames 4 (not timed), 5, 14, 31, 64, 129, 258 and 515: each lost, the next one twice as far
+    // (the first two timed ones 8 frames apart).
+    EXPECT_EQ(probes, 8u);
     EXPECT_EQ(choice.probeInterval(), SelectiveChoice::kMaxInterval);
 }
 
@@ -60,7 +64,9 @@ TEST(SelectiveChoice, NeedsTheMarginToSwitchAndStartsOverForANewKey)
     SelectiveChoice choice;
     for (int i = 0; i < 3; ++i)
         frame(choice, 100, 97);
+    EXPECT_TRUE(frame(choice, 100, 97)); // not timed
     EXPECT_TRUE(frame(choice, 100, 97)); // 3% cheaper: not enough
+    EXPECT_TRUE(choice.chosen());
     EXPECT_FALSE(choice.tracingAll());
     EXPECT_FALSE(frame(choice, 100, 50, 2)); // new key: its first frames again
     EXPECT_FALSE(choice.chosen());
@@ -98,15 +104,15 @@ TEST(SelectiveChoice, AFrameThatTracesEveryPixelIsFrtsFrame)
     const Frame frt = renderer.render(settings);
     settings.shadows = ShadowMethod::Selective;
     Frame probe, selective;
-    bool probed = false;
-    for (uint32_t i = 0; i <= SelectiveChoice::kSettleFrames && !probed; ++i) {
+    bool chosen = false;
+    for (uint32_t i = 0; i < SelectiveChoice::kSettleFrames + 2 && !chosen; ++i) {
         Frame f = renderer.render(settings);
-        EXPECT_EQ(f.stats.srtTracedAll, f.stats.srtProbe) << "before the first choice, only the probe traces every pixel";
-        probed = f.stats.srtProbe;
-        (probed ? probe : selective) = std::move(f);
+        EXPECT_EQ(f.stats.srtTracedAll, f.stats.srtProbe) << "before the first choice, only the probes trace every pixel";
+        chosen = f.stats.srtChosen;
+        (f.stats.srtProbe ? probe : selective) = std::move(f);
     }
-    ASSERT_TRUE(probed) << "no probe within the settle frames";
-    EXPECT_TRUE(probe.stats.srtChosen);
+    ASSERT_TRUE(chosen) << "no choice after the settle frames and two probes";
+    EXPECT_TRUE(probe.stats.srtProbe);
     EXPECT_EQ(probe.stats.rays, frt.stats.rays);
     EXPECT_LT(selective.stats.rays, frt.stats.rays);
     ASSERT_EQ(probe.visibility.size(), frt.visibility.size());

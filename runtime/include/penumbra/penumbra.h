@@ -177,8 +177,8 @@ struct RenderSettings {
     bool adaptiveOcclusion = true;
     // srt: a frame traces every light-facing pixel (frt's sequence: no shadow
     // map, no classification) where that measured cheaper on this renderer.
-    // The first frames run srt's own sequence; once they are steady one frame
-    // traces every pixel (a probe); then each frame takes the way with the lower
+    // The first frames run srt's own sequence; once they are steady two frames
+    // trace every pixel (probes, the first not timed); then each frame takes the way with the lower
     // GPU time, the other one probed again 8 frames later (twice as many after
     // each further probe that loses, at most 256). Both ways are exact where they
     // trace; every-pixel frames are the oracle's image, srt's differ from it on
