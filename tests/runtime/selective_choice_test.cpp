@@ -134,5 +134,46 @@ TEST(SelectiveChoice, AFrameThatTracesEveryPixelIsFrtsFrame)
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 
+// Soft shadows take the same choice: a sphere light's probe frame is frt's soft frame to the pixel (the
+// samples are seeded by the pixel).
+TEST(SelectiveChoice, SoftShadowProbeIsFrtsSoftFrame)
+{
+    GenerateOptions options;
+    options.triangles = 20'000;
+    Scene scene = generateScene("city", options);
+    Light sphere;
+    sphere.type = LightType::Sphere;
+    sphere.position = {0.0f, 80.0f, 0.0f};
+    sphere.radius = 4.0f;
+    sphere.intensity = 2e4f;
+    Renderer renderer;
+    renderer.loadModel(scene.mesh);
+    renderer.setLights({sphere});
+    RenderSettings settings;
+    settings.width = settings.height = 96;
+    settings.readbackGBuffer = true;
+    settings.shadows = ShadowMethod::FullRayTrace;
+    const Frame frt = renderer.render(settings);
+    settings.shadows = ShadowMethod::Selective;
+    Frame probe;
+    for (uint32_t i = 0; i < SelectiveChoice::kSettleFrames + 2 && !probe.stats.srtChosen; ++i) {
+        Frame f = renderer.render(settings);
+        if (f.stats.srtProbe)
+            probe = std::move(f);
+    }
+    ASSERT_TRUE(probe.stats.srtChosen) << "no choice after the settle frames and two probes";
+    EXPECT_TRUE(probe.stats.srtTracedAll);
+    EXPECT_GT(probe.stats.lightSamples, 0u);
+    ASSERT_EQ(probe.visibility.size(), frt.visibility.size());
+    size_t differing = 0, penumbra = 0;
+    for (size_t i = 0; i < frt.visibility.size(); ++i) {
+        differing += probe.visibility[i] != frt.visibility[i] ? 1 : 0;
+        penumbra += frt.visibility[i] > 0.0f && frt.visibility[i] < 1.0f ? 1 : 0;
+    }
+    EXPECT_GT(penumbra, 50u) << "the light should cast soft shadows here";
+    EXPECT_EQ(differing, 0u) << "the soft probe is frt's frame";
+    EXPECT_EQ(renderer.validationMessageCount(), 0u);
+}
+
 } // namespace
 } // namespace penumbra
