@@ -1,6 +1,8 @@
 // srt's choice between its own sequence and a ray for every pixel
 // (selective_choice.h): the schedule of its probes on given frame times, and
 // on the device, that a frame which traces every pixel is frt's frame.
+#include <algorithm>
+
 #include <gtest/gtest.h>
 
 #include "penumbra/generate.h"
@@ -84,6 +86,32 @@ TEST(SelectiveChoice, ProbesAtTheLatestAfterTheSettleFrames)
     EXPECT_EQ(frames, SelectiveChoice::kSettleFrames + 1);
 }
 
+// srt frames until the choice is made (at most the settle frames and two probes): the last probe, and the
+// last frame of srt's own way when `selective` is given.
+Frame renderUntilChosen(Renderer& renderer, const RenderSettings& settings, Frame* selective = nullptr)
+{
+    Frame probe;
+    for (uint32_t i = 0; i < SelectiveChoice::kSettleFrames + 2 && !probe.stats.srtChosen; ++i) {
+        Frame f = renderer.render(settings);
+        EXPECT_EQ(f.stats.srtTracedAll, f.stats.srtProbe) << "before the first choice, only the probes trace every pixel";
+        if (f.stats.srtProbe)
+            probe = std::move(f);
+        else if (selective)
+            *selective = std::move(f);
+    }
+    EXPECT_TRUE(probe.stats.srtChosen) << "no choice after the settle frames and two probes";
+    return probe;
+}
+
+size_t differingPixels(const std::vector<float>& a, const std::vector<float>& b)
+{
+    EXPECT_EQ(a.size(), b.size());
+    size_t differing = 0;
+    for (size_t i = 0; i < std::min(a.size(), b.size()); ++i)
+        differing += a[i] != b[i] ? 1 : 0;
+    return differing;
+}
+
 // On the device: a plant whose shadow map leaves many pixels in doubt. Every
 // frame is exact where it traces; the frame that traces every pixel is frt's
 // frame to the pixel; with the choice off, or when the traced pixels are shown,
@@ -103,23 +131,12 @@ TEST(SelectiveChoice, AFrameThatTracesEveryPixelIsFrtsFrame)
     settings.shadows = ShadowMethod::FullRayTrace;
     const Frame frt = renderer.render(settings);
     settings.shadows = ShadowMethod::Selective;
-    Frame probe, selective;
-    bool chosen = false;
-    for (uint32_t i = 0; i < SelectiveChoice::kSettleFrames + 2 && !chosen; ++i) {
-        Frame f = renderer.render(settings);
-        EXPECT_EQ(f.stats.srtTracedAll, f.stats.srtProbe) << "before the first choice, only the probes trace every pixel";
-        chosen = f.stats.srtChosen;
-        (f.stats.srtProbe ? probe : selective) = std::move(f);
-    }
-    ASSERT_TRUE(chosen) << "no choice after the settle frames and two probes";
-    EXPECT_TRUE(probe.stats.srtProbe);
+    Frame selective;
+    const Frame probe = renderUntilChosen(renderer, settings, &selective);
+    EXPECT_TRUE(probe.stats.srtTracedAll);
     EXPECT_EQ(probe.stats.rays, frt.stats.rays);
     EXPECT_LT(selective.stats.rays, frt.stats.rays);
-    ASSERT_EQ(probe.visibility.size(), frt.visibility.size());
-    size_t differing = 0;
-    for (size_t i = 0; i < frt.visibility.size(); ++i)
-        differing += probe.visibility[i] != frt.visibility[i] ? 1 : 0;
-    EXPECT_EQ(differing, 0u) << "the probe is frt's frame";
+    EXPECT_EQ(differingPixels(probe.visibility, frt.visibility), 0u) << "the probe is frt's frame";
 
     for (bool debugPip : {false, true}) {
         RenderSettings fixed = settings;
@@ -155,23 +172,12 @@ TEST(SelectiveChoice, SoftShadowProbeIsFrtsSoftFrame)
     settings.shadows = ShadowMethod::FullRayTrace;
     const Frame frt = renderer.render(settings);
     settings.shadows = ShadowMethod::Selective;
-    Frame probe;
-    for (uint32_t i = 0; i < SelectiveChoice::kSettleFrames + 2 && !probe.stats.srtChosen; ++i) {
-        Frame f = renderer.render(settings);
-        if (f.stats.srtProbe)
-            probe = std::move(f);
-    }
-    ASSERT_TRUE(probe.stats.srtChosen) << "no choice after the settle frames and two probes";
+    const Frame probe = renderUntilChosen(renderer, settings);
     EXPECT_TRUE(probe.stats.srtTracedAll);
     EXPECT_GT(probe.stats.lightSamples, 0u);
-    ASSERT_EQ(probe.visibility.size(), frt.visibility.size());
-    size_t differing = 0, penumbra = 0;
-    for (size_t i = 0; i < frt.visibility.size(); ++i) {
-        differing += probe.visibility[i] != frt.visibility[i] ? 1 : 0;
-        penumbra += frt.visibility[i] > 0.0f && frt.visibility[i] < 1.0f ? 1 : 0;
-    }
-    EXPECT_GT(penumbra, 50u) << "the light should cast soft shadows here";
-    EXPECT_EQ(differing, 0u) << "the soft probe is frt's frame";
+    const auto penumbra = std::count_if(frt.visibility.begin(), frt.visibility.end(), [](float v) { return v > 0.0f && v < 1.0f; });
+    EXPECT_GT(penumbra, 50) << "the light should cast soft shadows here";
+    EXPECT_EQ(differingPixels(probe.visibility, frt.visibility), 0u) << "the soft probe is frt's frame";
     EXPECT_EQ(renderer.validationMessageCount(), 0u);
 }
 
