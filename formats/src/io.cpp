@@ -3,6 +3,7 @@
 #include "penumbra/io.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 
 #include "io_internal.h"
@@ -331,9 +333,33 @@ void exportScene(const Scene& scene, const std::string& path, const ExportOption
     out.commit();
 }
 
+void removeStaleTemporaries(const std::string& path)
+{
+    const std::filesystem::path target(path);
+    const std::string prefix = target.filename().string() + ".tmp-";
+    std::filesystem::path folder = target.parent_path();
+    if (folder.empty())
+        folder = ".";
+    std::error_code error;
+    for (std::filesystem::directory_iterator it(folder, error), end; !error && it != end; it.increment(error)) {
+        const std::string file = it->path().filename().string();
+        if (file.size() <= prefix.size() || file.compare(0, prefix.size(), prefix) != 0)
+            continue;
+        const std::string digits = file.substr(prefix.size());
+        if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos)
+            continue; // not ours: only "<name>.tmp-<pid>" is
+        const long pid = std::strtol(digits.c_str(), nullptr, 10);
+        if (pid > 0 && pid != ::getpid() && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) {
+            std::error_code ignored;
+            std::filesystem::remove(it->path(), ignored);
+        }
+    }
+}
+
 AtomicFileWriter::AtomicFileWriter(const std::string& path)
     : path_(path), tempPath_(path + ".tmp-" + std::to_string(::getpid())), buffer_(kBufferSize)
 {
+    removeStaleTemporaries(path);
     fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd_ < 0)
         fail(path_, std::string("cannot create '") + tempPath_ + "': " + std::strerror(errno));

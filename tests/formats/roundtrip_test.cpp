@@ -1,9 +1,12 @@
 // Export-then-import round trips for every format, plus hand-written files
 // exercising triangulation, glTF transforms, cameras and lights.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include "penumbra/io.h"
 #include "test_helpers.h"
@@ -103,6 +106,34 @@ TEST(RoundTrip, UpperCaseExtensionAndOverwrite)
     scene.mesh = makeGrid(3);
     exportScene(scene, path); // replaces the file atomically
     EXPECT_EQ(importScene(path).mesh.triangleCount(), 18u);
+}
+
+// A writer killed before it could remove its temporary file (SIGKILL) leaves
+// "<path>.tmp-<pid>"; the next write of the same path removes it, but not the
+// temporary file of a writer still running, nor look-alike names.
+TEST(RoundTrip, TheNextWriteRemovesAKilledWritersTemporaryFile)
+{
+    const std::string path = tempPath("killed_writer.ply");
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0)
+        _exit(0);
+    ASSERT_EQ(waitpid(child, nullptr, 0), child); // its pid names no process now
+    auto touch = [](const std::string& file) { std::ofstream(file) << "partial"; };
+    const std::string dead = path + ".tmp-" + std::to_string(child);
+    const std::string alive = path + ".tmp-" + std::to_string(getppid()); // ctest, which runs
+    const std::string other = path + ".tmp-" + std::to_string(child) + "x";
+    for (const std::string& file : {dead, alive, other})
+        touch(file);
+    Scene scene;
+    scene.mesh = makeGrid(2);
+    exportScene(scene, path);
+    EXPECT_FALSE(std::filesystem::exists(dead));
+    EXPECT_TRUE(std::filesystem::exists(alive));
+    EXPECT_TRUE(std::filesystem::exists(other));
+    EXPECT_EQ(importScene(path).mesh.triangleCount(), 8u);
+    std::filesystem::remove(alive);
+    std::filesystem::remove(other);
 }
 
 Scene cameraLightScene()

@@ -602,7 +602,8 @@ TEST(Streamed, InterruptedBuildLeavesNoModel)
     std::string err;
     EXPECT_EQ(run({PENUMBRA_PREPROCESS_CLI, "preprocess", input, "-o", output, "--memory-limit", "32", "--quiet"}, &err), 0) << err;
     EXPECT_NO_THROW(openModelFile(output));
-    // The killed builds' chunk files are gone too (the next build of the output removes them).
+    // The killed builds' chunk files and temporary outputs are gone too (the next build of the
+    // output removes those of processes that no longer run).
     for (const auto& entry : std::filesystem::directory_iterator(PENUMBRA_TEST_TMP))
         EXPECT_EQ(entry.path().filename().string().find("streamed_kill.penumbra."), std::string::npos) << entry.path();
 

@@ -12,9 +12,14 @@
 
 namespace penumbra {
 
+// Removes "<path>.tmp-<pid>" files left by processes that no longer run (a
+// writer killed before it could clean up); those of live processes stay.
+void removeStaleTemporaries(const std::string& path);
+
 // Buffered writer to "<path>.tmp-<pid>"; commit() flushes, closes and renames
 // it over path. Destroying an uncommitted writer removes the temporary file,
-// so an interrupted write never leaves a file under `path`.
+// so an interrupted write never leaves a file under `path`. Opening one
+// removes the temporary files of earlier writers of `path` that were killed.
 class AtomicFileWriter {
   public:
     explicit AtomicFileWriter(const std::string& path);
