@@ -333,6 +333,84 @@ void exportScene(const Scene& scene, const std::string& path, const ExportOption
     out.commit();
 }
 
+namespace {
+
+// trackTemporary's table: fixed storage, read by the signal handler without
+// locks (a slot's state is published after its path is written).
+constexpr int kTrackedSlots = 1024;
+constexpr size_t kTrackedPathBytes = 1024;
+struct TrackedSlot {
+    std::atomic<int> state{0}; // 0 free, 1 being written, 2 holds a path
+    char path[kTrackedPathBytes];
+};
+TrackedSlot gTracked[kTrackedSlots];
+const char* gSignalProgram = "penumbra";
+
+void writeAll(int fd, const char* text)
+{
+    size_t size = std::strlen(text);
+    while (size > 0) {
+        const ssize_t n = ::write(fd, text, size);
+        if (n <= 0)
+            return;
+        text += n;
+        size -= size_t(n);
+    }
+}
+
+extern "C" void removeTrackedAndExit(int signalNumber)
+{
+    for (TrackedSlot& slot : gTracked)
+        if (slot.state.load(std::memory_order_acquire) == 2)
+            ::unlink(slot.path);
+    const char* name = signalNumber == SIGINT ? "SIGINT" : signalNumber == SIGTERM ? "SIGTERM" : "SIGHUP";
+    writeAll(2, gSignalProgram);
+    writeAll(2, ": interrupted (");
+    writeAll(2, name);
+    writeAll(2, "); its temporary files removed\n");
+    // SA_RESETHAND restored the default action: the process ends by the signal.
+    ::raise(signalNumber);
+}
+
+} // namespace
+
+int trackTemporary(const std::string& path)
+{
+    if (path.size() >= kTrackedPathBytes)
+        return -1;
+    for (int i = 0; i < kTrackedSlots; ++i) {
+        int expected = 0;
+        if (gTracked[i].state.compare_exchange_strong(expected, 1, std::memory_order_acquire)) {
+            std::memcpy(gTracked[i].path, path.c_str(), path.size() + 1);
+            gTracked[i].state.store(2, std::memory_order_release);
+            return i;
+        }
+    }
+    return -1;
+}
+
+void untrackTemporary(int slot)
+{
+    if (slot >= 0 && slot < kTrackedSlots)
+        gTracked[slot].state.store(0, std::memory_order_release);
+}
+
+void removeTemporariesOnSignals(const char* program)
+{
+    gSignalProgram = program;
+    struct sigaction action {};
+    action.sa_handler = removeTrackedAndExit;
+    sigemptyset(&action.sa_mask);
+    action.sa_flags = SA_RESETHAND;
+    for (int signalNumber : {SIGINT, SIGTERM, SIGHUP}) {
+        struct sigaction previous {};
+        // A signal the caller's parent ignores (nohup's SIGHUP) stays ignored.
+        if (::sigaction(signalNumber, nullptr, &previous) == 0 && previous.sa_handler == SIG_IGN)
+            continue;
+        ::sigaction(signalNumber, &action, nullptr);
+    }
+}
+
 void removeStaleTemporaries(const std::string& path)
 {
     const std::filesystem::path target(path);
@@ -360,9 +438,12 @@ AtomicFileWriter::AtomicFileWriter(const std::string& path)
     : path_(path), tempPath_(path + ".tmp-" + std::to_string(::getpid())), buffer_(kBufferSize)
 {
     removeStaleTemporaries(path);
+    tracked_ = trackTemporary(tempPath_);
     fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd_ < 0)
+    if (fd_ < 0) {
+        untrackTemporary(tracked_);
         fail(path_, std::string("cannot create '") + tempPath_ + "': " + std::strerror(errno));
+    }
 }
 
 AtomicFileWriter::~AtomicFileWriter()
@@ -371,6 +452,7 @@ AtomicFileWriter::~AtomicFileWriter()
         ::close(fd_);
     if (!committed_)
         ::unlink(tempPath_.c_str());
+    untrackTemporary(tracked_);
 }
 
 void AtomicFileWriter::flush()
@@ -444,6 +526,8 @@ void AtomicFileWriter::commit(Durability durability)
     if (std::rename(tempPath_.c_str(), path_.c_str()) != 0)
         fail(path_, std::string("cannot rename temporary file: ") + std::strerror(errno));
     committed_ = true;
+    untrackTemporary(tracked_);
+    tracked_ = -1;
     if (durability == Durability::Synced) {
         // The rename itself is durable once the folder's entry is.
         size_t slash = path_.find_last_of('/');

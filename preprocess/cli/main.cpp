@@ -7,11 +7,13 @@
 #include <new>
 
 #include "penumbra/error.h"
+#include "penumbra/file_io.h"
 #include "tool_commands.h"
 
 int main(int argc, char** argv)
 {
     using namespace penumbra;
+    removeTemporariesOnSignals("penumbra-preprocess");
     CLI::App app{"penumbra-preprocess: the model tools of penumbra (preprocess, merge, generate, info), without the renderer"};
     app.require_subcommand(1);
     app.set_version_flag("--version", "penumbra-preprocess 0.1.0");

@@ -746,15 +746,24 @@ void removeStaleChunks(const std::string& folder, const std::string& name)
     }
 }
 
-// Removes the named files when it goes out of scope (chunk files of a build in progress).
+// Removes the named files when it goes out of scope (chunk files of a build in
+// progress), and if the process is interrupted (trackTemporary).
 struct FileSweeper {
     std::vector<std::string> paths;
+    std::vector<int> slots;
+    void add(const std::string& path)
+    {
+        paths.push_back(path);
+        slots.push_back(trackTemporary(path));
+    }
     ~FileSweeper()
     {
         for (const std::string& path : paths) {
             std::error_code ignored;
             std::filesystem::remove(path, ignored);
         }
+        for (int slot : slots)
+            untrackTemporary(slot);
     }
 };
 
@@ -785,7 +794,7 @@ void buildChunk(Build& build, ChunkTemp& temp, chunk::ChunkHeader header, const 
     FileSweeper files;
     for (uint32_t p = 0; p < plan.leaves(); ++p) {
         const std::string partPath = path + ".part" + std::to_string(p);
-        files.paths.push_back(partPath);
+        files.add(partPath);
         build.progress(stage + " part " + std::to_string(p + 1) + "/" + std::to_string(plan.leaves()), 0.0);
         part.chunkIndex = p;
         for (int a = 0; a < 3; ++a) {
@@ -1019,7 +1028,7 @@ StreamedStats preprocessStreamed(const std::string& input, const std::string& ou
     const std::string name = std::filesystem::path(output).filename().string();
     for (uint32_t i = 0; i < plan.leaves(); ++i) {
         const std::string path = build.tempDirectory + "/" + name + ".chunk" + std::to_string(i) + ".tmp-" + std::to_string(::getpid());
-        files.paths.push_back(path);
+        files.add(path);
         const std::string stage = "chunk " + std::to_string(i + 1) + "/" + std::to_string(plan.leaves());
         build.progress(stage, 0.0);
         buildChunk(build, temps[i], chunkHeader(build, i, plan.leaves(), temps[i].cell, rootDepth), path, stage, 0);

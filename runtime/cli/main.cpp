@@ -12,6 +12,7 @@
 #include <CLI/CLI.hpp>
 
 #include "penumbra/bench.h"
+#include "penumbra/file_io.h"
 #include "penumbra/generate.h"
 #include "penumbra/progress_bar.h"
 #include "penumbra/preprocess.h"
@@ -103,6 +104,7 @@ void parseSize(const std::string& text, RenderSettings& settings)
 void writeTextFile(const std::string& path, const std::string& text)
 {
     std::string temporary = path + ".tmp-" + std::to_string(::getpid());
+    const TrackedTemporary tracked(temporary); // removed if the process is interrupted
     {
         std::ofstream out(temporary, std::ios::binary);
         out << text << "\n";
@@ -360,6 +362,7 @@ int runDevices()
 
 int main(int argc, char** argv)
 {
+    penumbra::removeTemporariesOnSignals("penumbra");
     CLI::App app{"penumbra: accurate hard and soft shadows on massive models, rendered headless with Vulkan"};
     app.require_subcommand(1);
     app.set_version_flag("--version", "penumbra 0.1.0");

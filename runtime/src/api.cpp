@@ -12,6 +12,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
+#include "penumbra/file_io.h"
 #include "penumbra/penumbra.h"
 #include "png_writer.h"
 
@@ -355,6 +356,7 @@ void writeImage(const Image& image, const std::string& path, const ImageOptions&
     std::string directory = slash == std::string::npos ? "" : path.substr(0, slash + 1);
     std::string base = slash == std::string::npos ? path : path.substr(slash + 1);
     std::string temporary = directory + ".tmp-" + std::to_string(::getpid()) + "-" + base;
+    const TrackedTemporary tracked(temporary); // removed if the process is interrupted
 
     size_t pixels = size_t(image.width) * image.height;
     if (!options.layers.empty() && extension != ".exr")

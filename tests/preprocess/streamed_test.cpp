@@ -652,6 +652,59 @@ TEST(Streamed, InterruptedBuildLeavesNoModel)
     EXPECT_NO_THROW(openModelFile(merged));
 }
 
+// An interrupted build (SIGINT, SIGTERM: Ctrl-C, a job scheduler's stop) removes its chunk files
+// and its unfinished output at once, says so in one line and ends by the signal; no next run needed.
+// Each signal is sent once the build's chunk file named by `waitFor` exists.
+TEST(Streamed, SignalledBuildRemovesItsTemporaryFiles)
+{
+    const std::string input = writeInput("streamed_signal.ply", scene("scan", 300'000));
+    const std::string output = tmp("streamed_signal.penumbra"), errors = tmp("streamed_signal.err");
+    auto leftovers = [] {
+        std::vector<std::string> files;
+        for (const auto& entry : std::filesystem::directory_iterator(PENUMBRA_TEST_TMP))
+            if (entry.path().filename().string().rfind("streamed_signal.penumbra.", 0) == 0)
+                files.push_back(entry.path().filename().string());
+        return files;
+    };
+    std::filesystem::remove(output);
+    for (const std::string& file : leftovers())
+        std::filesystem::remove(tmp(file));
+    for (auto [signalNumber, waitFor] : {std::pair{SIGINT, ".chunk0."}, std::pair{SIGTERM, ".chunk1."}}) {
+        const pid_t pid = fork();
+        ASSERT_GE(pid, 0);
+        if (pid == 0) {
+            std::freopen("/dev/null", "w", stdout);
+            std::freopen(errors.c_str(), "w", stderr);
+            signal(signalNumber, SIG_DFL); // as in a terminal's foreground (a background job inherits SIGINT ignored)
+            execl(PENUMBRA_PREPROCESS_CLI, PENUMBRA_PREPROCESS_CLI, "preprocess", input.c_str(), "-o", output.c_str(),
+                  "--memory-limit", "32", "--threads", "1", "--quiet", static_cast<char*>(nullptr));
+            _exit(127);
+        }
+        int status = 0;
+        bool seen = false, ended = false;
+        for (int i = 0; i < 60'000 && !seen && !ended; ++i) {
+            for (const std::string& file : leftovers())
+                seen = seen || file.find(waitFor) != std::string::npos;
+            ended = waitpid(pid, &status, WNOHANG) == pid;
+            if (!seen && !ended)
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        }
+        if (!ended) {
+            kill(pid, seen ? signalNumber : SIGKILL);
+            waitpid(pid, &status, 0);
+        }
+        ASSERT_TRUE(seen) << "the build never wrote a chunk file named *" << waitFor << "*";
+        if (WIFEXITED(status)) // finished between the chunk file and the signal (a fast machine)
+            continue;
+        ASSERT_TRUE(WIFSIGNALED(status));
+        EXPECT_EQ(WTERMSIG(status), signalNumber);
+        EXPECT_EQ(readBytes(errors), std::string("penumbra-preprocess: interrupted (") + (signalNumber == SIGINT ? "SIGINT" : "SIGTERM") +
+                                         "); its temporary files removed\n");
+        EXPECT_FALSE(std::filesystem::exists(output));
+        EXPECT_EQ(leftovers(), std::vector<std::string>{});
+    }
+}
+
 } // namespace
 
 namespace {

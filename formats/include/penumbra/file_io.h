@@ -12,6 +12,29 @@
 
 namespace penumbra {
 
+// Files to remove if the process is interrupted. Once removeTemporariesOnSignals()
+// has installed its handlers (the command-line tools do; a library user
+// decides), SIGINT, SIGTERM and SIGHUP remove every tracked file, print one
+// line "<program>: interrupted (<signal>); its temporary files removed" and end
+// the process by the same signal. trackTemporary returns a slot for
+// untrackTemporary, or -1 when the path is not tracked (longer than 1023
+// bytes, or 1024 tracked already: such a file is left to the next run's sweep).
+int trackTemporary(const std::string& path);
+void untrackTemporary(int slot);
+void removeTemporariesOnSignals(const char* program);
+
+// trackTemporary for a scope.
+class TrackedTemporary {
+  public:
+    explicit TrackedTemporary(const std::string& path) : slot_(trackTemporary(path)) {}
+    ~TrackedTemporary() { untrackTemporary(slot_); }
+    TrackedTemporary(const TrackedTemporary&) = delete;
+    TrackedTemporary& operator=(const TrackedTemporary&) = delete;
+
+  private:
+    int slot_;
+};
+
 // Removes "<path>.tmp-<pid>" files left by processes that no longer run (a
 // writer killed before it could clean up); those of live processes stay.
 void removeStaleTemporaries(const std::string& path);
@@ -61,6 +84,7 @@ class AtomicFileWriter {
     size_t used_ = 0;
     uint64_t flushed_ = 0;
     bool committed_ = false;
+    int tracked_ = -1; // trackTemporary's slot of tempPath_
 };
 
 // Sequential reads of a file through a buffer filled with pread (the file is
