@@ -336,11 +336,15 @@ void exportScene(const Scene& scene, const std::string& path, const ExportOption
 namespace {
 
 // trackTemporary's table: fixed storage, read by the signal handler without
-// locks (a slot's state is published after its path is written).
+// locks. A slot's state is published after its path is written, and its
+// version is odd while the path is rewritten (a seqlock): the handler removes
+// a path only if the version it read before copying it is even and unchanged
+// after, so a slot freed and reused by another thread meanwhile is skipped.
 constexpr int kTrackedSlots = 1024;
 constexpr size_t kTrackedPathBytes = 1024;
 struct TrackedSlot {
     std::atomic<int> state{0}; // 0 free, 1 being written, 2 holds a path
+    std::atomic<uint32_t> version{0};
     char path[kTrackedPathBytes];
 };
 TrackedSlot gTracked[kTrackedSlots];
@@ -360,9 +364,17 @@ void writeAll(int fd, const char* text)
 
 extern "C" void removeTrackedAndExit(int signalNumber)
 {
-    for (TrackedSlot& slot : gTracked)
-        if (slot.state.load(std::memory_order_acquire) == 2)
-            ::unlink(slot.path);
+    char path[kTrackedPathBytes];
+    for (TrackedSlot& slot : gTracked) {
+        const uint32_t version = slot.version.load(std::memory_order_acquire);
+        if ((version & 1u) != 0 || slot.state.load(std::memory_order_acquire) != 2)
+            continue;
+        std::memcpy(path, slot.path, kTrackedPathBytes);
+        path[kTrackedPathBytes - 1] = '\0';
+        std::atomic_thread_fence(std::memory_order_acquire);
+        if (slot.version.load(std::memory_order_relaxed) == version)
+            ::unlink(path);
+    }
     const char* name = signalNumber == SIGINT ? "SIGINT" : signalNumber == SIGTERM ? "SIGTERM" : "SIGHUP";
     writeAll(2, gSignalProgram);
     writeAll(2, ": interrupted (");
@@ -381,7 +393,9 @@ int trackTemporary(const std::string& path)
     for (int i = 0; i < kTrackedSlots; ++i) {
         int expected = 0;
         if (gTracked[i].state.compare_exchange_strong(expected, 1, std::memory_order_acquire)) {
+            gTracked[i].version.fetch_add(1, std::memory_order_acq_rel); // odd: being rewritten
             std::memcpy(gTracked[i].path, path.c_str(), path.size() + 1);
+            gTracked[i].version.fetch_add(1, std::memory_order_release);
             gTracked[i].state.store(2, std::memory_order_release);
             return i;
         }

@@ -28,10 +28,15 @@ void SelectiveChoice::record(double gpuMs)
         ++sinceProbe;
         return;
     }
-    if (!otherWarm) {
-        otherWarm = true; // the other way's first frame: it may compile shaders; the next frame probes again
+    // Not timed, and the next frame probes again: the first probe (its shaders may compile in it), and
+    // the first frame of every probe of srt's own way (its light views' culling history is as old as
+    // the frames that traced every pixel: a camera that moved meanwhile makes it draw more).
+    if (!warmingUp && (!otherWarm || !current)) {
+        otherWarm = true;
+        warmingUp = true;
         return;
     }
+    warmingUp = false;
     sinceProbe = 0;
     const bool firstProbe = otherMs < 0.0;
     if (gpuMs < chosenCost * (1.0 - kMargin)) {

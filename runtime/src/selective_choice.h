@@ -14,7 +14,9 @@
 // shaders a sequence uses in its first frame), and from then on the frames take the way whose
 // measured GPU time is lower, probing the other way again now and then (8
 // frames after a probe; after a probe that lost, other than the first, twice as
-// many frames as before, at most 256).
+// many frames as before, at most 256). A probe of srt's own way also takes two
+// frames, the first not timed: its light views' culling history is as old as the
+// frames that traced every pixel.
 // The costs are per settings, lights and model (key); the camera may move.
 //
 // No Vulkan here: the renderer asks traceAll before a frame and reports the
@@ -62,6 +64,7 @@ class SelectiveChoice {
     uint32_t chosenCount = 0;
     bool settled = false; // the chosen way's frames no longer get faster (before the first probe)
     bool otherWarm = false; // the first probe ran (it is not timed: its shaders may have been compiled in it)
+    bool warmingUp = false; // the last frame was a probe's untimed first frame
     double otherMs = -1.0;
 };
 

@@ -39,10 +39,32 @@ TEST(SelectiveChoice, ProbesOnceSteadyThenTakesTheCheaperWay)
         EXPECT_TRUE(frame(choice, 100, 50)) << i;
         EXPECT_FALSE(choice.lastWasProbe());
     }
-    EXPECT_FALSE(frame(choice, 100, 50)); // srt's own way probed again, and it lost
+    EXPECT_FALSE(frame(choice, 40, 50)); // srt's own way probed again: its first frame is not timed
+    EXPECT_TRUE(choice.lastWasProbe());
+    EXPECT_EQ(choice.probeInterval(), SelectiveChoice::kMinInterval);
+    EXPECT_FALSE(frame(choice, 100, 50)); // the frame that counts, and it lost
     EXPECT_TRUE(choice.lastWasProbe());
     EXPECT_TRUE(choice.tracingAll());
     EXPECT_EQ(choice.probeInterval(), 2 * SelectiveChoice::kMinInterval);
+}
+
+// After many frames that traced every pixel, srt's own first frame is slow (its light views'
+// culling relearns the view): a probe of srt's own way is timed on its second frame.
+TEST(SelectiveChoice, ProbesOfSrtsOwnWayAreTimedOnTheirSecondFrame)
+{
+    SelectiveChoice choice;
+    while (!choice.chosen())
+        frame(choice, 100, 80);
+    ASSERT_TRUE(choice.tracingAll());
+    uint32_t probeFrames = 0;
+    for (uint32_t i = 0; i <= SelectiveChoice::kMinInterval && !probeFrames; ++i)
+        if (!frame(choice, 200, 80)) // srt's own first frame after the interval: slow, not timed
+            ++probeFrames;
+    ASSERT_EQ(probeFrames, 1u);
+    EXPECT_FALSE(frame(choice, 60, 80)); // its second frame: warm, and cheaper by more than the margin
+    EXPECT_FALSE(choice.tracingAll());
+    EXPECT_FALSE(frame(choice, 60, 80));
+    EXPECT_FALSE(choice.lastWasProbe());
 }
 
 TEST(SelectiveChoice, KeepsSelectiveRaysWhereTracingEveryPixelCostsMore)
