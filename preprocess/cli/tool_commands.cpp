@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <new>
 
 #include "penumbra/error.h"
 #include "penumbra/generate.h"
@@ -105,7 +106,25 @@ void printStreamed(const std::string& path, const StreamedStats& stats, uint64_t
                 double(stats.inputTriangles) / std::max(seconds, 1e-9) * 1e-6);
 }
 
+int preprocessCommand(const PreprocessArgs& args);
+
+// Out of memory (an allocation refused: a ulimit -v, a container's limit) names the input and
+// what to change.
 int runPreprocess(const PreprocessArgs& args)
+{
+    try {
+        return preprocessCommand(args);
+    } catch (const std::bad_alloc&) {
+        if (args.memoryLimitMiB > 0 || !args.chunk.empty())
+            fail(args.input, "out of memory with --memory-limit " + std::to_string(args.memoryLimitMiB ? args.memoryLimitMiB : 1024) +
+                                 " (MiB): an allocation within that budget was refused (a ulimit or container limit below "
+                                 "it?); lower --memory-limit or --threads");
+        fail(args.input, "out of memory preprocessing it whole; build it out of core with --memory-limit MIB, or with fewer "
+                         "--threads");
+    }
+}
+
+int preprocessCommand(const PreprocessArgs& args)
 {
     std::vector<float> ratios = parseRatios(args.simplify);
     const bool streamed = args.memoryLimitMiB > 0 || !args.chunk.empty();

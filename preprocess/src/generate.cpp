@@ -18,27 +18,6 @@ namespace penumbra {
 
 namespace detail {
 
-void parallelFor(uint64_t count, const std::function<void(uint64_t)>& body)
-{
-    const uint64_t threads = std::min<uint64_t>(count, std::max(1u, std::thread::hardware_concurrency()));
-    if (threads <= 1) {
-        for (uint64_t i = 0; i < count; ++i)
-            body(i);
-        return;
-    }
-    std::atomic<uint64_t> next{0};
-    auto worker = [&] {
-        for (uint64_t i = next++; i < count; i = next++)
-            body(i);
-    };
-    std::vector<std::thread> pool;
-    for (uint64_t t = 1; t < threads; ++t)
-        pool.emplace_back(worker);
-    worker();
-    for (auto& thread : pool)
-        thread.join();
-}
-
 int spiralRadius(uint64_t count)
 {
     if (count <= 1)

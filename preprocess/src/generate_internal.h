@@ -9,6 +9,7 @@
 #include <glm/vec2.hpp>
 
 #include "mesh_builder.h"
+#include "penumbra/parallel.h"
 #include "penumbra/generate.h"
 
 namespace penumbra::detail {
@@ -38,8 +39,11 @@ inline uint64_t mixSeed(uint64_t seed, uint64_t salt)
     return rng.next();
 }
 
-// Runs body(i) for every i in [0, count) on up to hardware_concurrency threads.
-void parallelFor(uint64_t count, const std::function<void(uint64_t)>& body);
+// Runs body(i) for every i in [0, count) on up to hardware_concurrency threads (penumbra/parallel.h).
+inline void parallelFor(uint64_t count, const std::function<void(uint64_t)>& body)
+{
+    penumbra::parallelFor(0, count, body);
+}
 
 // Cell of the index-th unit when units are laid out in square rings around (0, 0).
 glm::ivec2 spiralCell(uint64_t index);

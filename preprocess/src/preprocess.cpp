@@ -24,31 +24,6 @@
 
 namespace penumbra {
 
-namespace preprocess_detail {
-
-void parallelFor(unsigned threads, uint64_t count, const std::function<void(uint64_t)>& body,
-                 const std::function<void(uint64_t)>& tick)
-{
-    std::atomic<uint64_t> next{0}, done{0};
-    auto worker = [&](bool caller) {
-        for (uint64_t i = next++; i < count; i = next++) {
-            body(i);
-            uint64_t finished = ++done;
-            if (caller && tick)
-                tick(finished);
-        }
-    };
-    const uint64_t extra = std::min<uint64_t>(count, std::max(1u, threads)) - (count > 0 ? 1 : 0);
-    std::vector<std::thread> pool;
-    for (uint64_t t = 0; t < extra; ++t)
-        pool.emplace_back(worker, false);
-    worker(true);
-    for (auto& thread : pool)
-        thread.join();
-}
-
-} // namespace preprocess_detail
-
 using namespace preprocess_detail;
 
 namespace {

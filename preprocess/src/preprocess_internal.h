@@ -10,6 +10,7 @@
 #include <glm/common.hpp>
 #include <glm/vec3.hpp>
 
+#include "penumbra/parallel.h"
 #include "penumbra/preprocess.h"
 
 namespace penumbra::preprocess_detail {
@@ -38,11 +39,9 @@ struct Box {
     }
 };
 
-// Runs body(i) for every i in [0, count) on `threads` threads (the caller is
-// one of them). tick(done), if set, runs on the calling thread only after each
-// item it finished, with the number of items finished so far by all threads.
-void parallelFor(unsigned threads, uint64_t count, const std::function<void(uint64_t)>& body,
-                 const std::function<void(uint64_t)>& tick = {});
+// penumbra/parallel.h: body(i) for every i in [0, count) on `threads` threads,
+// tick on the calling thread; exceptions rethrown after every thread joined.
+using penumbra::parallelFor;
 
 // ceil(log2(n)) for n >= 1.
 inline uint32_t ceilLog2(uint64_t n)

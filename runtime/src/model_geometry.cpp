@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "config.h"
+#include "penumbra/parallel.h"
 #include "surface.h"
 
 namespace penumbra {
@@ -63,14 +64,10 @@ std::vector<float> leafMinimumAltitudes(const CompressedModel& model)
             nodeLeafAltitudes(model, uint32_t(n), altitudes.data() + n * 2 * model::kNodeChildren,
                               altitudes.data() + n * 2 * model::kNodeChildren + model::kNodeChildren);
     };
-    unsigned threads = std::max(1u, std::thread::hardware_concurrency());
-    std::vector<std::thread> pool;
+    const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
     const size_t nodes = model.nodes.size(), per = (nodes + threads - 1) / threads;
-    for (unsigned t = 1; t < threads && t * per < nodes; ++t)
-        pool.emplace_back(work, t * per, std::min(nodes, (t + 1) * per));
-    work(0, std::min(nodes, per));
-    for (std::thread& thread : pool)
-        thread.join();
+    parallelFor(threads, per ? (nodes + per - 1) / per : 0,
+                [&](uint64_t t) { work(size_t(t) * per, std::min(nodes, size_t(t + 1) * per)); });
     return altitudes;
 }
 

@@ -7,9 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -708,6 +710,65 @@ TEST(Streamed, SignalledBuildRemovesItsTemporaryFiles)
         EXPECT_EQ(leftovers(), std::vector<std::string>{});
     }
     EXPECT_GT(interrupted, 0) << "every build ended before its signal: nothing was tested";
+}
+
+// Runs the preprocessing CLI with its address space limited to `bytes` (RLIMIT_AS, as `ulimit -v`
+// does): its exit status, or minus the signal that ended it; its stderr in *err.
+int runWithAddressLimit(const std::vector<std::string>& args, rlim_t bytes, std::string* err)
+{
+    const std::string errors = tmp("address_limit.err");
+    const pid_t pid = fork();
+    if (pid == 0) {
+        std::freopen("/dev/null", "w", stdout);
+        std::freopen(errors.c_str(), "w", stderr);
+        const rlimit limit{bytes, bytes};
+        setrlimit(RLIMIT_AS, &limit);
+        std::vector<char*> argv;
+        for (const std::string& a : args)
+            argv.push_back(const_cast<char*>(a.c_str()));
+        argv.push_back(nullptr);
+        execv(argv[0], argv.data());
+        _exit(127);
+    }
+    int status = 0;
+    waitpid(pid, &status, 0);
+    *err = readBytes(errors);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+}
+
+// Out of memory (an allocation refused under a limit), with many threads: one line naming the
+// input, exit status 1, no model; never std::terminate (a worker thread's std::bad_alloc, or a
+// thread that could not be started, once aborted the process).
+TEST(PreprocessCli, OutOfMemoryIsOneLineNamingTheInput)
+{
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    GTEST_SKIP() << "the sanitizers' shadow memory does not fit under an address-space limit";
+#endif
+    const std::string input = writeInput("address_limit.ply", scene("plant", 300'000));
+    const std::string output = tmp("address_limit.penumbra");
+    int built = 0, refused = 0;
+    for (rlim_t mib : {96, 160, 224, 320, 448, 640, 1024}) {
+        std::filesystem::remove(output);
+        std::string err;
+        const int status = runWithAddressLimit({PENUMBRA_PREPROCESS_CLI, "preprocess", input, "-o", output, "--threads", "16", "--quiet"},
+                                               mib << 20, &err);
+        ASSERT_GE(status, 0) << mib << " MiB: ended by signal " << -status << ": " << err;
+        if (status == 0) {
+            ++built;
+            EXPECT_NO_THROW(openModelFile(output)) << mib << " MiB";
+            continue;
+        }
+        EXPECT_EQ(status, 1) << mib << " MiB: " << err;
+        EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << mib << " MiB: " << err;
+        EXPECT_FALSE(std::filesystem::exists(output)) << mib << " MiB";
+        if (err.rfind("penumbra-preprocess: error: " + input + ": out of memory preprocessing it whole; build it out of core with "
+                      "--memory-limit MIB, or with fewer --threads\n", 0) == 0)
+            ++refused;
+        else
+            EXPECT_EQ(err.rfind("penumbra-preprocess: error: ", 0), 0u) << mib << " MiB: " << err;
+    }
+    EXPECT_GT(refused, 0) << "no limit was too small: nothing was tested";
+    EXPECT_GT(built, 0) << "no limit was large enough";
 }
 
 } // namespace
