@@ -4,7 +4,10 @@ PENUMBRA_TEST_TMP. Plain unittest: python3 tests/python/test_penumbra.py"""
 import os
 import pathlib
 import shutil
+import signal
 import subprocess
+import threading
+import time
 import unittest
 
 import numpy as np
@@ -178,6 +181,33 @@ class Preprocess(unittest.TestCase):
             penumbra.merge([chunks[0], chunks[2]], os.path.join(TMP, "streamed_city_bad.penumbra"))
         with self.assertRaisesRegex(penumbra.Error, "cannot be combined with memory_limit"):
             penumbra.preprocess(ply, os.path.join(TMP, "x.penumbra"), memory_limit=64, simplify=0.5)
+
+    def test_ctrl_c_stops_a_preprocessing_call_and_leaves_no_file(self):
+        ply = os.path.join(TMP, "interrupted_scan.ply")
+        penumbra.generate("scan", ply, triangles=600_000)
+        interrupted = 0
+        for kwargs in ({}, {"memory_limit": 32}):
+            output = os.path.join(TMP, "interrupted_scan.penumbra")
+            if os.path.exists(output):
+                os.remove(output)
+            # SIGINT to this process 0.3 s into the call: Python's handler raises KeyboardInterrupt
+            # in the main thread, which the call's progress checks see while the build runs.
+            timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+            returned = False
+            timer.start()
+            try:
+                with self.assertRaises(KeyboardInterrupt, msg=str(kwargs)):
+                    penumbra.preprocess(ply, output, threads=2, **kwargs)
+                    returned = True
+                    time.sleep(5)  # finished before the signal (a fast machine): it lands here
+            finally:
+                timer.cancel()
+            if returned:
+                continue
+            interrupted += 1
+            self.assertFalse(os.path.exists(output), kwargs)
+            self.assertEqual([f for f in os.listdir(TMP) if f.startswith("interrupted_scan.penumbra.")], [], kwargs)
+        self.assertGreater(interrupted, 0, "every call ended before its signal: nothing was tested")
 
     def test_ground_exposure_tone_curve_and_exr_layers(self):
         frames = {}
