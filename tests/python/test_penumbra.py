@@ -186,6 +186,9 @@ class Preprocess(unittest.TestCase):
         ply = os.path.join(TMP, "interrupted_scan.ply")
         penumbra.generate("scan", ply, triangles=600_000)
         interrupted = 0
+        # As in a terminal: a background job (ctest under nohup, some CI) inherits SIGINT ignored.
+        previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+        self.addCleanup(signal.signal, signal.SIGINT, previous)
         for kwargs in ({}, {"memory_limit": 32}):
             output = os.path.join(TMP, "interrupted_scan.penumbra")
             if os.path.exists(output):
