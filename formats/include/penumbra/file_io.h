@@ -37,9 +37,10 @@ class TrackedTemporary {
 
 // Removes "<path>.tmp-<pid>" files left by processes that no longer run (a
 // writer killed before it could clean up); those of live processes stay.
-// Process ids are this machine's: two machines writing the same output path in
-// a shared folder at the same time (NFS) may remove each other's temporary
-// file, and one of them then fails with a one-line rename error.
+// Process ids are this machine's (this container's): two machines or
+// containers writing the same output path in a shared folder at the same time
+// may remove each other's temporary file, and one of them then fails with a
+// one-line rename error.
 void removeStaleTemporaries(const std::string& path);
 
 // Buffered writer to "<path>.tmp-<pid>"; commit() flushes, closes and renames
