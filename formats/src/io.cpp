@@ -364,6 +364,7 @@ void writeAll(int fd, const char* text)
 
 extern "C" void removeTrackedAndExit(int signalNumber)
 {
+    const int savedErrno = errno;
     char path[kTrackedPathBytes];
     for (TrackedSlot& slot : gTracked) {
         const uint32_t version = slot.version.load(std::memory_order_acquire);
@@ -371,8 +372,8 @@ extern "C" void removeTrackedAndExit(int signalNumber)
             continue;
         std::memcpy(path, slot.path, kTrackedPathBytes);
         path[kTrackedPathBytes - 1] = '\0';
-        std::atomic_thread_fence(std::memory_order_acquire);
-        if (slot.version.load(std::memory_order_relaxed) == version)
+        // A read-modify-write with release order: the copy above cannot move after it.
+        if (slot.version.fetch_add(0, std::memory_order_acq_rel) == version)
             ::unlink(path);
     }
     const char* name = signalNumber == SIGINT ? "SIGINT" : signalNumber == SIGTERM ? "SIGTERM" : "SIGHUP";
@@ -380,8 +381,17 @@ extern "C" void removeTrackedAndExit(int signalNumber)
     writeAll(2, ": interrupted (");
     writeAll(2, name);
     writeAll(2, "); its temporary files removed\n");
-    // SA_RESETHAND restored the default action: the process ends by the signal.
+    // End by the signal here: its default action, unblocked, then raised (the handler never returns).
+    struct sigaction defaultAction {};
+    defaultAction.sa_handler = SIG_DFL;
+    sigemptyset(&defaultAction.sa_mask);
+    ::sigaction(signalNumber, &defaultAction, nullptr);
+    sigset_t unblock;
+    sigemptyset(&unblock);
+    sigaddset(&unblock, signalNumber);
+    ::pthread_sigmask(SIG_UNBLOCK, &unblock, nullptr);
     ::raise(signalNumber);
+    errno = savedErrno; // reached only if the default action does not end the process
 }
 
 } // namespace
@@ -415,7 +425,7 @@ void removeTemporariesOnSignals(const char* program)
     struct sigaction action {};
     action.sa_handler = removeTrackedAndExit;
     sigemptyset(&action.sa_mask);
-    action.sa_flags = SA_RESETHAND;
+    action.sa_flags = 0;
     for (int signalNumber : {SIGINT, SIGTERM, SIGHUP}) {
         struct sigaction previous {};
         // A signal the caller's parent ignores (nohup's SIGHUP) stays ignored.
