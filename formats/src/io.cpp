@@ -450,12 +450,16 @@ void removeStaleTemporaries(const std::string& path)
         const std::string digits = file.substr(prefix.size());
         if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos)
             continue; // not ours: only "<name>.tmp-<pid>" is
-        const long pid = std::strtol(digits.c_str(), nullptr, 10);
-        if (pid > 0 && pid != ::getpid() && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) {
+        if (processIsGone(std::strtol(digits.c_str(), nullptr, 10))) {
             std::error_code ignored;
             std::filesystem::remove(it->path(), ignored);
         }
     }
+}
+
+bool processIsGone(long pid)
+{
+    return pid > 0 && pid != ::getpid() && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH;
 }
 
 AtomicFileWriter::AtomicFileWriter(const std::string& path)

@@ -8,11 +8,11 @@
 #include <atomic>
 #include <cctype>
 #include <cmath>
-#include <thread>
 #include <vector>
 
 #include "generate_internal.h"
 #include "penumbra/error.h"
+#include "penumbra/parallel.h"
 
 namespace penumbra {
 
@@ -96,7 +96,7 @@ Mesh buildUnits(const std::string& subject, uint64_t triangleBudget, uint64_t ma
         if (builder.vertices() != plan.vertices || builder.triangles() != plan.triangles)
             mismatch = true;
     };
-    parallelFor(unitCount + 1, [&](uint64_t unit) {
+    parallelFor(0, unitCount + 1, [&](uint64_t unit) {
         if (unit < unitCount)
             emit(plans[unit], [&](MeshBuilder& b) { buildUnit(b, unit); });
         else

@@ -9,7 +9,6 @@
 #include <glm/vec2.hpp>
 
 #include "mesh_builder.h"
-#include "penumbra/parallel.h"
 #include "penumbra/generate.h"
 
 namespace penumbra::detail {
@@ -37,12 +36,6 @@ inline uint64_t mixSeed(uint64_t seed, uint64_t salt)
     Rng rng(seed ^ (salt * 0xd1b54a32d192ed03ull + 0x632be59bd9b4e019ull));
     rng.next();
     return rng.next();
-}
-
-// Runs body(i) for every i in [0, count) on up to hardware_concurrency threads (penumbra/parallel.h).
-inline void parallelFor(uint64_t count, const std::function<void(uint64_t)>& body)
-{
-    penumbra::parallelFor(0, count, body);
 }
 
 // Cell of the index-th unit when units are laid out in square rings around (0, 0).

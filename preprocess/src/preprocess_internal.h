@@ -39,10 +39,6 @@ struct Box {
     }
 };
 
-// penumbra/parallel.h: body(i) for every i in [0, count) on `threads` threads,
-// tick on the calling thread; exceptions rethrown after every thread joined.
-using penumbra::parallelFor;
-
 // ceil(log2(n)) for n >= 1.
 inline uint32_t ceilLog2(uint64_t n)
 {

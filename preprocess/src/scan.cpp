@@ -13,6 +13,7 @@
 
 #include "generate_internal.h"
 #include "penumbra/error.h"
+#include "penumbra/parallel.h"
 #include "penumbra/file_io.h"
 
 namespace penumbra::detail {
@@ -300,14 +301,14 @@ Scene generateScan(const GenerateOptions& options)
 
     // Vertices, one job per lattice row of an owner block, at the row's place in the array.
     float* out = mesh.positions.data();
-    parallelFor(shape.rowCount(), [&](uint64_t job) {
+    parallelFor(0, shape.rowCount(), [&](uint64_t job) {
         std::vector<float> row(3 * (n + 1));
         uint64_t first = 0, count = 0;
         shape.row(job, row.data(), first, count);
         std::copy(row.begin(), row.begin() + long(3 * count), out + 3 * first);
     });
     uint32_t* tri = mesh.indices.data();
-    parallelFor(6 * n, [&](uint64_t job) { shape.faceRow(job, tri + job * n * 6); });
+    parallelFor(0, 6 * n, [&](uint64_t job) { shape.faceRow(job, tri + job * n * 6); });
 
     MeshBuilder ground(mesh.positions.data(), mesh.indices.data(), shape.statueVertices, shape.statueTriangles,
                        budget - shape.statueTriangles);
@@ -349,7 +350,7 @@ void writeScanPly(const GenerateOptions& options, const std::string& path, uint6
     std::vector<uint64_t> counts(batchRows);
     for (uint64_t first = 0; first < shape.rowCount(); first += batchRows) {
         const uint64_t rows = std::min(batchRows, shape.rowCount() - first);
-        parallelFor(rows, [&](uint64_t r) {
+        parallelFor(0, rows, [&](uint64_t r) {
             uint64_t start = 0;
             shape.row(first + r, &batch[3 * (n + 1) * r], start, counts[r]);
         });
@@ -369,7 +370,7 @@ void writeScanPly(const GenerateOptions& options, const std::string& path, uint6
     };
     for (uint64_t first = 0; first < 6 * n; first += batchRows) {
         const uint64_t rows = std::min(batchRows, 6 * n - first);
-        parallelFor(rows, [&](uint64_t r) { shape.faceRow(first + r, &faces[6 * n * r]); });
+        parallelFor(0, rows, [&](uint64_t r) { shape.faceRow(first + r, &faces[6 * n * r]); });
         writeTriangles(faces.data(), 2 * n * rows);
     }
     writeTriangles(groundIndices.data(), groundCounter.triangles());

@@ -17,7 +17,6 @@
 #include "penumbra/streamed.h"
 
 #include <malloc.h>
-#include <signal.h>
 #include <sys/resource.h>
 #include <unistd.h>
 #include <xxhash.h>
@@ -740,8 +739,7 @@ void removeStaleChunks(const std::string& folder, const std::string& name)
         const size_t at = file.find(".tmp-", name.size());
         if (at == std::string::npos)
             continue;
-        const long pid = std::strtol(file.c_str() + at + 5, nullptr, 10);
-        if (pid > 0 && pid != ::getpid() && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH)
+        if (processIsGone(std::strtol(file.c_str() + at + 5, nullptr, 10)))
             std::filesystem::remove(entry.path(), error);
     }
 }

@@ -31,8 +31,7 @@ void SelectiveChoice::record(double gpuMs)
     // Not timed, and the next frame probes again: the first probe (its shaders may compile in it), and
     // the first frame of every probe of srt's own way (its light views' culling history is as old as
     // the frames that traced every pixel: a camera that moved meanwhile makes it draw more).
-    if (!warmingUp && (!otherWarm || !current)) {
-        otherWarm = true;
+    if (!warmingUp && (otherMs < 0.0 || !current)) {
         warmingUp = true;
         return;
     }

@@ -63,7 +63,6 @@ class SelectiveChoice {
     std::array<double, 4> chosenMs{};
     uint32_t chosenCount = 0;
     bool settled = false; // the chosen way's frames no longer get faster (before the first probe)
-    bool otherWarm = false; // the first probe ran (it is not timed: its shaders may have been compiled in it)
     bool warmingUp = false; // the last frame was a probe's untimed first frame
     double otherMs = -1.0;
 };

@@ -42,6 +42,9 @@ class TrackedTemporary {
 // may remove each other's temporary file, and one of them then fails with a
 // one-line rename error.
 void removeStaleTemporaries(const std::string& path);
+// Whether no process of this machine has id `pid` (another process's leftover
+// temporary file may go); false for this process and for pid <= 0.
+bool processIsGone(long pid);
 
 // Buffered writer to "<path>.tmp-<pid>"; commit() flushes, closes and renames
 // it over path. Destroying an uncommitted writer removes the temporary file,
