@@ -13,9 +13,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <vector>
 
+#include <glm/geometric.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
 #include "penumbra/error.h"
@@ -672,6 +674,68 @@ TEST(Preprocess, FormatLimitsCheckedBeforeTheBuild)
     bigLeaves.maxLeafTriangles = 19;
     EXPECT_NO_THROW(checkModelLimits(40'000'000'000ull, bigLeaves));
     EXPECT_THROW(checkModelLimits(10'000'000'000'000ull, bigLeaves), Error);
+}
+
+// The distance from a point to a triangle, by its own route: the plane when the
+// projection falls inside, else the nearest of the three edges.
+double pointTriangleDistance(glm::dvec3 p, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c)
+{
+    auto segment = [&](glm::dvec3 u, glm::dvec3 v) {
+        const glm::dvec3 e = v - u;
+        const double len2 = glm::dot(e, e);
+        const double t = len2 > 0.0 ? std::clamp(glm::dot(p - u, e) / len2, 0.0, 1.0) : 0.0;
+        return glm::length(p - (u + t * e));
+    };
+    double best = std::min({segment(a, b), segment(b, c), segment(c, a)});
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    const double n2 = glm::dot(n, n);
+    if (n2 > 0.0) {
+        const glm::dvec3 q = p - n * (glm::dot(p - a, n) / n2);
+        const bool inside = glm::dot(glm::cross(b - a, q - a), n) >= 0.0 && glm::dot(glm::cross(c - b, q - b), n) >= 0.0 &&
+                            glm::dot(glm::cross(a - c, q - c), n) >= 0.0;
+        if (inside)
+            best = std::min(best, glm::length(p - q));
+    }
+    return best;
+}
+
+// nearestTriangleDistance (the shadow maps' near planes of lights among the
+// geometry) against every decoded triangle, from points inside and around the model.
+TEST(Preprocess, NearestTriangleDistanceIsTheBruteForceOne)
+{
+    for (const char* name : {"plant", "city"}) {
+        const CompressedModel model = buildCompressedModel(generate(name, 30'000), PreprocessOptions{});
+        std::vector<glm::dvec3> triangles;
+        for (const model::ClusterRecord& cluster : model.clusters) {
+            const uint8_t* begin = model.indices.data() + cluster.firstIndex;
+            forEachStripTriangle(begin, begin + cluster.indexBytes, [&](uint32_t a, uint32_t b, uint32_t c) {
+                for (uint32_t v : {a, b, c})
+                    triangles.push_back(glm::dvec3(decodePosition(cluster, model.vertices[cluster.firstVertex + v])));
+            });
+        }
+        ASSERT_EQ(triangles.size(), 3 * model.triangleCount()) << name;
+        const glm::vec3 lo(model.header.boundsMin[0], model.header.boundsMin[1], model.header.boundsMin[2]);
+        const glm::vec3 hi(model.header.boundsMax[0], model.header.boundsMax[1], model.header.boundsMax[2]);
+        uint32_t seed = 12345;
+        auto next = [&] {
+            seed = seed * 1664525u + 1013904223u;
+            return float(seed >> 8) / float(1u << 24);
+        };
+        for (int i = 0; i < 40; ++i) {
+            // Inside the box, and (every fourth) up to half its size beyond it.
+            const float spread = i % 4 == 3 ? 2.0f : 1.0f;
+            const glm::vec3 t(next(), next(), next());
+            const glm::vec3 point = (lo + hi) * 0.5f + (t - 0.5f) * (hi - lo) * spread;
+            double expected = std::numeric_limits<double>::infinity();
+            for (size_t k = 0; k < triangles.size(); k += 3)
+                expected = std::min(expected, pointTriangleDistance(glm::dvec3(point), triangles[k], triangles[k + 1], triangles[k + 2]));
+            const float found = nearestTriangleDistance(model, point);
+            EXPECT_NEAR(found, expected, 1e-5 * glm::length(hi - lo) + 1e-6 * expected) << name << " point " << i;
+        }
+        // On a triangle: the distance is 0 (to rounding).
+        const glm::vec3 onTriangle = glm::vec3((triangles[0] + triangles[1] + triangles[2]) / 3.0);
+        EXPECT_LE(nearestTriangleDistance(model, onTriangle), 1e-5f * glm::length(hi - lo)) << name;
+    }
 }
 
 TEST(Preprocess, ProgressIsReported)

@@ -296,6 +296,12 @@ float nodeStep(uint8_t exponent);
 // Decoded box of child c of node (exactly the GPU's arithmetic).
 void decodeChildBox(const model::Node& node, uint32_t c, glm::vec3& min, glm::vec3& max);
 
+// The distance from point to the model's nearest triangle, as the GPU decodes
+// the triangles (infinity for a model without nodes). A walk of the BVH that
+// decodes only the leaves nearer than the best triangle so far: a light among
+// the geometry of a 2 M-triangle model takes tens of microseconds.
+float nearestTriangleDistance(const CompressedModel& model, glm::vec3 point);
+
 // Calls fn(a, b, c) with the local vertex indices of every triangle of the
 // strip bytes [begin, end) (restart-separated strips, alternating winding
 // undone so every triangle has its original orientation). Degenerate
