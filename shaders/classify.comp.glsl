@@ -12,7 +12,9 @@
 //    for directional lights d^ = d - w cos(beta) / sin(beta), w the texel width), or
 //  - the shadow map calls the pixel lit but a thin triangle, rasterized
 //    conservatively into the thin map (thin_triangles.comp.glsl), lies in front
-//    of it within its texel (a dropped thin occluder can only darken a pixel).
+//    of it within its texel (a dropped thin occluder can only darken a pixel), or
+//  - the map shadows the pixel from a depth within [d^, d]: what shadows it
+//    may be its own surface (acne) or an occluder touching it.
 // frt mode marks every light-facing pixel and reads no map (none is drawn);
 // sm mode marks none.
 // The mode and the light's type are specialization constants (one pipeline
@@ -61,8 +63,8 @@ void classifyPixel()
     ShadowLookup s = kLightType == PENUMBRA_LIGHT_POINT ? projectToLayer(frame.lights[push.lightIndex].viewProj[layer], layer, p, size)
                                                           : projectToShadowMap(light, p, size);
     // frt draws no map: a light-facing pixel's visibility is its ray's, the others' 0 (as afsm and rh store it).
-    float visibility = kMode == PENUMBRA_CLASSIFY_ALL ? (lightFacing ? 1.0 : 0.0)
-                       : !s.inside || s.depth <= texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r ? 1.0 : 0.0;
+    const float mapNdc = kMode == PENUMBRA_CLASSIFY_ALL ? 1.0 : texelFetch(shadowMap, ivec3(s.texel, s.layer), 0).r;
+    float visibility = kMode == PENUMBRA_CLASSIFY_ALL ? (lightFacing ? 1.0 : 0.0) : !s.inside || s.depth <= mapNdc ? 1.0 : 0.0;
     if (inside)
         imageStore(visibilityImage, pixel, vec4(covered ? visibility : -1.0));
 
@@ -78,7 +80,11 @@ void classifyPixel()
         const float thinDepth = uintBitsToFloat(imageLoad(thinMap, ivec3(thinTexel, s.layer)).r);
         // A thin occluder the shadow map dropped can only darken a pixel the map calls lit.
         const bool thin = visibility == 1.0 && thinOccluderNearer(thinDepth, light, s, d, dHat);
-        mark = lightFacing && s.inside && (discontinuity || thin);
+        // The map shadows the pixel from a depth the receiver's own surface reaches within the texel: the
+        // shadowing surface may be the receiver itself, beyond what the depth bias covers (a curved
+        // surface, a map's depth precision far from a point light), or an occluder touching it.
+        const bool self = visibility == 0.0 && linearLightDepth(light, mapNdc) >= min(dHat, d);
+        mark = lightFacing && s.inside && (discontinuity || thin || self);
     }
     if (inside)
         marks[index] = mark ? 1u : 0u;

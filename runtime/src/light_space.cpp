@@ -86,7 +86,7 @@ ViewProjection cameraViewProjection(const Camera& camera, const Bounds& bounds, 
     return result;
 }
 
-LightProjection lightProjection(const Light& light, const Bounds& bounds)
+LightProjection lightProjection(const Light& light, const Bounds& bounds, float nearestGeometry)
 {
     LightProjection result;
     if (light.type == LightType::Directional) {
@@ -115,9 +115,12 @@ LightProjection lightProjection(const Light& light, const Bounds& bounds)
         glm::vec3 forward = glm::normalize(light.direction);
         glm::mat4 view = glm::lookAtRH(light.position, light.position + forward, stableUp(forward, light.up));
         depthRange(view, bounds, result.nearPlane, result.farPlane);
+        float fov = glm::radians(2.0f * light.outerConeDegrees);
+        // A point of the frustum at distance r has depth at least r cos of its corners' angle to the axis.
+        const float halfTan = std::tan(fov * 0.5f);
+        result.nearPlane = std::max(result.nearPlane, 0.99f * nearestGeometry / std::sqrt(1.0f + 2.0f * halfTan * halfTan));
         if (!(result.farPlane > result.nearPlane))
             result.farPlane = result.nearPlane * 2.0f;
-        float fov = glm::radians(2.0f * light.outerConeDegrees);
         result.viewProj[0] = vulkanClip(glm::perspectiveRH_ZO(fov, 1.0f, result.nearPlane, result.farPlane)) * view;
         result.footprint = 2.0f * std::tan(fov * 0.5f);
         return result;
@@ -130,7 +133,8 @@ LightProjection lightProjection(const Light& light, const Bounds& bounds)
     for (int i = 0; i < 8; ++i)
         farthest = std::max(farthest, glm::length(corner(bounds, i) - light.position));
     result.farPlane = std::max(farthest * 1.01f, 1e-3f);
-    result.nearPlane = std::max(glm::length(nearest - light.position) * 0.5f, result.farPlane * 1e-4f);
+    // A cube face's corners lie at 1 / sqrt(3) of their distance along its axis: 0.5 is below.
+    result.nearPlane = std::max(std::max(glm::length(nearest - light.position), nearestGeometry) * 0.5f, result.farPlane * 1e-4f);
     if (!(result.farPlane > result.nearPlane))
         result.farPlane = result.nearPlane * 2.0f;
     result.layers = 6;
@@ -174,7 +178,7 @@ LightProjection fitDirectionalToView(const LightProjection& modelFit, glm::vec3 
     return result;
 }
 
-AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up, const Bounds& bounds)
+AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up, const Bounds& bounds, float nearestGeometry)
 {
     AreaMapProjection result;
     glm::vec3 forward = glm::length(axis) > 0.0f ? glm::normalize(axis) : glm::vec3(0, -1, 0);
@@ -199,6 +203,8 @@ AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up,
     halfTan = result.capped ? capTan : halfTan;
     result.farPlane = std::max(farthest * 1.01f, 1e-3f);
     result.nearPlane = behind ? result.farPlane * 1e-4f : std::max(nearest * 0.99f, result.farPlane * 1e-4f);
+    // A point of the frustum at distance r has depth at least r cos of its corners' angle to the axis.
+    result.nearPlane = std::max(result.nearPlane, 0.99f * nearestGeometry / std::sqrt(1.0f + 2.0f * halfTan * halfTan));
     if (!(result.farPlane > result.nearPlane))
         result.farPlane = result.nearPlane * 2.0f;
     result.footprint = 2.0f * halfTan;

@@ -30,7 +30,17 @@ struct LightProjection {
     glm::mat4 view{1.0f};
     glm::vec4 orthoRect{0.0f};
 };
-LightProjection lightProjection(const Light& light, const Bounds& bounds);
+// nearestGeometry: a point or spot light's distance to the model's nearest
+// triangle (nearestTriangleDistance; 0: not known). Every depth layer then
+// starts at the nearest depth that geometry can have in it, not at the model
+// box's (0 for a light among the geometry, clamped to far / 10^4): depth is
+// stored as z/w in 32-bit floats, so near / far sets its precision far from
+// the light, and 10^-4 left about 2 cm per step at 40 units from a light
+// whose range is 92, below the depth bias: acne. A spot light inside the
+// 250 k plant, pointing down: sm's pixels in its cone that differ from frt's
+// went from 15% to 7.7% with this, srt's from 6.6% to 0.25% with it and
+// classify's test of a shadow from within [d^, d].
+LightProjection lightProjection(const Light& light, const Bounds& bounds, float nearestGeometry = 0.0f);
 
 // Directional lights, fitted to the view: narrows the model-fitted map in x
 // and y to the light-space bounds of the surface the camera sees, given in the
@@ -53,7 +63,8 @@ struct AreaMapProjection {
     bool capped = false;
     glm::mat4 view{1.0f};  // the map's view (eye at the origin, looking down -z)
 };
-AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up, const Bounds& bounds);
+// nearestGeometry: the eye's distance to the model's nearest triangle, as for lightProjection (0: not known).
+AreaMapProjection areaMapProjection(glm::vec3 eye, glm::vec3 axis, glm::vec3 up, const Bounds& bounds, float nearestGeometry = 0.0f);
 
 // Area-light map fitted to the view: a narrower map from the same eye, its
 // axis through the middle of the camera's visible points (given by their

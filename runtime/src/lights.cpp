@@ -6,6 +6,7 @@
 
 #include "light_space.h"
 #include "penumbra/light_sampling.h"
+#include "penumbra/model_format.h"
 #include "shadow_methods.h"
 
 namespace penumbra {
@@ -56,8 +57,10 @@ std::vector<glm::vec3> areaMapEyes(const Light& light, glm::vec3 axis, const Bou
 // viewClip (RenderSettings::fitShadowMapsToView): per map of the light (a
 // directional light's one, an area light's spotCosLayers.w), the bounds its
 // map is fitted to.
-gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings, const ViewClip* viewClip)
+gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings, const ViewClip* viewClip,
+                         const CompressedModel* model)
 {
+    auto nearestGeometry = [&](glm::vec3 point) { return model ? nearestTriangleDistance(*model, point) : 0.0f; };
     gpu::LightData data{};
     if (isAreaLight(light)) {
         glm::vec3 u, v;
@@ -70,7 +73,7 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderS
         axis = glm::length(axis) > 0.0f ? glm::normalize(axis) : glm::vec3(0, -1, 0);
         std::vector<glm::vec3> eyes = areaMapEyes(light, axis, bounds, settings);
         for (size_t k = 0; k < eyes.size(); ++k) {
-            AreaMapProjection map = areaMapProjection(eyes[k], axis, light.up, bounds);
+            AreaMapProjection map = areaMapProjection(eyes[k], axis, light.up, bounds, nearestGeometry(eyes[k]));
             if (viewClip && viewClip[k].valid) {
                 // srt: an occluder beside the visible points throws penumbra onto them from
                 // light points up to Rbig off the eye (penumbra_mask.comp.glsl), so the map
@@ -93,7 +96,8 @@ gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderS
         }
         data.spotCosLayers = glm::vec4(1.0f, 1.0f, 1.0f, float(eyes.size()));
     } else {
-        LightProjection projection = lightProjection(light, bounds);
+        LightProjection projection =
+            lightProjection(light, bounds, light.type == LightType::Directional ? 0.0f : nearestGeometry(light.position));
         const float modelFootprint = projection.footprint;
         if (viewClip && viewClip[0].valid)
             projection = fitDirectionalToView(projection, viewClip[0].min, viewClip[0].max, settings.shadowMapSize);

@@ -24,6 +24,10 @@ std::vector<glm::vec3> areaMapEyes(const Light& light, glm::vec3 axis, const Bou
 // viewClip (RenderSettings::fitShadowMapsToView): per map of the light (a
 // directional light's one, an area light's spotCosLayers.w), the bounds its
 // map is fitted to; null: every map fitted to the model.
-gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings, const ViewClip* viewClip = nullptr);
+// model: the loaded model, whose nearest triangle to a point or spot light,
+// or to an area light's map eyes, the maps' near planes go up to
+// (light_space.h: lightProjection); null: the model's box alone.
+gpu::LightData packLight(const Light& light, const Bounds& bounds, const RenderSettings& settings, const ViewClip* viewClip = nullptr,
+                         const CompressedModel* model = nullptr);
 
 } // namespace penumbra

@@ -213,7 +213,8 @@ struct Renderer::Impl::FrameScript {
         data.pip = glm::vec4(float(PENUMBRA_PIP_DELTA_FRACTION), 0.0f, 0.0f, 0.0f);
         uint32_t maxLayers = 1;
         for (size_t i = 0; i < lights.size(); ++i) {
-            data.lights[i] = packLight(lights[i], bounds, s);
+            // The maps of lights among the geometry start at the nearest triangle's depth (light_space.h: lightProjection).
+            data.lights[i] = packLight(lights[i], bounds, s, nullptr, r.model ? &*r.model : nullptr);
             maxLayers = std::max(maxLayers, layers(uint32_t(i)));
         }
         if (r.targets.ensure(r.device, s.width, s.height, s.shadowMapSize, maxLayers))
@@ -665,7 +666,7 @@ struct Renderer::Impl::FrameScript {
                     afsmLayers[i] = afsmAreaLayers(lights[i], bounds, cube, &clips[0], r.targets.afsmGrid);
                     afsmCube[i] = cube;
                 } else {
-                    data.lights[i] = packLight(lights[i], bounds, settings, clips);
+                    data.lights[i] = packLight(lights[i], bounds, settings, clips, r.model ? &*r.model : nullptr);
                 }
             }
             if (receiverGridMask & (1u << i))
