@@ -194,8 +194,8 @@ bool thinInModelSpace(vec3 a, vec3 b, vec3 c)
 
 // False unless triangle (v0, v1, v2) (projectVertex; m0, m1, m2: the same vertices in model space, in
 // any order) is long and narrow in model space (thinInModelSpace) and a sliver whose
-// rectangle is filled: in front of the light's near plane, its depth not
-// clipped, under PENUMBRA_THIN_TEXELS texels high over its longest edge, at
+// rectangle is filled: in front of the light's eye plane (its depth clamped
+// at the near plane's), under PENUMBRA_THIN_TEXELS texels high over its longest edge, at
 // least that long and at least PENUMBRA_THIN_ASPECT times longer than high.
 // Slivers only (long and narrow: wires, poles, bars): triangles small in
 // every direction belong to dense surfaces whose neighbours cover the
@@ -208,11 +208,15 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, vec3 m0, vec3 m1, vec3 m2, out Sliver
     // Every test computed and the rectangle filled whatever they say, their results combined at the
     // end: on lavapipe an early return puts the rest under an execution mask, for every triangle.
     const bool modelThin = thinInModelSpace(m0, m1, m2);
-    // Crossing the light's near plane: the shadow map clips it too.
+    // Crossing the light's eye plane: left out (its projection is not a triangle's).
     const bool front = v0.w != 0.0 && v1.w != 0.0 && v2.w != 0.0;
-    r.zMin = min(min(min(1.0, v0.z), v1.z), v2.z);
-    // The rectangle's depth would be clipped (zMin <= 1 by construction).
-    const bool unclipped = r.zMin >= 0.0;
+    // A vertex between the eye and the near plane (NDC depth below 0) lies outside the map's frustum:
+    // nothing inside is nearer than the near plane (light_space.h: the nearest triangle's depth), so
+    // the part of the sliver inside is at depth 0 or more, and 0 is its conservative depth. Such a
+    // sliver was left out once; with near planes at the nearest triangle, a long sliver reaching past
+    // the light from beside it (a cable by a street light) would have been lost for every face.
+    const float zNearest = min(min(min(1.0, v0.z), v1.z), v2.z);
+    r.zMin = max(zNearest, 0.0);
     // Longest edge A -> B (the first of equally long ones), third vertex C: chosen with selects, not
     // by indexing an array with the lane's edge (llvmpipe keeps such an array in per-lane memory).
     const float l0 = distance(v0.xy, v1.xy), l1 = distance(v1.xy, v2.xy), l2 = distance(v2.xy, v0.xy);
@@ -235,12 +239,14 @@ bool sliverRect(vec4 v0, vec4 v1, vec4 v2, vec3 m0, vec3 m1, vec3 m2, out Sliver
     r.d1 = max(longest, along) + e_d;
     r.n0 = min(0.0, c) - e_n;
     r.n1 = max(0.0, c) + e_n;
-    r.zA = vA.z;
-    r.zB = vB.z;
-    r.zC = vC.z;
+    // Area lights' per-texel depths, interpolated along the edges: with a vertex clamped they would
+    // not be conservative, so the whole sliver takes depth 0 then.
+    r.zA = zNearest < 0.0 ? 0.0 : vA.z;
+    r.zB = zNearest < 0.0 ? 0.0 : vB.z;
+    r.zC = zNearest < 0.0 ? 0.0 : vC.z;
     r.longest = longest;
     r.along = along;
-    return modelThin && front && unclipped && shape;
+    return modelThin && front && shape;
 }
 
 // `into` grown to hold rectangle r, in into's frame (r's corners projected
