@@ -101,6 +101,13 @@ void areaLightAxes(const Light& light, glm::vec3& u, glm::vec3& v)
 
 void validateLight(const Light& light, const std::string& subject)
 {
+    // The C++ and Python APIs take any floats (JSON and the command line cannot spell NaN or infinity): a
+    // light at NaN would give NaN shadow-map matrices and a walk of the whole BVH for its nearest triangle.
+    auto finite = [](glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
+    if (!finite(light.position) || !finite(light.direction) || !finite(light.up) || !finite(light.color) ||
+        !std::isfinite(light.intensity) || !std::isfinite(light.range) || !std::isfinite(light.innerConeDegrees) ||
+        !std::isfinite(light.outerConeDegrees) || !std::isfinite(light.width) || !std::isfinite(light.height) || !std::isfinite(light.radius))
+        fail(subject, "its position, direction, up, colour and numbers must be finite");
     if (glm::length(light.direction) == 0.0f && light.type != LightType::Point && light.type != LightType::Sphere)
         fail(subject, "'direction' must not be zero");
     if (light.intensity < 0.0f || light.range < 0.0f || light.width <= 0.0f || light.height <= 0.0f || light.radius <= 0.0f)

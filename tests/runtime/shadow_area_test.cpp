@@ -137,6 +137,15 @@ TEST(Renderer, RejectsBadSettingsWithClearErrors)
         EXPECT_NE(std::string(e.what()).find("image size"), std::string::npos) << e.what();
     }
     EXPECT_THROW(renderer.setLights(std::vector<Light>(9)), Error);
+    Light notANumber;
+    notANumber.type = LightType::Point;
+    notANumber.position.x = std::nanf("");
+    try {
+        renderer.setLights({notANumber});
+        ADD_FAILURE() << "a light at NaN was taken";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()), "light 0: its position, direction, up, colour and numbers must be finite");
+    }
     EXPECT_THROW(renderer.loadModel(Mesh{}), Error);
     RendererOptions options;
     options.device = "no-such-device-xyz";
