@@ -677,8 +677,7 @@ std::string summaryMarkdown(const SuiteResults& results, const std::vector<std::
 
     md << "\n## Time per stage (Figure 9)\n\n"
           "Median GPU ms per stage: raster = camera + shadow_map, PIP = thin_triangles + penumbra_mask (soft) + "
-          "classify, compaction = compact, trace, shading = shade, transfers = readback to the CPU. On lavapipe the "
-          "timestamp after compaction sometimes lands after the trace dispatch: read compaction + trace as one sum. "
+          "classify, compaction = compact, trace, shading = shade, transfers = readback to the CPU. "
           "Total is the sum of the stage medians, so it can differ from the median frame time above.\n\n";
     md << "| scene | shadow | method";
     for (const char* group : kStageGroups)

@@ -35,6 +35,8 @@ struct PredicatePush {
 static_assert(sizeof(PredicatePush) == 40);
 
 constexpr VkDeviceSize kCommandBytes = sizeof(VkDrawIndexedIndirectCommand);
+// Queries per view: its first and last timestamps, each written twice (vk::writeTimestamp).
+constexpr uint32_t kViewTimestampQueries = 2 * vk::kTimestampQueries;
 
 // Box pipeline: the cull_box.vert triangles, depth test LESS_OR_EQUAL (as the
 // geometry), no depth or colour writes, no depth bias (a query box is never
@@ -435,14 +437,14 @@ void Culling::beginFrame(vk::Device& device, CullMode cullMode, bool adaptiveOcc
         commandCount += uint32_t(plan.firstPhase.size() + plan.finalPhase.size());
         plans.push_back(std::move(plan));
     }
-    if (2 * plans.size() > timestampCapacity) {
+    if (kViewTimestampQueries * plans.size() > timestampCapacity) {
         if (timestampPool)
             vkDestroyQueryPool(device.device, timestampPool, nullptr);
         timestampPool = VK_NULL_HANDLE;
         timestampCapacity = 0;
         VkQueryPoolCreateInfo info{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
         info.queryType = VK_QUERY_TYPE_TIMESTAMP;
-        info.queryCount = 2 * uint32_t(plans.size());
+        info.queryCount = kViewTimestampQueries * uint32_t(plans.size());
         VK_CHECK(vkCreateQueryPool(device.device, &info, nullptr, &timestampPool));
         timestampCapacity = info.queryCount;
     }
@@ -517,7 +519,7 @@ void Culling::resetQueries(VkCommandBuffer cmd)
     if (queryCount)
         vkCmdResetQueryPool(cmd, queryPool, 0, queryCount);
     if (!plans.empty())
-        vkCmdResetQueryPool(cmd, timestampPool, 0, 2 * uint32_t(plans.size()));
+        vkCmdResetQueryPool(cmd, timestampPool, 0, kViewTimestampQueries * uint32_t(plans.size()));
 }
 
 void Culling::drawList(VkCommandBuffer cmd, const GpuGeometry& geometry, uint32_t firstCommand,
@@ -591,13 +593,13 @@ std::vector<uint32_t> Culling::finalDrawn(vk::Device& device, uint32_t view) con
 void Culling::resetViewTimestamps(VkCommandBuffer cmd, uint32_t view) const
 {
     if (view < plans.size())
-        vkCmdResetQueryPool(cmd, timestampPool, 2 * view, 2);
+        vkCmdResetQueryPool(cmd, timestampPool, kViewTimestampQueries * view, kViewTimestampQueries);
 }
 
 void Culling::markView(VkCommandBuffer cmd, uint32_t view, bool end) const
 {
     if (view < plans.size())
-        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * view + (end ? 1 : 0));
+        vk::writeTimestamp(cmd, timestampPool, kViewTimestampQueries * view + (end ? vk::kTimestampQueries : 0));
 }
 
 void drawClusters(VkCommandBuffer cmd, const GpuGeometry& geometry, const CullModel& model, const uint32_t* clusters, size_t count)
@@ -618,12 +620,9 @@ void drawClusters(VkCommandBuffer cmd, const GpuGeometry& geometry, const CullMo
 void Culling::recordView(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry,
                          const BeginRendering& begin, const EndRendering& end)
 {
-    const bool timed = viewIndex < plans.size();
-    if (timed)
-        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * viewIndex);
+    markView(cmd, viewIndex, false);
     recordPhases(cmd, viewIndex, geometry, begin, end);
-    if (timed)
-        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, timestampPool, 2 * viewIndex + 1);
+    markView(cmd, viewIndex, true);
 }
 
 void Culling::recordViewAgain(VkCommandBuffer cmd, uint32_t viewIndex, const GpuGeometry& geometry, const BeginRendering& begin,
@@ -738,7 +737,7 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
     if (!model)
         return out;
     std::vector<uint32_t> results(queryCount);
-    std::vector<uint64_t> ticks(2 * plans.size());
+    std::vector<uint64_t> ticks(kViewTimestampQueries * plans.size());
     if (!ticks.empty())
         vk::readQueryResults(device, timestampPool, 0, uint32_t(ticks.size()), ticks.size() * sizeof(uint64_t), ticks.data(),
                              sizeof(uint64_t), VK_QUERY_RESULT_64_BIT, "the culled views' timestamps");
@@ -752,7 +751,7 @@ std::vector<ViewCullStats> Culling::endFrame(vk::Device& device)
         stats.clustersBesideReceivers = plan.clustersBesideReceivers;
         stats.cpuMs = plan.cpuMs;
         const size_t v = &plan - plans.data();
-        stats.gpuMs = double(ticks[2 * v + 1] - ticks[2 * v]) * timestampPeriodNs * 1e-6;
+        stats.gpuMs = double(ticks[kViewTimestampQueries * v + vk::kTimestampQueries] - ticks[kViewTimestampQueries * v]) * timestampPeriodNs * 1e-6;
         const uint32_t groupCount = uint32_t(plan.groupQueryBegin.size());
         const uint32_t historyCount = uint32_t(plan.historyQueryBegin.size());
         stats.queriesIssued = groupCount + historyCount;

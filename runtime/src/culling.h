@@ -219,7 +219,7 @@ struct Culling {
                predicatePipeline = VK_NULL_HANDLE;
     VkQueryPool queryPool = VK_NULL_HANDLE;
     uint32_t queryCapacity = 0;
-    VkQueryPool timestampPool = VK_NULL_HANDLE; // two per view: before and after its passes
+    VkQueryPool timestampPool = VK_NULL_HANDLE; // per view: before and after its passes, each twice (vk::writeTimestamp)
     uint32_t timestampCapacity = 0;
     float timestampPeriodNs = 1.0f;
     vk::Buffer

@@ -166,6 +166,12 @@ bool drainFence(Device& device, VkFence fence)
     return !device.hung; // a lost device's work is over
 }
 
+void writeTimestamp(VkCommandBuffer cmd, VkQueryPool pool, uint32_t query)
+{
+    vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool, query);
+    vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool, query + 1);
+}
+
 void readQueryResults(Device& device, VkQueryPool pool, uint32_t first, uint32_t count, size_t bytes, void* data, VkDeviceSize stride,
                       VkQueryResultFlags flags, const std::string& what)
 {

@@ -76,6 +76,16 @@ bool drainFence(Device& device, VkFence fence);
 // without VK_QUERY_RESULT_WAIT_BIT so a lost or hung device cannot block it.
 void readQueryResults(Device& device, VkQueryPool pool, uint32_t first, uint32_t count, size_t bytes, void* data, VkDeviceSize stride,
                       VkQueryResultFlags flags, const std::string& what);
+// A pass timer's timestamp: writes `query` (the one read), then `query + 1`
+// (never read; the pool holds kTimestampQueries queries per timestamp, both
+// reset before). lavapipe (llvmpipe 22.3) bins a timestamp into the
+// rasterizer's next scene and takes the time when that scene runs: at the next
+// flush, which the next timestamp's write makes. After a timestamp, a pass of
+// compute work alone flushes nothing, so its time was counted in the pass
+// before it (the frames' compact held the soft trace's seconds, and the trace
+// the shade's). The second write flushes the first at once.
+constexpr uint32_t kTimestampQueries = 2;
+void writeTimestamp(VkCommandBuffer cmd, VkQueryPool pool, uint32_t query);
 // Throws when an earlier submission failed: nothing more is recorded on this device.
 void checkUsable(const Device& device);
 

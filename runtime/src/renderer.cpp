@@ -86,7 +86,7 @@ struct PassTimer {
             submitAndRestart(); // names the passes up to this one if the device fails
             hostEnds.push_back(hostClockMs());
         }
-        vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool, uint32_t(ended.size() - 1));
+        vk::writeTimestamp(cmd, pool, vk::kTimestampQueries * uint32_t(ended.size() - 1));
     }
 };
 
@@ -1018,9 +1018,12 @@ Frame Renderer::Impl::FrameScript::finish(std::chrono::steady_clock::time_point 
     }
 
     // Timings and counters.
-    std::vector<uint64_t> ticks(timer.ended.size());
-    vk::readQueryResults(r.device, r.queryPool, 0, uint32_t(ticks.size()), ticks.size() * sizeof(uint64_t), ticks.data(), sizeof(uint64_t),
+    // Each timestamp's first query (vk::writeTimestamp).
+    std::vector<uint64_t> queries(vk::kTimestampQueries * timer.ended.size()), ticks(timer.ended.size());
+    vk::readQueryResults(r.device, r.queryPool, 0, uint32_t(queries.size()), queries.size() * sizeof(uint64_t), queries.data(), sizeof(uint64_t),
                          VK_QUERY_RESULT_64_BIT, "the frame's timestamps");
+    for (size_t i = 0; i < ticks.size(); ++i)
+        ticks[i] = queries[vk::kTimestampQueries * i];
     const double period = r.device.properties.limits.timestampPeriod * 1e-6; // ms per tick
     double passMs[size_t(PassId::Count)] = {};
     bool ran[size_t(PassId::Count)] = {};
@@ -1122,7 +1125,7 @@ Frame Renderer::Impl::render(const RenderSettings& settings)
     }
 
     frame.beginCommands();
-    vkCmdResetQueryPool(commandBuffer, queryPool, 0, kMaxTimestamps);
+    vkCmdResetQueryPool(commandBuffer, queryPool, 0, vk::kTimestampQueries * kMaxTimestamps);
     culling.resetQueries(commandBuffer);
     if (!readBack)
         shadowCulling.resetQueries(commandBuffer);

@@ -28,7 +28,7 @@ void Renderer::Impl::create()
 
     VkQueryPoolCreateInfo queryInfo{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
     queryInfo.queryType = VK_QUERY_TYPE_TIMESTAMP;
-    queryInfo.queryCount = kMaxTimestamps;
+    queryInfo.queryCount = vk::kTimestampQueries * kMaxTimestamps;
     VK_CHECK(vkCreateQueryPool(device.device, &queryInfo, nullptr, &queryPool));
     VkCommandBufferAllocateInfo cmdInfo{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
     cmdInfo.commandPool = device.commandPool;
