@@ -67,7 +67,8 @@ std::vector<double> stageTimes(const Record& r)
     return times;
 }
 
-// Compaction + trace (lavapipe's timestamps split them unreliably).
+// Compaction + trace: the tracer's whole cost (before stop 48 lavapipe's timestamps could split
+// them wrongly; vk::writeTimestamp).
 double srtTraceMs(const Record& r)
 {
     std::vector<double> times = stageTimes(r);

@@ -30,13 +30,14 @@ namespace {
 
 // Timestamps between the passes: interval i ends at timestamp i + 1.
 //
-// On lavapipe these intervals do not hold the pass they are named for:
 // llvmpipe takes a timestamp when its rasterizer threads reach it in the
-// scene being binned, at a later flush, while compute runs on the queue's
-// thread at once; a pass's time lands in a neighbouring interval (a 1024^2
-// view fit read as 60 ms in ordinary frames and as 0.05 ms in floor frames,
-// where its own work is 3 ms). The frame's total is right. Floor frames
-// (RenderSettings::measureFloors) are therefore timed on the host: every
+// scene being binned, at the next flush, while compute runs on the queue's
+// thread at once: written once, a pass's time landed in a neighbouring
+// interval (a 1024^2 view fit read as 60 ms in ordinary frames and as 0.05 ms
+// in floor frames, where its own work is 3 ms). Each timestamp is written
+// twice (vk::writeTimestamp): the second write's flush takes the first at
+// once. Floor frames (RenderSettings::measureFloors) are timed on the host,
+// beside their floors, each pass submitted alone: every
 // interval ends with a submission and a wait, and lasts from the end of the
 // previous wait to the end of its own (recording and one round trip included).
 // With PENUMBRA_FLOOR_CLOCK=cpu they count the process's CPU time instead of
